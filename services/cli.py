@@ -1,0 +1,81 @@
+"""`hamnet`: one command for every service and tool of the stack.
+
+`hamnet <command> [options]` runs one command; `hamnet <command> --help` documents its
+options. Commands whose service is not built yet say so and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from hamnet import __version__
+
+
+@dataclass(frozen=True)
+class Command:
+    """One entry of `hamnet --help`."""
+
+    name: str
+    summary: str
+    module: str | None
+    """Module with `main(argv) -> int`; None while the command is not built."""
+    issue: int | None = None
+    """Issue that builds it, for commands not built yet."""
+
+
+COMMANDS: tuple[Command, ...] = (
+    Command("sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", None, 3),
+    Command("bridge", "real FR3 in place of the sim (same contract)", None, None),
+    Command("perception", "point clouds and UniCORN tokens", None, 6),
+    Command("policy", "HAMnet and baseline inference with hot-reloaded weights", None, 5),
+    Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", None, 4),
+    Command("trainer", "PPO and DAgger from streamed rollouts", None, None),
+    Command("monitor", "live Rerun view of the whole stack", None, 7),
+    Command("record", "record topics to MCAP", None, 7),
+    Command("replay", "replay an MCAP recording onto Zenoh", None, 7),
+    Command("up", "run a stack file: start, supervise and stop its services", "hamnet.launcher.cli"),
+    Command("router", "Zenoh router for multi-machine deployments", "hamnet.tools.router"),
+    Command("topics", "list every key expression with its message type and publisher", "hamnet.tools.topics"),
+    Command("echo", "print, count or reflect what is published on the stack", "hamnet.tools.echo"),
+)
+"""Every command of `hamnet`, in the order `--help` lists them."""
+
+
+def usage() -> str:
+    """Text of `hamnet --help`."""
+    width = max(len(c.name) for c in COMMANDS)
+    lines = [
+        f"hamnet {__version__}: HAMnet non-prehensile manipulation stack",
+        "",
+        "usage: hamnet <command> [options]      hamnet <command> --help",
+        "",
+        "commands:",
+    ]
+    for command in COMMANDS:
+        status = "" if command.module else "  [not built yet]"
+        lines.append(f"  {command.name:<{width}}  {command.summary}{status}")
+    lines += ["", "Start with: hamnet up compose/demo.yaml"]
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Dispatch `hamnet <command> ...`; returns the process exit status."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print(usage())
+        return 0 if args else 2
+    if args[0] == "--version":
+        print(__version__)
+        return 0
+    command = next((c for c in COMMANDS if c.name == args[0]), None)
+    if command is None:
+        print(f"hamnet: unknown command {args[0]!r}\n\n{usage()}", file=sys.stderr)
+        return 2
+    if command.module is None:
+        issue = f" (issue #{command.issue})" if command.issue else ""
+        print(f"hamnet {command.name}: not built yet{issue}. {command.summary}.", file=sys.stderr)
+        return 2
+    return importlib.import_module(command.module).main(args[1:])

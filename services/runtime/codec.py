@@ -1,0 +1,69 @@
+"""Payload bytes <-> protobuf messages, with the checks every receiver needs.
+
+`decode` parses a payload and validates every Tensor inside it (known dtype, byte count
+matching the shape, and, for topics that require it, only finite floats), so that a
+malformed payload becomes one `PayloadError` with a reason instead of an exception deep in
+a service. Services add their own shape checks when they turn messages into arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TypeVar
+
+from google.protobuf.descriptor import FieldDescriptor
+from google.protobuf.message import DecodeError, Message
+
+from hamnet.proto.common_pb2 import Tensor
+from hamnet.runtime.tensor import PayloadError, from_tensor
+
+M = TypeVar("M", bound=Message)
+
+
+def encode(message: Message) -> bytes:
+    """Serialize a message for the wire."""
+    return message.SerializeToString()
+
+
+def decode(message_type: type[M], payload: bytes, finite: bool = True) -> M:
+    """Parse `payload` as `message_type` and validate its tensors.
+
+    Raises:
+        PayloadError: reason `decode` when the bytes are not a valid message, else the
+            reason of the first invalid tensor (dtype, shape, nonfinite).
+    """
+    message = message_type()
+    try:
+        message.ParseFromString(payload)
+    except (DecodeError, ValueError, RuntimeError) as error:
+        raise PayloadError("decode", f"not a {message_type.DESCRIPTOR.full_name}: {error}") from None
+    for path, tensor in iter_tensors(message):
+        try:
+            from_tensor(tensor, finite=finite)
+        except PayloadError as error:
+            raise PayloadError(error.reason, f"{path}: {error.detail}") from None
+    return message
+
+
+def iter_tensors(message: Message, prefix: str = "") -> Iterator[tuple[str, Tensor]]:
+    """Every set Tensor inside `message` (nested, repeated and map fields), with its path."""
+    if isinstance(message, Tensor):
+        yield prefix.rstrip(".") or "tensor", message
+        return
+    for field, value in message.ListFields():
+        if field.message_type is None:
+            continue
+        path = f"{prefix}{field.name}"
+        if _is_map(field):
+            if field.message_type.fields_by_name["value"].message_type is not None:
+                for key, item in value.items():
+                    yield from iter_tensors(item, f"{path}[{key}].")
+        elif field.is_repeated:
+            for index, item in enumerate(value):
+                yield from iter_tensors(item, f"{path}[{index}].")
+        else:
+            yield from iter_tensors(value, f"{path}.")
+
+
+def _is_map(field: FieldDescriptor) -> bool:
+    return field.message_type is not None and field.message_type.GetOptions().map_entry

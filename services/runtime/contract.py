@@ -1,0 +1,110 @@
+"""The topic contract: every key expression of the stack, its message type and publisher.
+
+This table is the single source of `hamnet topics`, of the typed decoding used by tools
+that listen to everything (echo, monitor, recorder), and of the random-payload tests.
+Keys are `hamnet/<ns>/<path>`, where `<path>` holds placeholders such as `<w>` (worker).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from google.protobuf.message import Message
+
+from hamnet.proto import health_pb2, perception_pb2, policy_pb2, safety_pb2, sim_pb2, trainer_pb2
+from hamnet.runtime import keys
+
+_PLACEHOLDER = re.compile(r"<(\w+)>")
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One entry of the contract."""
+
+    path: str
+    """Key after `hamnet/<ns>/`, with placeholders: `sim/<w>/state`."""
+    message: type[Message] | None
+    """Protobuf message class carried on the key; None for liveliness tokens."""
+    publisher: str
+    """Who publishes it."""
+    when: str
+    """When it is published."""
+    finite: bool = True
+    """Whether every floating-point tensor must be finite (receivers drop it otherwise)."""
+
+    @property
+    def template(self) -> str:
+        """Human-readable key with placeholders, as documented."""
+        return f"{keys.ROOT}/<ns>/{self.path}"
+
+    @property
+    def pattern(self) -> str:
+        """Key expression matching this topic in `namespace` ('*' for any)."""
+        path = _PLACEHOLDER.sub("*", self.path)
+        return f"{keys.ROOT}/*/{path}"
+
+    @property
+    def placeholders(self) -> tuple[str, ...]:
+        """Names of the placeholders in `path`, e.g. ('w',)."""
+        return tuple(_PLACEHOLDER.findall(self.path))
+
+    @property
+    def type_name(self) -> str:
+        """Fully qualified protobuf type, e.g. `hamnet.RobotState`, or `liveliness`."""
+        return self.message.DESCRIPTOR.full_name if self.message else "liveliness"
+
+    def key(self, namespace: str, **fields: str) -> str:
+        """Concrete key of this topic: `topic.key("default", w="0")`."""
+        missing = set(self.placeholders) - set(fields)
+        if missing:
+            raise ValueError(f"key {self.template} needs {sorted(missing)}")
+        keys.check_segment("namespace", namespace)
+        for name, value in fields.items():
+            keys.check_segment(name, value)
+        path = _PLACEHOLDER.sub(lambda m: fields[m.group(1)], self.path)
+        return f"{keys.ROOT}/{namespace}/{path}"
+
+    def matches(self, key: str) -> bool:
+        """Whether a concrete key belongs to this topic."""
+        parts, expected = key.split("/"), self.pattern.split("/")
+        return len(parts) == len(expected) and all(
+            e == "*" or p == e for p, e in zip(parts, expected, strict=True)
+        )
+
+
+TOPICS: tuple[Topic, ...] = (
+    Topic("sim/<w>/state", sim_pb2.RobotState, "sim", "every policy step"),
+    Topic("sim/<w>/scene", sim_pb2.Scene, "sim", "at resets"),
+    Topic("sim/<w>/transition", sim_pb2.Transition, "sim", "every policy step"),
+    Topic("bridge/<w>/state", sim_pb2.RobotState, "bridge", "every policy step"),
+    Topic("bridge/<w>/scene", sim_pb2.Scene, "bridge", "when a task is set"),
+    Topic("perception/<w>/tokens", perception_pb2.PerceptionTokens, "perception", "every policy step"),
+    Topic("policy/<w>/action", policy_pb2.PolicyAction, "policy", "every policy step", finite=False),
+    Topic("safety/<w>/command", safety_pb2.SafeCommand, "safety", "every policy step"),
+    Topic("safety/<w>/event", safety_pb2.SafetyEvent, "safety", "when a stage clips, rejects or stops"),
+    Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, "trainer", "after each update"),
+    Topic("trainer/schedule", trainer_pb2.Schedule, "trainer", "after each update"),
+    Topic("trainer/metrics", trainer_pb2.Metrics, "trainer", "after each update"),
+    Topic("trainer/<w>/rollout", trainer_pb2.RolloutChunk, "sim worker", "every rollout horizon"),
+    Topic("health/<service>/<w>", health_pb2.Health, "every service", "every second"),
+    Topic("alive/<service>/<w>", None, "every service", "while running"),
+)
+"""Every topic of the stack. The policy's raw action may be non-finite: the safety service,
+not the transport, rejects it, so that the rejection becomes a safety event."""
+
+MESSAGE_TOPICS: tuple[Topic, ...] = tuple(t for t in TOPICS if t.message is not None)
+"""The topics that carry protobuf messages (all but liveliness tokens)."""
+
+
+def topic(path: str) -> Topic:
+    """The contract entry with this path template, e.g. `topic("sim/<w>/state")`."""
+    for entry in TOPICS:
+        if entry.path == path:
+            return entry
+    raise KeyError(f"no topic {path!r} in the contract; see `hamnet topics`")
+
+
+def match_key(key: str) -> Topic | None:
+    """The contract entry a concrete key belongs to, or None for keys outside the contract."""
+    return next((entry for entry in TOPICS if entry.matches(key)), None)

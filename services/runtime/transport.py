@@ -1,0 +1,96 @@
+"""Zenoh session configuration shared by every service, tool and the launcher.
+
+The default is Zenoh peer mode on loopback with multicast scouting off: every peer listens
+on a random loopback port, tries to also listen on one well-known loopback endpoint (the
+rendezvous) and connects to it. Whichever process holds the rendezvous introduces the
+others through gossip, so peers form a full mesh with no router and nothing leaves the
+machine; when it exits, the others stay connected and the next process to start takes the
+endpoint over. Routers and remote peers are added with `connect`/`listen`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import zenoh
+
+DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7448"
+"""Loopback endpoint where local peers meet (7447 is left to Zenoh routers)."""
+
+
+@dataclass(frozen=True)
+class TransportConfig:
+    """How a process joins the Zenoh network."""
+
+    namespace: str = "default"
+    """Stack namespace: the second segment of every key, so two stacks can share a network."""
+    mode: Literal["peer", "client", "router"] = "peer"
+    """Zenoh mode: peer (default, no router needed), client (through a router), router."""
+    rendezvous: str = DEFAULT_RENDEZVOUS
+    """Loopback endpoint local peers listen on if free and connect to; '' disables it."""
+    connect: tuple[str, ...] = ()
+    """Extra endpoints to connect to, e.g. a router: tcp/192.168.1.10:7447."""
+    listen: tuple[str, ...] = ()
+    """Extra endpoints to listen on, e.g. tcp/0.0.0.0:7450 to accept remote peers."""
+    zenoh_config: Path | None = None
+    """Zenoh JSON5 config file used as the base; the options above are applied on top."""
+    shared_memory: bool = True
+    """Move payloads above `shm_threshold` through shared memory when the peer is local."""
+    shm_pool_mb: int = 64
+    """Size of this process's shared-memory pool, MiB."""
+    shm_threshold: int = 3072
+    """Payload size in bytes from which shared memory is used."""
+
+    def __post_init__(self) -> None:
+        if not self.namespace or any(c in self.namespace for c in "/*$?#"):
+            raise ValueError(f"namespace must be one key segment, got {self.namespace!r}")
+        if self.shm_pool_mb <= 0 or self.shm_threshold < 0:
+            raise ValueError("shm_pool_mb must be > 0 and shm_threshold >= 0")
+
+
+def zenoh_config(transport: TransportConfig) -> zenoh.Config:
+    """Build the Zenoh config of `transport` (pure: opens nothing)."""
+    if transport.zenoh_config is not None:
+        if not transport.zenoh_config.is_file():
+            raise FileNotFoundError(f"Zenoh config file not found: {transport.zenoh_config}")
+        config = zenoh.Config.from_file(str(transport.zenoh_config))
+    else:
+        config = zenoh.Config()
+    listen = list(transport.listen)
+    connect = list(transport.connect)
+    if transport.mode == "peer" and transport.rendezvous:
+        listen += [transport.rendezvous, "tcp/127.0.0.1:0"]
+        connect.append(transport.rendezvous)
+    if transport.mode == "router" and not listen:
+        listen.append("tcp/0.0.0.0:7447")
+    settings: dict[str, object] = {
+        "mode": transport.mode,
+        "scouting/multicast/enabled": False,
+        # The rendezvous is taken by another peer most of the time: keep going without it.
+        "listen/exit_on_failure": not (transport.mode == "peer" and transport.rendezvous),
+        "connect/exit_on_failure": False,
+        "connect/timeout_ms": 0,
+        "transport/shared_memory/enabled": transport.shared_memory,
+        "transport/shared_memory/transport_optimization/enabled": transport.shared_memory,
+        "transport/shared_memory/transport_optimization/pool_size": transport.shm_pool_mb << 20,
+        "transport/shared_memory/transport_optimization/message_size_threshold": (
+            transport.shm_threshold
+        ),
+    }
+    # Without a config file, empty lists are written too: Zenoh's own default would listen
+    # on every interface. With a file, its endpoints stand unless the flags name some.
+    if listen or transport.zenoh_config is None:
+        settings["listen/endpoints"] = listen
+    if connect or transport.zenoh_config is None:
+        settings["connect/endpoints"] = connect
+    for key, value in settings.items():
+        config.insert_json5(key, json.dumps(value))
+    return config
+
+
+def open_session(transport: TransportConfig) -> zenoh.Session:
+    """Open a Zenoh session as `transport` describes."""
+    return zenoh.open(zenoh_config(transport))

@@ -1,0 +1,1 @@
+"""Small commands around the stack: topics, echo, router."""

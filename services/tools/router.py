@@ -1,0 +1,38 @@
+"""`hamnet router`: a Zenoh router for deployments across machines.
+
+Services on other machines reach the stack with `--connect tcp/<router-host>:7447`
+(in peer or client mode). Runs until SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Annotated
+
+from hamnet.runtime.cli import CommonConfig, Flattened, parse
+from hamnet.runtime.logs import configure_logging
+from hamnet.runtime.service import Service, ServiceIdentity
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RouterConfig:
+    """Run a Zenoh router (listens on tcp/0.0.0.0:7447 unless --listen says otherwise)."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+
+
+def main(argv: Sequence[str]) -> int:
+    config = parse(RouterConfig, argv, "hamnet router", __doc__)
+    common = config.common
+    identity = ServiceIdentity("router", common.worker)
+    configure_logging(identity.source, common.logging.log_level, common.logging.log_format)
+    transport = replace(common.transport, mode="router")
+    with Service(identity, transport) as service:
+        log.info("Zenoh router %s listening", service.session.zid())
+        while service.running:
+            service.receive(timeout=0.5)
+    return 0
