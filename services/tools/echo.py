@@ -69,8 +69,13 @@ def summary(message: Message, limit: int = 400) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
 
 
+CONFIG = EchoConfig
+"""The config `hamnet echo` parses (the launcher validates stack files against it)."""
+
+
 def main(argv: Sequence[str]) -> int:
-    config = parse(EchoConfig, argv, "hamnet echo", __doc__)
+    """Run `hamnet echo` with command-line arguments `argv`; returns the exit status."""
+    config = parse(CONFIG, argv, "hamnet echo", __doc__)
     common = config.common
     identity = ServiceIdentity("echo", common.worker)
     configure_logging(identity.source, common.logging.log_level, common.logging.log_format)

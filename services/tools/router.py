@@ -25,8 +25,13 @@ class RouterConfig:
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
 
 
+CONFIG = RouterConfig
+"""The config `hamnet router` parses (the launcher validates stack files against it)."""
+
+
 def main(argv: Sequence[str]) -> int:
-    config = parse(RouterConfig, argv, "hamnet router", __doc__)
+    """Run `hamnet router` with command-line arguments `argv`; returns the exit status."""
+    config = parse(CONFIG, argv, "hamnet router", __doc__)
     common = config.common
     identity = ServiceIdentity("router", common.worker)
     configure_logging(identity.source, common.logging.log_level, common.logging.log_format)

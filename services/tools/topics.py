@@ -32,8 +32,13 @@ def rows() -> list[dict[str, str | bool]]:
     ]
 
 
+CONFIG = TopicsConfig
+"""The config `hamnet topics` parses (the launcher validates stack files against it)."""
+
+
 def main(argv: Sequence[str]) -> int:
-    config = parse(TopicsConfig, argv, "hamnet topics", __doc__)
+    """Run `hamnet topics` with command-line arguments `argv`; returns the exit status."""
+    config = parse(CONFIG, argv, "hamnet topics", __doc__)
     table = rows()
     if config.json:
         print(json.dumps(table, indent=2))
