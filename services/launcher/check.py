@@ -1,0 +1,116 @@
+"""`hamnet up --check`: can every service of a stack run as written?
+
+Each service's command must be a `hamnet` command; a built command's arguments are parsed
+with that command's own `CONFIG` (exactly the line the launcher would start), so a
+misspelt flag or a bad value fails here instead of in a crash loop. Commands not built
+yet cannot be validated: they are reported as missing, which is not an error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import io
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from hamnet.cli import COMMANDS, Command
+from hamnet.launcher.argv import service_argv
+from hamnet.launcher.stack import ArgValue, Stack
+from hamnet.runtime.cli import parse
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Whether one service of a stack can run."""
+
+    service: str
+    """Service name in the stack file."""
+    command: Command | None
+    """Its `hamnet` command; None when no command has that name."""
+    error: str = ""
+    """Why it cannot run as written; '' when it can (or is not built yet)."""
+
+    @property
+    def built(self) -> bool:
+        """Whether its command exists and is built, so the launcher can start it."""
+        return self.command is not None and self.command.module is not None
+
+    @property
+    def status(self) -> str:
+        """One-line verdict for `--check`."""
+        if self.error:
+            return f"error: {self.error}"
+        return "ok" if self.built else f"not validated: not built yet{issue_text(self.command)}"
+
+
+def issue_text(command: Command | None) -> str:
+    """` (issue #3)` for a command built by a known issue, else ''."""
+    return f" (issue #{command.issue})" if command and command.issue else ""
+
+
+def check(stack: Stack, forward: Mapping[str, ArgValue]) -> list[Verdict]:
+    """A verdict for every service of `stack`, in file order."""
+    commands = {command.name: command for command in COMMANDS}
+    verdicts = []
+    for name, spec in stack.services.items():
+        command = commands.get(spec.command)
+        if command is None:
+            known = ", ".join(commands)
+            error = f"unknown command {spec.command!r} (hamnet commands: {known})"
+        elif command.name == "up":
+            error = "a stack cannot run `hamnet up`"
+        elif command.module is None:
+            error = ""
+        else:
+            argv = service_argv(spec, spec.workers[0], stack.namespace, forward)
+            error = validate_args(command, argv[1:])
+        verdicts.append(Verdict(name, command, error))
+    return verdicts
+
+
+def validate_args(command: Command, argv: list[str]) -> str:
+    """Parse `argv` with the command's CONFIG; returns the parser's complaint or ''."""
+    config_type = importlib.import_module(command.module).CONFIG
+    output = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
+            parse(config_type, argv, f"hamnet {command.name}", "")
+    except SystemExit:
+        return _first_lines(output.getvalue()) or "invalid arguments"
+    except ValueError as error:
+        return str(error)
+    return ""
+
+
+def _first_lines(text: str) -> str:
+    """The gist of tyro's boxed error text: its message lines, without help text."""
+    lines = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith(("Argument helptext", "For full helptext", "usage:")):
+            break
+        if line and set(line) != {"-"}:
+            lines.append(line)
+    return "; ".join(lines[1:] or lines)
+
+
+def not_built(verdicts: list[Verdict]) -> str:
+    """`sim (issue #3), perception (issue #6)`: the services not built yet, or ''."""
+    return ", ".join(
+        (v.service if v.service == v.command.name else f"{v.service}: hamnet {v.command.name}")
+        + issue_text(v.command)
+        for v in verdicts
+        if not v.built and not v.error
+    )
+
+
+def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
+    """The `--check` table: one line per service with its command and verdict."""
+    width = max(len(name) for name in stack.services)
+    lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}"]
+    for verdict, spec in zip(verdicts, stack.services.values(), strict=True):
+        workers = ",".join(spec.workers)
+        lines.append(f"  {verdict.service:<{width}}  hamnet {spec.command} [{workers}]: "
+                     f"{verdict.status}")
+    return "\n".join(lines)

@@ -1,0 +1,75 @@
+"""`hamnet up`: run a stack file: start its services, restart the ones that crash, stop
+them all on Ctrl-C, SIGTERM, a time bound or when the stack's `until` service finishes,
+and print a summary. `--check` only validates the file.
+
+Transport and logging options are forwarded to every service when they differ from their
+defaults; `--namespace` (unless `default`) replaces the stack file's namespace.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Annotated
+
+import tyro
+
+from hamnet.launcher import check
+from hamnet.launcher.argv import forwarded
+from hamnet.launcher.run import run
+from hamnet.launcher.stack import StackError, load
+from hamnet.launcher.summary import render
+from hamnet.runtime.cli import CommonConfig, Flattened, parse
+from hamnet.runtime.logs import configure_logging
+from hamnet.runtime.transport import TransportConfig
+
+
+@dataclass(frozen=True)
+class UpConfig:
+    """Run a stack file of HAMnet services."""
+
+    stack: tyro.conf.Positional[Path]
+    """Stack file, e.g. compose/demo.yaml."""
+    check: bool = False
+    """Only validate the stack file (keys, commands, arguments) and start nothing."""
+    duration_s: float | None = None
+    """Stop the stack after this many seconds (default: the stack file's duration_s)."""
+    summary_json: Path | None = None
+    """Also write the end-of-run summary to this file as JSON."""
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+
+
+CONFIG = UpConfig
+"""The config `hamnet up` parses."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet up` with command-line arguments `argv`; returns the exit status."""
+    config = parse(CONFIG, argv, "hamnet up", __doc__)
+    common = config.common
+    configure_logging(f"up/{common.worker}", common.logging.log_level, common.logging.log_format)
+    try:
+        stack = load(config.stack)
+        if common.transport.namespace != TransportConfig().namespace:
+            stack = replace(stack, namespace=common.transport.namespace)
+    except (StackError, ValueError) as error:
+        print(f"hamnet up: {error}", file=sys.stderr)
+        return 2
+    verdicts = check.check(stack, forwarded(common))
+    errors = [v for v in verdicts if v.error]
+    if config.check or errors:
+        table = check.render(str(config.stack), stack, verdicts)
+        print(table, file=sys.stderr if errors and not config.check else sys.stdout)
+        if errors:
+            print(f"hamnet up: {config.stack}: {len(errors)} of {len(verdicts)} services "
+                  "cannot run as written", file=sys.stderr)
+            return 2
+        return 0
+    duration_s = stack.duration_s if config.duration_s is None else config.duration_s
+    report = run(stack, verdicts, common, duration_s)
+    print(render(report), flush=True)
+    if config.summary_json is not None:
+        config.summary_json.write_text(report.to_json() + "\n")
+    return report.exit_code

@@ -1,0 +1,145 @@
+"""One run of a stack: start its built services, follow their liveliness tokens and health
+reports, decide when the run ends, stop every process, and build the report.
+
+The run ends when the user stops it (SIGINT/SIGTERM), when `duration_s` elapses, when the
+`until` service has finished, or when every process has finished: exit status 0. It ends
+with exit status 1 when a process crashes with no restarts left. The launcher itself is a
+service (`up/<worker>`) of the stack's namespace: it holds a token and reports its health.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from dataclasses import dataclass, replace
+
+from hamnet.launcher.argv import forwarded, service_argv
+from hamnet.launcher.check import Verdict, not_built
+from hamnet.launcher.output import Output, use_colour
+from hamnet.launcher.stack import Stack
+from hamnet.launcher.summary import Report, output_files, process_report
+from hamnet.launcher.supervisor import Outcome, Process, Supervisor
+from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness, in_namespace
+from hamnet.proto.health_pb2 import Health
+from hamnet.runtime.cli import CommonConfig
+from hamnet.runtime.service import Service, ServiceIdentity
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Ending:
+    """Why a run ended and the exit status of `hamnet up`."""
+
+    reason: str
+    exit_code: int
+
+
+def run(
+    stack: Stack, verdicts: list[Verdict], common: CommonConfig, duration_s: float | None
+) -> Report:
+    """Run the built services of `stack` until the run ends; returns the report.
+
+    Args:
+        stack: the stack, namespace already resolved.
+        verdicts: `check(stack, ...)` without errors: which services are built.
+        common: the launcher's own options; transport and logging options that differ from
+            the defaults are forwarded to every process.
+        duration_s: bound of the run in seconds, None for none.
+    """
+    forward = forwarded(common)
+    processes = []
+    for verdict in verdicts:
+        if verdict.built:
+            spec = stack.services[verdict.service]
+            processes += [
+                Process(verdict.service, w, spec, service_argv(spec, w, stack.namespace, forward))
+                for w in spec.workers
+            ]
+    missing = not_built(verdicts)
+    log.info("stack %s (namespace %s): %d processes", stack.name, stack.namespace, len(processes))
+    if missing:
+        log.warning("not built yet, not started: %s", missing)
+    output = Output(sys.stdout, [p.label for p in processes], use_colour(sys.stdout))
+    supervisor = Supervisor(processes, output)
+    started = time.monotonic()
+    transport = replace(common.transport, namespace=stack.namespace)
+    with Service(ServiceIdentity("up", common.worker), transport) as service:
+        liveliness = Liveliness(service.session, stack.namespace)
+        health = HealthBoard()
+        service.inbox.subscribe("health", in_namespace(HEALTH, stack.namespace), Health)
+        try:
+            ending = _supervise(stack, service, supervisor, liveliness, health, duration_s)
+        finally:
+            supervisor.stop(stack.stop_grace_s)
+        # The last reports (state STOPPING) hold each process's final counters.
+        while (received := service.inbox.get(timeout=0.2)) is not None:
+            health.add(received.value)
+        liveliness.close()
+    log.info("stack %s ended: %s", stack.name, ending.reason)
+    outputs, outputs_missing = output_files(stack.output_paths)
+    return Report(
+        stack=stack.name,
+        namespace=stack.namespace,
+        ended=ending.reason,
+        exit_code=ending.exit_code,
+        elapsed_s=round(time.monotonic() - started, 3),
+        processes=[process_report(p, liveliness, health) for p in processes],
+        not_built=missing,
+        outputs=outputs,
+        outputs_missing=outputs_missing,
+    )
+
+
+def _supervise(
+    stack: Stack,
+    service: Service,
+    supervisor: Supervisor,
+    liveliness: Liveliness,
+    health: HealthBoard,
+    duration_s: float | None,
+) -> Ending:
+    """Keep the processes running until the run ends."""
+    processes = supervisor.processes
+    if not processes:
+        return Ending("nothing to run: no service of the stack is built yet", 0)
+    until = [p for p in processes if p.service == stack.until]
+    started = time.monotonic()
+    late: set[str] = set()
+    all_ready = False
+    while service.running:
+        for process in supervisor.step():
+            if process.outcome is Outcome.FAILED:
+                return Ending(f"{process.label} crashed with no restarts left", 1)
+        if until and all(p.outcome is Outcome.FINISHED for p in until):
+            return Ending(f"{stack.until} finished", 0)
+        if all(p.outcome is Outcome.FINISHED for p in processes):
+            return Ending("every process finished", 0)
+        if duration_s is not None and time.monotonic() - started >= duration_s:
+            return Ending(f"duration of {duration_s:g} s reached", 0)
+        _note_ready(processes, liveliness, stack.ready_timeout_s, late)
+        if not all_ready and all(p.ready_s is not None for p in processes):
+            all_ready = True
+            log.info("stack ready: every process announced itself after %.1f s",
+                     time.monotonic() - started)
+        received = service.receive(timeout=0.05)
+        if received is not None:
+            health.add(received.value)
+    return Ending("stopped by a signal", 0)
+
+
+def _note_ready(
+    processes: list[Process], liveliness: Liveliness, timeout_s: float, late: set[str]
+) -> None:
+    """Record the processes whose token appeared since their start; warn once about late ones."""
+    for process in processes:
+        if process.outcome is not Outcome.RUNNING or process.ready_s is not None:
+            continue
+        seen = liveliness.announced_since(process.spec.command, process.worker, process.started_at)
+        if seen is not None:
+            process.ready_s = round(seen - process.started_at, 3)
+            log.info("%s ready after %.1f s", process.label, process.ready_s)
+        elif time.monotonic() - process.started_at > timeout_s and process.label not in late:
+            late.add(process.label)
+            log.warning("%s has not announced itself after %.0f s", process.label, timeout_s)

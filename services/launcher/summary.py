@@ -1,0 +1,131 @@
+"""The end-of-run report of `hamnet up`: how the stack ended, and for every process its
+restarts, uptime, exit status and what its Health reports said; the services not built
+yet; the declared output files that exist. Printed as a table, optionally saved as JSON.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from hamnet.launcher.supervisor import Process
+from hamnet.launcher.watch import HealthBoard, Liveliness
+
+
+@dataclass(frozen=True)
+class ProcessReport:
+    """How one worker of one service ran."""
+
+    service: str
+    worker: str
+    command: str
+    outcome: str
+    """finished, stopped, killed, failed, crashed or pending (see supervisor.Outcome)."""
+    exit: str
+    """`exit 0`, `killed by SIGKILL`, ..."""
+    returncode: int | None
+    restarts: int
+    uptime_s: float
+    ready_s: float | None
+    """Seconds from its latest start to its liveliness token; None if not seen."""
+    announced: int
+    """Liveliness tokens seen (one per run that got ready)."""
+    pids: list[int]
+    received: dict[str, int]
+    """Payloads received per subscription, from its Health reports."""
+    published: dict[str, int]
+    """Messages published per key, from its Health reports."""
+    drops: dict[str, int]
+    """Dropped payloads per `topic: reason`."""
+    loop_rate_hz: float | None
+    """Mean loop rate while running."""
+
+
+@dataclass(frozen=True)
+class Report:
+    """The whole run."""
+
+    stack: str
+    namespace: str
+    ended: str
+    """Why the stack ended, in words."""
+    exit_code: int
+    elapsed_s: float
+    processes: list[ProcessReport]
+    not_built: str
+    """`sim (issue #3), ...`: services that could not run because they are not built yet."""
+    outputs: dict[str, int]
+    """Declared output files that exist, with their sizes in bytes."""
+    outputs_missing: list[str]
+    """Declared output files that do not exist."""
+
+    def to_json(self) -> str:
+        """The report as a JSON document."""
+        return json.dumps(dataclasses.asdict(self), indent=2)
+
+
+def process_report(process: Process, liveliness: Liveliness, health: HealthBoard) -> ProcessReport:
+    """Report of one process, from the supervisor's record and what the network said."""
+    command = process.spec.command
+    totals = health.totals(command, process.worker)
+    return ProcessReport(
+        service=process.service,
+        worker=process.worker,
+        command=command,
+        outcome=process.outcome.value,
+        exit=process.exit_text,
+        returncode=process.returncode,
+        restarts=process.restarts,
+        uptime_s=round(process.uptime_s, 3),
+        ready_s=process.ready_s,
+        announced=liveliness.announcements(command, process.worker),
+        pids=list(process.pids),
+        received=dict(totals.received),
+        published=dict(totals.published),
+        drops={f"{topic}: {reason}": n for (topic, reason), n in sorted(totals.drops.items())},
+        loop_rate_hz=None if totals.loop_rate_hz is None else round(totals.loop_rate_hz, 2),
+    )
+
+
+def output_files(paths: tuple[Path, ...]) -> tuple[dict[str, int], list[str]]:
+    """(existing files with their sizes, missing files) among the declared outputs."""
+    existing = {str(p): p.stat().st_size for p in paths if p.is_file()}
+    return existing, [str(p) for p in paths if str(p) not in existing]
+
+
+def render(report: Report) -> str:
+    """The report as a readable table."""
+    lines = [
+        f"stack {report.stack} (namespace {report.namespace}): {report.ended} "
+        f"after {report.elapsed_s:.1f} s; exit status {report.exit_code}"
+    ]
+    rows = [("PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME", "READY",
+             "RECEIVED", "PUBLISHED", "DROPS", "LOOP")]
+    for p in report.processes:
+        rows.append((
+            f"{p.service}/{p.worker}", p.command, p.outcome, p.exit, str(p.restarts),
+            f"{p.uptime_s:.1f} s", "-" if p.ready_s is None else f"{p.ready_s:.1f} s",
+            str(sum(p.received.values())), str(sum(p.published.values())),
+            str(sum(p.drops.values())),
+            "-" if p.loop_rate_hz is None else f"{p.loop_rate_hz:.1f} Hz",
+        ))
+    if report.processes:
+        widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
+    for p in report.processes:
+        lines += [f"  {p.service}/{p.worker} dropped {n} on {kind}" for kind, n in p.drops.items()]
+    if report.not_built:
+        lines.append(f"not built yet: {report.not_built}")
+    for path, size in report.outputs.items():
+        lines.append(f"file written: {path} ({_size(size)})")
+    for path in report.outputs_missing:
+        lines.append(f"file not written: {path}")
+    return "\n".join(lines)
+
+
+def _size(n: int) -> str:
+    power = min(int(math.log(max(n, 1), 1024)), 3)
+    return f"{n} B" if power == 0 else f"{n / 1024**power:.1f} {('KiB', 'MiB', 'GiB')[power - 1]}"
