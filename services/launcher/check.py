@@ -76,10 +76,8 @@ def validate_args(command: Command, argv: list[str]) -> str:
     try:
         with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
             parse(config_type, argv, f"hamnet {command.name}", "")
-    except SystemExit:
+    except SystemExit:  # tyro reports bad flags and `__post_init__` errors this way
         return _first_lines(output.getvalue()) or "invalid arguments"
-    except ValueError as error:
-        return str(error)
     return ""
 
 
@@ -87,10 +85,10 @@ def _first_lines(text: str) -> str:
     """The gist of tyro's boxed error text: its message lines, without help text."""
     lines = []
     for line in text.splitlines():
-        line = line.strip()
+        line = line.strip(" │")
         if line.startswith(("Argument helptext", "For full helptext", "usage:")):
             break
-        if line and set(line) != {"-"}:
+        if line and not set(line) <= set("-─╭╮╰╯"):
             lines.append(line)
     return "; ".join(lines[1:] or lines)
 
@@ -106,11 +104,17 @@ def not_built(verdicts: list[Verdict]) -> str:
 
 
 def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
-    """The `--check` table: one line per service with its command and verdict."""
-    width = max(len(name) for name in stack.services)
+    """The `--check` report: one line per service with its command line and verdict."""
+    commands = [f"hamnet {s.command} [{','.join(s.workers)}]" for s in stack.services.values()]
+    name_width = max(len(name) for name in stack.services)
+    command_width = max(len(command) for command in commands)
     lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}"]
-    for verdict, spec in zip(verdicts, stack.services.values(), strict=True):
-        workers = ",".join(spec.workers)
-        lines.append(f"  {verdict.service:<{width}}  hamnet {spec.command} [{workers}]: "
-                     f"{verdict.status}")
+    for verdict, command in zip(verdicts, commands, strict=True):
+        lines.append(f"  {verdict.service:<{name_width}}  {command:<{command_width}}  {verdict.status}")
+    errors = sum(1 for v in verdicts if v.error)
+    missing = not_built(verdicts)
+    if errors:
+        lines.append(f"{errors} of {len(verdicts)} services cannot run as written")
+    else:
+        lines.append("valid" + (f"; not built yet: {missing}" if missing else ""))
     return "\n".join(lines)

@@ -60,13 +60,9 @@ def main(argv: Sequence[str]) -> int:
     verdicts = check.check(stack, forwarded(common))
     errors = [v for v in verdicts if v.error]
     if config.check or errors:
-        table = check.render(str(config.stack), stack, verdicts)
-        print(table, file=sys.stderr if errors and not config.check else sys.stdout)
-        if errors:
-            print(f"hamnet up: {config.stack}: {len(errors)} of {len(verdicts)} services "
-                  "cannot run as written", file=sys.stderr)
-            return 2
-        return 0
+        report = check.render(str(config.stack), stack, verdicts)
+        print(report, file=sys.stderr if errors and not config.check else sys.stdout)
+        return 2 if errors else 0
     duration_s = stack.duration_s if config.duration_s is None else config.duration_s
     report = run(stack, verdicts, common, duration_s)
     print(render(report), flush=True)

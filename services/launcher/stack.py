@@ -111,7 +111,7 @@ class Stack:
     until: str | None = None
     """Name of a service whose successful exit (status 0 of every worker) ends the stack."""
     outputs: tuple[str, ...] = ()
-    """Files the stack writes, relative to where `hamnet up` runs; the summary lists them."""
+    """Files or folders the stack writes, relative to where `hamnet up` runs (for the summary)."""
     ready_timeout_s: float = 30.0
     """Warn when a process has not announced itself (liveliness token) within this time."""
     stop_grace_s: float = 5.0

@@ -58,9 +58,9 @@ class Report:
     not_built: str
     """`sim (issue #3), ...`: services that could not run because they are not built yet."""
     outputs: dict[str, int]
-    """Declared output files that exist, with their sizes in bytes."""
+    """Declared outputs that exist, with their sizes in bytes."""
     outputs_missing: list[str]
-    """Declared output files that do not exist."""
+    """Declared outputs that do not exist."""
 
     def to_json(self) -> str:
         """The report as a JSON document."""
@@ -91,9 +91,17 @@ def process_report(process: Process, liveliness: Liveliness, health: HealthBoard
 
 
 def output_files(paths: tuple[Path, ...]) -> tuple[dict[str, int], list[str]]:
-    """(existing files with their sizes, missing files) among the declared outputs."""
-    existing = {str(p): p.stat().st_size for p in paths if p.is_file()}
-    return existing, [str(p) for p in paths if str(p) not in existing]
+    """(existing outputs with their sizes in bytes, missing ones) among the declared outputs.
+
+    A folder's size is that of every file under it.
+    """
+    existing = {
+        str(path): path.stat().st_size if path.is_file() else sum(
+            f.stat().st_size for f in path.rglob("*") if f.is_file())
+        for path in paths
+        if path.exists()
+    }
+    return existing, [str(path) for path in paths if str(path) not in existing]
 
 
 def render(report: Report) -> str:
@@ -120,9 +128,9 @@ def render(report: Report) -> str:
     if report.not_built:
         lines.append(f"not built yet: {report.not_built}")
     for path, size in report.outputs.items():
-        lines.append(f"file written: {path} ({_size(size)})")
+        lines.append(f"written: {path} ({_size(size)})")
     for path in report.outputs_missing:
-        lines.append(f"file not written: {path}")
+        lines.append(f"not written: {path}")
     return "\n".join(lines)
 
 

@@ -1,0 +1,73 @@
+"""`hamnet up --check`: commands exist, built commands accept their arguments, services not
+built yet are reported as missing rather than as errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hamnet.launcher.check import check, not_built
+from hamnet.launcher.cli import main
+from hamnet.launcher.stack import parse
+
+
+def verdicts(services: dict, forward: dict | None = None) -> dict[str, str]:
+    stack = parse({"services": services}, "t")
+    return {v.service: v.status for v in check(stack, forward or {})}
+
+
+def test_built_command_with_valid_args_is_ok() -> None:
+    assert verdicts({"watch": {"command": "echo", "args": {"period-s": 5, "reflect": True}}}) == {
+        "watch": "ok"}
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        ({"period-s": "fast"}, "error: Error parsing --period-s: could not convert string to float: 'fast'"),
+        ({"perod-s": 1}, "error: Unrecognized options: --perod-s"),
+        ({"shm-pool-mb": 0}, "error: Error parsing common.transport: shm_pool_mb must be > 0"),
+    ],
+)
+def test_bad_args_of_a_built_command_name_the_flag(args: dict, expected: str) -> None:
+    assert verdicts({"watch": {"command": "echo", "args": args}})["watch"].startswith(expected)
+
+
+def test_forwarded_options_are_validated_too() -> None:
+    status = verdicts({"echo": {}}, {"mode": "satellite"})["echo"]
+    assert status.startswith("error:") and "--mode" in status
+
+
+def test_unknown_command_is_an_error_listing_the_commands() -> None:
+    status = verdicts({"simm": {}})["simm"]
+    assert status.startswith("error: unknown command 'simm' (hamnet commands: sim, bridge,")
+
+
+def test_a_stack_cannot_run_the_launcher() -> None:
+    assert verdicts({"up": {}})["up"] == "error: a stack cannot run `hamnet up`"
+
+
+def test_commands_not_built_yet_are_missing_not_errors() -> None:
+    stack = parse({"services": {"sim": {"args": {"anything": 1}}, "robot": {"command": "bridge"},
+                                "echo": {}}}, "t")
+    result = check(stack, {})
+    assert [v.status for v in result] == [
+        "not validated: not built yet (issue #3)", "not validated: not built yet", "ok"]
+    assert not_built(result) == "sim (issue #3), robot: hamnet bridge"
+
+
+def test_check_exits_2_and_names_the_problem(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("services: {watch: {command: echo, args: {period-s: fast}}}")
+    assert main(["--check", str(path)]) == 2
+    out = capsys.readouterr().out
+    assert "watch  hamnet echo [0]  error: Error parsing --period-s" in out
+    assert out.rstrip().endswith("1 of 1 services cannot run as written")
+
+
+def test_check_of_a_file_with_an_unknown_key_exits_2(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("services: {echo: {}}\nuntill: echo\n")
+    assert main(["--check", str(path)]) == 2
+    assert "untill: unknown key (did you mean 'until'?)" in capsys.readouterr().err

@@ -1,0 +1,112 @@
+"""The files of compose/ and the Dockerfile agree with the launcher and with each other.
+
+No Docker engine runs on the test machines, so the container files are checked by reading
+them: the same processes with the same command lines as `hamnet up compose/train.yaml`,
+and an image that installs what pyproject.toml declares.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+import yaml
+from packaging.requirements import Requirement
+from packaging.specifiers import SpecifierSet
+
+from hamnet.launcher.argv import service_argv
+from hamnet.launcher.cli import main
+from hamnet.launcher.stack import load
+
+ROOT = Path(__file__).resolve().parents[2]
+COMPOSE = ROOT / "compose"
+STACKS = sorted(COMPOSE.glob("*.yaml"))
+
+
+def test_the_expected_stacks_exist() -> None:
+    assert {p.name for p in STACKS} >= {"demo.yaml", "train.yaml", "eval.yaml", "real.yaml"}
+
+
+@pytest.mark.parametrize("path", STACKS, ids=lambda p: p.name)
+def test_every_stack_file_passes_check(path: Path, capsys) -> None:
+    assert main(["--check", str(path)]) == 0, capsys.readouterr()
+
+
+def test_real_differs_from_eval_only_in_the_robot_command() -> None:
+    """Swapping the simulator for the real robot must stay a one-line change."""
+    eval_lines = (COMPOSE / "eval.yaml").read_text().splitlines()
+    real_lines = (COMPOSE / "real.yaml").read_text().splitlines()
+    changed = [
+        line for line in difflib.unified_diff(eval_lines, real_lines, lineterm="", n=0)
+        if line[:1] in "+-" and not line.startswith(("+++", "---"))
+    ]
+    assert changed == ["-    command: sim", "+    command: bridge"]
+    eval_stack, real_stack = load(COMPOSE / "eval.yaml"), load(COMPOSE / "real.yaml")
+    assert eval_stack.namespace != real_stack.namespace  # their outputs do not overwrite each other
+
+
+def docker_name(service: str, worker: str, workers: tuple[str, ...]) -> str:
+    """Container service name of one process: `sim-0`, or `trainer` for a single worker."""
+    return f"{service}-{worker}" if len(workers) > 1 else service
+
+
+def test_docker_compose_runs_the_processes_of_train_yaml() -> None:
+    stack = load(COMPOSE / "train.yaml")
+    expected = {
+        docker_name(name, worker, spec.workers): (
+            service_argv(spec, worker, stack.namespace, {}),
+            f"on-failure:{spec.restart.max_restarts}",
+        )
+        for name, spec in stack.services.items()
+        for worker in spec.workers
+    }
+    compose = yaml.safe_load((COMPOSE / "docker-compose.yml").read_text())
+    actual = {
+        name: ([str(arg) for arg in service["command"]], service["restart"])
+        for name, service in compose["services"].items()
+    }
+    assert actual == expected
+    for name, service in compose["services"].items():
+        assert service["network_mode"] == "host", name
+        assert service["stop_grace_period"] == f"{stack.stop_grace_s:g}s", name
+        assert service["build"]["dockerfile"] == "Dockerfile"
+        assert (COMPOSE / service["build"]["context"] / "Dockerfile").is_file()
+
+
+def dockerfile_instructions() -> list[tuple[str, str]]:
+    """(INSTRUCTION, arguments) of the Dockerfile, continuation lines joined."""
+    text = re.sub(r"\\\n\s*", " ", (ROOT / "Dockerfile").read_text())
+    return [
+        (line.split(None, 1)[0].upper(), line.split(None, 1)[1])
+        for line in text.splitlines()
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+
+
+def test_dockerfile_installs_what_pyproject_declares() -> None:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    instructions = dockerfile_instructions()
+    runs = [args for op, args in instructions if op == "RUN"]
+    copied = {path for op, args in instructions if op == "COPY" for path in args.split()[:-1]}
+
+    base = next(args for op, args in instructions if op == "FROM")
+    python = re.fullmatch(r"python:(\d+\.\d+)-slim", base)
+    assert python and SpecifierSet(project["project"]["requires-python"]).contains(python[1])
+
+    torch_pin = next(re.search(r"torch==(\S+)", r)[1] for r in runs if "torch==" in r)
+    torch = next(Requirement(d) for d in project["project"]["dependencies"] if d.startswith("torch"))
+    assert torch.specifier.contains(torch_pin), (torch_pin, str(torch))
+    assert runs.index(next(r for r in runs if "torch==" in r)) < runs.index(
+        next(r for r in runs if r.endswith("pip install --no-cache-dir ."))
+    )
+
+    needed = {"pyproject.toml", project["project"]["readme"]}
+    needed |= set(project["tool"]["setuptools"]["package-dir"].values())
+    assert needed <= copied
+    assert any("libusb-1.0-0" in r for r in runs)  # open3d cannot import without it
+
+    entrypoint = next(args for op, args in instructions if op == "ENTRYPOINT")
+    assert entrypoint == '["hamnet"]' and "hamnet" in project["project"]["scripts"]
