@@ -148,7 +148,7 @@ class Supervisor:
             delay = policy.delay_s(process.restarts)
             process.outcome, process.restart_at = Outcome.RESTARTING, time.monotonic() + delay
             log.warning(
-                "%s crashed (%s); restart %d of %d in %.1f s", process.label,
+                "%s crashed (%s); restart %d of %d in %.3g s", process.label,
                 process.exit_text, process.restarts + 1, policy.max_restarts, delay,
             )
         else:

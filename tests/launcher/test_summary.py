@@ -1,0 +1,69 @@
+"""The end-of-run summary: health counters survive restarts, and the table says what ran,
+what is missing and which files were written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from hamnet.launcher.summary import ProcessReport, Report, output_files, render
+from hamnet.launcher.watch import HealthBoard
+from hamnet.proto.health_pb2 import DropCount, Health, ServiceState
+
+
+def health(uptime_s: float, received: int, rate: float, state: int = ServiceState.RUNNING) -> Health:
+    report = Health(service="echo", worker="0", state=state, uptime_s=uptime_s, loop_rate_hz=rate)
+    report.received["stack"] = received
+    report.published["hamnet/ns/echo/0/out"] = received // 2
+    report.drops.append(DropCount(topic="hamnet/ns/x", reason="decode", count=received // 10))
+    return report
+
+
+def test_health_counters_add_up_over_restarts() -> None:
+    """A restarted process starts counting from zero: the totals must add both runs, not
+    keep only the latest report (a smaller uptime marks the restart)."""
+    board = HealthBoard()
+    for report in (health(1, 10, 10.0), health(2, 20, 12.0), health(0.5, 5, 8.0),
+                   health(1.5, 30, 0.0, ServiceState.STOPPING)):
+        board.add(report)
+    totals = board.totals("echo", "0")
+    assert totals.received == {"stack": 50}
+    assert totals.published == {"hamnet/ns/echo/0/out": 25}
+    assert totals.drops == {("hamnet/ns/x", "decode"): 5}
+    assert totals.loop_rate_hz == 10.0  # mean of the RUNNING reports only
+    assert board.totals("echo", "1").received == {}
+
+
+def test_output_files_lists_files_and_folders_with_sizes(tmp_path: Path) -> None:
+    (tmp_path / "a.mcap").write_bytes(b"x" * 10)
+    (tmp_path / "ckpt").mkdir()
+    (tmp_path / "ckpt" / "1.safetensors").write_bytes(b"x" * 5)
+    paths = (tmp_path / "a.mcap", tmp_path / "ckpt", tmp_path / "absent.rrd")
+    assert output_files(paths) == (
+        {str(tmp_path / "a.mcap"): 10, str(tmp_path / "ckpt"): 5}, [str(tmp_path / "absent.rrd")])
+
+
+def test_render_shows_processes_missing_services_and_outputs() -> None:
+    process = ProcessReport(
+        service="watch", worker="0", command="echo", outcome="stopped", exit="exit 0",
+        returncode=0, restarts=1, uptime_s=4.2, ready_s=0.3, announced=2, pids=[11, 12],
+        received={"stack": 12}, published={}, drops={"hamnet/ns/x: decode": 3}, loop_rate_hz=9.87,
+    )
+    report = Report(
+        stack="demo", namespace="demo", ended="duration of 5 s reached", exit_code=0,
+        elapsed_s=5.5, processes=[process], not_built="sim (issue #3), trainer",
+        outputs={"runs/demo/stack.mcap": 3 * 1024 * 1024}, outputs_missing=["runs/demo/monitor.rrd"],
+    )
+    lines = render(report).splitlines()
+    assert lines[0] == "stack demo (namespace demo): duration of 5 s reached after 5.5 s; exit status 0"
+    assert lines[1].split() == ["PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME",
+                                "READY", "RECEIVED", "PUBLISHED", "DROPS", "LOOP"]
+    assert lines[2].split() == ["watch/0", "echo", "stopped", "exit", "0", "1", "4.2", "s", "0.3",
+                                "s", "12", "0", "3", "9.9", "Hz"]
+    assert lines[3:] == [
+        "  watch/0 dropped 3 on hamnet/ns/x: decode",
+        "not built yet: sim (issue #3), trainer",
+        "written: runs/demo/stack.mcap (3.0 MiB)",
+        "not written: runs/demo/monitor.rrd",
+    ]
+    assert json.loads(report.to_json())["processes"][0]["pids"] == [11, 12]
