@@ -39,7 +39,7 @@ class ProcessReport:
     published: dict[str, int]
     """Messages published per key, from its Health reports."""
     drops: dict[str, int]
-    """Dropped payloads per `topic: reason`."""
+    """Dropped payloads per `key: reason`."""
     loop_rate_hz: float | None
     """Mean loop rate while running."""
 
@@ -85,7 +85,7 @@ def process_report(process: Process, liveliness: Liveliness, health: HealthBoard
         pids=list(process.pids),
         received=dict(totals.received),
         published=dict(totals.published),
-        drops={f"{topic}: {reason}": n for (topic, reason), n in sorted(totals.drops.items())},
+        drops={f"{key}: {reason}": n for (key, reason), n in sorted(totals.drops.items())},
         loop_rate_hz=None if totals.loop_rate_hz is None else round(totals.loop_rate_hz, 2),
     )
 

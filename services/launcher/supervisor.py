@@ -26,6 +26,9 @@ from hamnet.launcher.stack import ServiceSpec
 
 log = logging.getLogger(__name__)
 
+HAMNET = (sys.executable, "-m", "hamnet")
+"""How a process is started: `hamnet` in the launcher's own interpreter."""
+
 
 class Outcome(str, Enum):
     """Where a process stands; the last one is its result in the summary."""
@@ -58,7 +61,7 @@ class Process:
     spec: ServiceSpec
     """The service it belongs to (command, restart policy)."""
     argv: list[str]
-    """Arguments after `hamnet`."""
+    """Arguments after `hamnet` (the supervisor's program)."""
     outcome: Outcome = Outcome.PENDING
     pids: list[int] = field(default_factory=list)
     """Process id of every start, in order."""
@@ -98,16 +101,19 @@ def describe_exit(returncode: int | None) -> str:
 class Supervisor:
     """Starts, restarts and stops the processes of a stack."""
 
-    def __init__(self, processes: Sequence[Process], output: Output) -> None:
+    def __init__(
+        self, processes: Sequence[Process], output: Output, program: Sequence[str] = HAMNET
+    ) -> None:
         self.processes = list(processes)
         self._output = output
+        self._program = list(program)
         self._env: Mapping[str, str] = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self._followers: list[threading.Thread] = []
 
     def start(self, process: Process) -> None:
         """Start (or restart) `process` now."""
         popen = subprocess.Popen(
-            [sys.executable, "-m", "hamnet", *process.argv],
+            [*self._program, *process.argv],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,

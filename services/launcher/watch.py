@@ -72,7 +72,7 @@ class HealthTotals:
     published: Counter[str] = field(default_factory=Counter)
     """Messages published per key, over finished runs."""
     drops: Counter[tuple[str, str]] = field(default_factory=Counter)
-    """Dropped payloads per (topic, reason), over finished runs."""
+    """Dropped payloads per (key, reason), over finished runs."""
     loop_rates_hz: list[float] = field(default_factory=list)
     """Loop rate of every report sent while running."""
     last: Health | None = None
@@ -89,7 +89,7 @@ class HealthTotals:
     def _fold(self, report: Health) -> None:
         self.received.update(dict(report.received))
         self.published.update(dict(report.published))
-        self.drops.update({(d.topic, d.reason): d.count for d in report.drops})
+        self.drops.update({(d.key, d.reason): d.count for d in report.drops})
 
     def totals(self) -> HealthTotals:
         """The counters of every run, the current one included."""

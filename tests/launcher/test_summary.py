@@ -15,7 +15,7 @@ def health(uptime_s: float, received: int, rate: float, state: int = ServiceStat
     report = Health(service="echo", worker="0", state=state, uptime_s=uptime_s, loop_rate_hz=rate)
     report.received["stack"] = received
     report.published["hamnet/ns/echo/0/out"] = received // 2
-    report.drops.append(DropCount(topic="hamnet/ns/x", reason="decode", count=received // 10))
+    report.drops.append(DropCount(key="hamnet/ns/x", reason="decode", count=received // 10))
     return report
 
 
