@@ -20,14 +20,14 @@ RUNNING: ServiceState
 STOPPING: ServiceState
 
 class DropCount(_message.Message):
-    __slots__ = ("topic", "reason", "count")
-    TOPIC_FIELD_NUMBER: _ClassVar[int]
+    __slots__ = ("key", "reason", "count")
+    KEY_FIELD_NUMBER: _ClassVar[int]
     REASON_FIELD_NUMBER: _ClassVar[int]
     COUNT_FIELD_NUMBER: _ClassVar[int]
-    topic: str
+    key: str
     reason: str
     count: int
-    def __init__(self, topic: _Optional[str] = ..., reason: _Optional[str] = ..., count: _Optional[int] = ...) -> None: ...
+    def __init__(self, key: _Optional[str] = ..., reason: _Optional[str] = ..., count: _Optional[int] = ...) -> None: ...
 
 class Health(_message.Message):
     __slots__ = ("header", "service", "worker", "state", "uptime_s", "received", "published", "drops", "loop_rate_hz")

@@ -28,21 +28,21 @@ T = TypeVar("T")
 
 
 class DropCounter:
-    """Counts dropped payloads by (topic, reason) and logs the first of each kind."""
+    """Counts dropped payloads by (key, reason) and logs the first of each kind."""
 
     def __init__(self) -> None:
         self.counts: Counter[tuple[str, str]] = Counter()
         self._lock = threading.Lock()
 
-    def drop(self, topic: str, reason: str, detail: str) -> None:
-        """Count one dropped payload; log it when its kind is new."""
+    def drop(self, key: str, reason: str, detail: str) -> None:
+        """Count one payload dropped on `key`; log it when its kind is new."""
         with self._lock:
-            self.counts[(topic, reason)] += 1
-            first = self.counts[(topic, reason)] == 1
+            self.counts[(key, reason)] += 1
+            first = self.counts[(key, reason)] == 1
         if first:
             log.warning(
                 "dropped payload on %s (%s): %s; further drops of this kind are only counted",
-                topic,
+                key,
                 reason,
                 detail,
             )
@@ -112,9 +112,10 @@ class Inbox:
     def _push(self, subscription: _Subscription, sample: zenoh.Sample) -> None:
         item = (subscription, str(sample.key_expr), sample.payload, time.monotonic_ns())
         with self._ready:
+            subscription.received += 1
             if len(self._queue) >= self._capacity:
-                dropped = self._queue.popleft()
-                self._drops.drop(dropped[0].name, "overflow", f"inbox full ({self._capacity})")
+                _, dropped_key, _, _ = self._queue.popleft()
+                self._drops.drop(dropped_key, "overflow", f"inbox full ({self._capacity})")
             self._queue.append(item)
             self._ready.notify()
 
@@ -129,17 +130,16 @@ class Inbox:
                         return None
                     self._ready.wait(remaining)
                 subscription, key, payload, stamp = self._queue.popleft()
-            subscription.received += 1
             try:
                 value = subscription.decode(key, payload.to_bytes())
             except PayloadError as error:
-                self._drops.drop(subscription.name, error.reason, f"{key}: {error.detail}")
+                self._drops.drop(key, error.reason, error.detail)
                 continue
             return Received(subscription.name, key, value, stamp)
 
     @property
     def received(self) -> dict[str, int]:
-        """Payloads received so far per subscription name (valid or not)."""
+        """Payloads delivered by Zenoh so far per subscription name (valid, bad or dropped)."""
         return {s.name: s.received for s in self._subscriptions}
 
     def close(self) -> None:

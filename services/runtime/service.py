@@ -148,8 +148,8 @@ class Service:
             report.received.update(self.inbox.received)
         report.published.update({key: p.published for key, p in self._publishers.items()})
         report.drops.extend(
-            DropCount(topic=topic, reason=reason, count=count)
-            for (topic, reason), count in sorted(self.drops.counts.items())
+            DropCount(key=key, reason=reason, count=count)
+            for (key, reason), count in sorted(self.drops.counts.items())
         )
         self._health.put(report)
         self._last_health = (now, self._loops)

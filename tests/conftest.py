@@ -1,0 +1,68 @@
+"""Shared fixtures: isolated Zenoh transports on loopback and `hamnet` subprocesses.
+
+Every test that touches Zenoh gets its own namespace and its own rendezvous port, so tests
+never see each other's traffic and never leave the machine.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import uuid
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from hamnet.runtime.transport import TransportConfig
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture
+def transport() -> TransportConfig:
+    """A transport of its own: unique namespace, unique rendezvous endpoint."""
+    return TransportConfig(
+        namespace=f"test{uuid.uuid4().hex[:10]}", rendezvous=f"tcp/127.0.0.1:{free_port()}"
+    )
+
+
+def transport_args(transport: TransportConfig) -> list[str]:
+    """Command-line flags that put a `hamnet` command on `transport`."""
+    return ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
+
+
+@pytest.fixture
+def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
+    """Start `python -m hamnet <args>` processes; all are stopped at teardown."""
+    processes: list[subprocess.Popen] = []
+
+    def start(*args: str) -> subprocess.Popen:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "hamnet", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            start_new_session=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        processes.append(process)
+        return process
+
+    yield start
+    for process in processes:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGTERM)
+    for process in processes:
+        try:
+            process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()

@@ -1,0 +1,106 @@
+"""Typed publishers and inboxes over real Zenoh sessions on loopback (one process)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+import zenoh
+
+from hamnet.proto import sim_pb2
+from hamnet.runtime import contract
+from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.tensor import to_tensor
+from hamnet.runtime.transport import TransportConfig, open_session
+
+STATE = contract.topic("sim/<w>/state")
+
+
+@pytest.fixture
+def sessions(transport: TransportConfig) -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
+    first, second = open_session(transport), open_session(transport)
+    yield first, second
+    first.close()
+    second.close()
+
+
+def state_message(batch: int = 4, value: float = 1.0) -> sim_pb2.RobotState:
+    message = sim_pb2.RobotState()
+    to_tensor(np.full((batch, 7), value, np.float32), message.q)
+    return message
+
+
+def wait_connected(publish: zenoh.Session, inbox: Inbox, key: str) -> None:
+    """Publish probes until the inbox sees one (discovery takes a few ms)."""
+    raw = publish.declare_publisher(key)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        raw.put(state_message().SerializeToString())
+        if inbox.get(timeout=0.05) is not None:
+            while inbox.get(timeout=0.05) is not None:
+                pass
+            raw.undeclare()
+            return
+    raise AssertionError("sessions never connected")
+
+
+def test_messages_arrive_decoded_and_stamped(sessions, transport: TransportConfig) -> None:
+    sender, receiver = sessions
+    key = STATE.key(transport.namespace, w="0")
+    inbox = Inbox(receiver, DropCounter())
+    inbox.subscribe("state", key, sim_pb2.RobotState)
+    wait_connected(sender, inbox, key)
+    publisher = Publisher(sender, key, "sim/0")
+    publisher.put(state_message(value=3.0))
+    received = inbox.get(timeout=5)
+    assert received is not None and received.name == "state" and received.key == key
+    assert received.value.header.source == "sim/0" and received.value.header.stamp_ns > 0
+    assert received.value.q.data == np.full((4, 7), 3.0, np.float32).tobytes()
+    assert publisher.published == 1 and inbox.received["state"] >= 2
+
+
+def test_bad_payloads_are_counted_by_reason_and_dropped(sessions, transport) -> None:
+    sender, receiver = sessions
+    key = STATE.key(transport.namespace, w="0")
+    drops = DropCounter()
+    inbox = Inbox(receiver, drops)
+    inbox.subscribe("state", key, sim_pb2.RobotState)
+    wait_connected(sender, inbox, key)
+    raw = sender.declare_publisher(key)
+    raw.put(b"\xff\xfe garbage")
+    raw.put(state_message(value=np.nan).SerializeToString())
+    raw.put(state_message(value=7.0).SerializeToString())
+    received = inbox.get(timeout=5)
+    assert received is not None and received.value.q.data[:4] == np.float32(7.0).tobytes()
+    assert drops.counts == {(key, "decode"): 1, (key, "nonfinite"): 1}
+
+
+def test_a_full_inbox_drops_the_oldest_and_counts_overflow(sessions, transport) -> None:
+    sender, receiver = sessions
+    key = STATE.key(transport.namespace, w="0")
+    drops = DropCounter()
+    inbox = Inbox(receiver, drops, capacity=3)
+    inbox.subscribe("state", key, sim_pb2.RobotState)
+    wait_connected(sender, inbox, key)
+    publisher = Publisher(sender, key, "sim/0")
+    before = inbox.received["state"]
+    for value in range(10):
+        publisher.put(state_message(value=float(value)))
+    deadline = time.monotonic() + 5
+    while inbox.received["state"] < before + 10 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    values = []
+    while (received := inbox.get(timeout=0.2)) is not None:
+        values.append(np.frombuffer(received.value.q.data, np.float32)[0])
+    assert values == [7.0, 8.0, 9.0]
+    assert drops.counts[(key, "overflow")] == 7
+
+
+def test_get_returns_none_after_its_timeout(sessions, transport) -> None:
+    inbox = Inbox(sessions[1], DropCounter())
+    inbox.subscribe("state", STATE.key(transport.namespace, w="0"), sim_pb2.RobotState)
+    started = time.monotonic()
+    assert inbox.get(timeout=0.1) is None
+    assert time.monotonic() - started >= 0.1
