@@ -109,8 +109,8 @@ def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
     name_width = max(len(name) for name in stack.services)
     command_width = max(len(command) for command in commands)
     lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}"]
-    for verdict, command in zip(verdicts, commands, strict=True):
-        lines.append(f"  {verdict.service:<{name_width}}  {command:<{command_width}}  {verdict.status}")
+    for v, command in zip(verdicts, commands, strict=True):
+        lines.append(f"  {v.service:<{name_width}}  {command:<{command_width}}  {v.status}")
     errors = sum(1 for v in verdicts if v.error)
     missing = not_built(verdicts)
     if errors:

@@ -136,6 +136,7 @@ def _note_ready(
     for process in processes:
         if process.outcome is not Outcome.RUNNING or process.ready_s is not None:
             continue
+        # A service holds its token under its command's name: `hamnet echo` is `alive/echo/<w>`.
         seen = liveliness.announced_since(process.spec.command, process.worker, process.started_at)
         if seen is not None:
             process.ready_s = round(seen - process.started_at, 3)

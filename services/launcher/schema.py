@@ -14,8 +14,7 @@ import difflib
 import types
 import typing
 from collections.abc import Mapping
-from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
@@ -38,7 +37,7 @@ def build(cls: type[T], data: object, where: str = "") -> T:
     """
     if not isinstance(data, Mapping):
         raise SchemaError(_at(where, f"expected a mapping, got {describe(data)}"))
-    hints = typing.get_type_hints(cls, include_extras=True)
+    hints = typing.get_type_hints(cls)
     known = [f.name for f in dataclasses.fields(cls) if f.init]  # type: ignore[arg-type]
     values = {}
     for key, value in data.items():
@@ -64,19 +63,13 @@ def _at(where: str, message: str) -> str:
 def convert(hint: Any, value: object, where: str) -> Any:
     """`value` checked against the type hint `hint` (and converted: list -> tuple, int -> float)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin is typing.Annotated:
-        return convert(args[0], value, where)
     if origin in (typing.Union, types.UnionType):
         return _convert_union(args, value, where)
-    if origin is Literal:
-        if value not in args:
-            raise SchemaError(f"{where}: expected one of {', '.join(map(repr, args))}, got {value!r}")
-        return value
     if origin is tuple:
         if not isinstance(value, list | tuple):
             raise SchemaError(f"{where}: expected a list, got {describe(value)}")
         return tuple(convert(args[0], item, f"{where}[{i}]") for i, item in enumerate(value))
-    if origin in (dict, Mapping):
+    if origin is Mapping:
         if not isinstance(value, Mapping):
             raise SchemaError(f"{where}: expected a mapping, got {describe(value)}")
         for key in value:
@@ -115,13 +108,11 @@ def _convert_scalar(hint: Any, value: object, where: str) -> Any:
         return float(value)  # type: ignore[arg-type]
     if hint is str and (isinstance(value, str) or (is_number and isinstance(value, int))):
         return str(value)  # YAML reads `worker: 0` as a number
-    if hint is Path and isinstance(value, str):
-        return Path(value)
     raise SchemaError(f"{where}: expected {_name((hint,))}, got {describe(value)}")
 
 
 _NAMES = {str: "a string", int: "an integer", float: "a number", bool: "true or false",
-          Path: "a path", type(None): "null"}
+          type(None): "null"}
 
 
 def _name(hints: tuple[Any, ...]) -> str:
@@ -130,7 +121,7 @@ def _name(hints: tuple[Any, ...]) -> str:
         origin = typing.get_origin(hint)
         if origin is tuple:
             names.append("a list")
-        elif origin in (dict, Mapping) or dataclasses.is_dataclass(hint):
+        elif origin is Mapping or dataclasses.is_dataclass(hint):
             names.append("a mapping")
         else:
             names.append(_NAMES.get(hint, getattr(hint, "__name__", str(hint))))

@@ -61,7 +61,8 @@ class RestartPolicy:
             raise ValueError(f"max_restarts must be >= 0, got {self.max_restarts}")
         if not 0 <= self.backoff_s <= self.backoff_max_s:
             raise ValueError(
-                f"need 0 <= backoff_s <= backoff_max_s, got {self.backoff_s} and {self.backoff_max_s}"
+                "need 0 <= backoff_s <= backoff_max_s, "
+                f"got {self.backoff_s} and {self.backoff_max_s}"
             )
 
     def delay_s(self, restart: int) -> float:
@@ -93,7 +94,9 @@ class ServiceSpec:
             if not flag or flag.startswith("-") or any(c.isspace() for c in flag):
                 raise ValueError(f"args: {flag!r} is not a flag name (write `num-envs`, no dashes)")
             if flag in RESERVED_ARGS:
-                raise ValueError(f"args: {flag!r} is set by the launcher from {RESERVED_ARGS[flag]}")
+                raise ValueError(
+                    f"args: {flag!r} is set by the launcher from {RESERVED_ARGS[flag]}"
+                )
 
 
 @dataclass(frozen=True)

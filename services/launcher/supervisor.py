@@ -183,7 +183,7 @@ class Supervisor:
             time.sleep(0.02)
         for process in running:
             if process.popen.poll() is None:
-                log.warning("%s still running %.1f s after SIGTERM: SIGKILL", process.label, grace_s)
+                log.warning("%s still running %g s after SIGTERM: SIGKILL", process.label, grace_s)
                 _signal_group(process.popen.pid, signal.SIGKILL)
                 process.outcome = Outcome.KILLED
             else:
