@@ -1,0 +1,55 @@
+"""Zenoh configuration: loopback-only peer mode by default, files and flags on top."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hamnet.runtime.transport import TransportConfig, zenoh_config
+
+
+def settings(config) -> dict:
+    return {
+        key: json.loads(config.get_json(key))
+        for key in ("mode", "scouting/multicast/enabled", "listen/endpoints", "connect/endpoints")
+    }
+
+
+def test_default_is_a_loopback_peer_without_multicast() -> None:
+    """Zenoh's own default listens on every interface and scouts by multicast: a test run
+    would then reach the network. Every endpoint must be on 127.0.0.1."""
+    values = settings(zenoh_config(TransportConfig()))
+    assert values["mode"] == "peer" and values["scouting/multicast/enabled"] is False
+    endpoints = values["listen/endpoints"] + values["connect/endpoints"]
+    assert endpoints and all(e.startswith("tcp/127.0.0.1:") for e in endpoints)
+
+
+def test_router_mode_listens_on_the_zenoh_port() -> None:
+    values = settings(zenoh_config(TransportConfig(mode="router")))
+    assert values["mode"] == "router" and values["listen/endpoints"] == ["tcp/0.0.0.0:7447"]
+
+
+def test_flags_add_endpoints_to_a_config_file(tmp_path: Path) -> None:
+    path = tmp_path / "zenoh.json5"
+    path.write_text('{ mode: "client", connect: { endpoints: ["tcp/10.0.0.1:7447"] } }')
+    from_file = settings(zenoh_config(TransportConfig(mode="client", zenoh_config=path)))
+    assert from_file["connect/endpoints"] == ["tcp/10.0.0.1:7447"]
+    flagged = TransportConfig(mode="client", zenoh_config=path, connect=("tcp/10.0.0.2:7447",))
+    assert settings(zenoh_config(flagged))["connect/endpoints"] == ["tcp/10.0.0.2:7447"]
+
+
+def test_shared_memory_settings_reach_zenoh() -> None:
+    config = zenoh_config(TransportConfig(shm_pool_mb=32, shm_threshold=4096))
+    optimization = json.loads(config.get_json("transport/shared_memory/transport_optimization"))
+    assert optimization["pool_size"] == 32 << 20 and optimization["message_size_threshold"] == 4096
+    off = zenoh_config(TransportConfig(shared_memory=False))
+    assert json.loads(off.get_json("transport/shared_memory/enabled")) is False
+
+
+def test_bad_settings_fail_with_clear_errors(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="namespace"):
+        TransportConfig(namespace="a/b")
+    with pytest.raises(FileNotFoundError, match="Zenoh config file not found"):
+        zenoh_config(TransportConfig(zenoh_config=tmp_path / "missing.json5"))
