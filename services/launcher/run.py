@@ -58,7 +58,8 @@ def run(
                 for w in spec.workers
             ]
     missing = not_built(verdicts)
-    log.info("stack %s (namespace %s): %d processes", stack.name, stack.namespace, len(processes))
+    log.info("stack %s (namespace %s): processes to start: %d", stack.name, stack.namespace,
+             len(processes))
     if missing:
         log.warning("not built yet, not started: %s", missing)
     output = Output(sys.stdout, [p.label for p in processes], use_colour(sys.stdout))
