@@ -107,7 +107,7 @@ def _supervise(
         return Ending("nothing to run: no service of the stack is built yet", 0)
     until = [p for p in processes if p.service == stack.until]
     started = time.monotonic()
-    late: set[str] = set()
+    warned: set[str] = set()
     all_ready = False
     while service.running:
         for process in supervisor.step():
@@ -119,7 +119,7 @@ def _supervise(
             return Ending("every process finished", 0)
         if duration_s is not None and time.monotonic() - started >= duration_s:
             return Ending(f"duration of {duration_s:g} s reached", 0)
-        _note_ready(processes, liveliness, stack.ready_timeout_s, late)
+        _note_ready(processes, liveliness, stack.ready_timeout_s, warned)
         if not all_ready and all(p.ready_s is not None for p in processes):
             all_ready = True
             log.info("stack ready: every process announced itself after %.1f s",
@@ -131,17 +131,26 @@ def _supervise(
 
 
 def _note_ready(
-    processes: list[Process], liveliness: Liveliness, timeout_s: float, late: set[str]
+    processes: list[Process], liveliness: Liveliness, timeout_s: float, warned: set[str]
 ) -> None:
-    """Record the processes whose token appeared since their start; warn once about late ones."""
+    """Record the processes whose token appeared since their start; warn once about a process
+    whose token is warned, or gone while its process still runs."""
     for process in processes:
-        if process.outcome is not Outcome.RUNNING or process.ready_s is not None:
+        if process.outcome is not Outcome.RUNNING:
+            continue
+        if process.ready_s is not None:
+            ready_at = process.started_at + process.ready_s
+            lost = liveliness.withdrawn_since(process.spec.command, process.worker, ready_at)
+            if lost and process.label not in warned:
+                warned.add(process.label)
+                log.warning("%s lost its liveliness token while running: hung or cut off "
+                            "from the network", process.label)
             continue
         # A service holds its token under its command's name: `hamnet echo` is `alive/echo/<w>`.
         seen = liveliness.announced_since(process.spec.command, process.worker, process.started_at)
         if seen is not None:
             process.ready_s = round(seen - process.started_at, 3)
             log.info("%s ready after %.1f s", process.label, process.ready_s)
-        elif time.monotonic() - process.started_at > timeout_s and process.label not in late:
-            late.add(process.label)
+        elif time.monotonic() - process.started_at > timeout_s and process.label not in warned:
+            warned.add(process.label)
             log.warning("%s has not announced itself after %.0f s", process.label, timeout_s)

@@ -23,6 +23,7 @@ from enum import Enum
 
 from hamnet.launcher.output import Output
 from hamnet.launcher.stack import ServiceSpec
+from hamnet.runtime.service import SUPERVISOR_PID_ENV
 
 log = logging.getLogger(__name__)
 
@@ -107,7 +108,11 @@ class Supervisor:
         self.processes = list(processes)
         self._output = output
         self._program = list(program)
-        self._env: Mapping[str, str] = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        self._env: Mapping[str, str] = {
+            **os.environ,
+            "PYTHONUNBUFFERED": "1",
+            SUPERVISOR_PID_ENV: str(os.getpid()),
+        }
         self._followers: list[threading.Thread] = []
 
     def start(self, process: Process) -> None:

@@ -35,23 +35,31 @@ class Liveliness:
     def __init__(self, session: zenoh.Session, namespace: str) -> None:
         self._lock = threading.Lock()
         self._announced: dict[tuple[str, str], list[float]] = {}
+        self._withdrawn: dict[tuple[str, str], list[float]] = {}
         self._subscriber = session.liveliness().declare_subscriber(
             in_namespace(ALIVE, namespace), self._on_sample, history=True
         )
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        # A token that goes away needs no action: the process exit is what counts.
-        if sample.kind != zenoh.SampleKind.PUT:
-            return
         _, service, worker = keys.parse_alive_key(str(sample.key_expr))
+        seen = self._announced if sample.kind == zenoh.SampleKind.PUT else self._withdrawn
         with self._lock:
-            self._announced.setdefault((service, worker), []).append(time.monotonic())
+            seen.setdefault((service, worker), []).append(time.monotonic())
 
     def announced_since(self, service: str, worker: str, since: float) -> float | None:
         """time.monotonic() of the first token of `service/worker` seen at or after `since`."""
         with self._lock:
             times = self._announced.get((service, worker), [])
             return next((t for t in times if t >= since), None)
+
+    def withdrawn_since(self, service: str, worker: str, since: float) -> bool:
+        """Whether the token of `service/worker` went away at or after `since`.
+
+        Zenoh withdraws a token when its session closes or loses every link: for a process
+        that is still running, the service is hung or cut off from the network.
+        """
+        with self._lock:
+            return any(t >= since for t in self._withdrawn.get((service, worker), []))
 
     def announcements(self, service: str, worker: str) -> int:
         """How many times `service/worker` declared its token."""

@@ -74,11 +74,9 @@ class Topic:
 
 
 TOPICS: tuple[Topic, ...] = (
-    Topic("sim/<w>/state", sim_pb2.RobotState, "sim", "every policy step"),
-    Topic("sim/<w>/scene", sim_pb2.Scene, "sim", "at resets"),
-    Topic("sim/<w>/transition", sim_pb2.Transition, "sim", "every policy step"),
-    Topic("bridge/<w>/state", sim_pb2.RobotState, "bridge", "every policy step"),
-    Topic("bridge/<w>/scene", sim_pb2.Scene, "bridge", "when a task is set"),
+    Topic("sim/<w>/state", sim_pb2.RobotState, "sim or bridge", "every policy step"),
+    Topic("sim/<w>/scene", sim_pb2.Scene, "sim or bridge", "at resets"),
+    Topic("sim/<w>/transition", sim_pb2.Transition, "sim or bridge", "every policy step"),
     Topic("perception/<w>/tokens", perception_pb2.PerceptionTokens, "perception", "every policy step"),
     Topic("policy/<w>/action", policy_pb2.PolicyAction, "policy", "every policy step", finite=False),
     Topic("safety/<w>/command", safety_pb2.SafeCommand, "safety", "every policy step"),
@@ -90,8 +88,13 @@ TOPICS: tuple[Topic, ...] = (
     Topic("health/<service>/<w>", health_pb2.Health, "every service", "every second"),
     Topic("alive/<service>/<w>", None, "every service", "while running"),
 )
-"""Every topic of the stack. The policy's raw action may be non-finite: the safety service,
-not the transport, rejects it, so that the rejection becomes a safety event."""
+"""Every topic of the stack.
+
+The real-robot bridge publishes the robot's topics under the same `sim/<w>/...` keys: the
+segment names the role in the stack (the robot's executor), so swapping sim for bridge
+changes nothing for the services downstream. The policy's raw action may be non-finite: the
+safety service, not the transport, rejects it, so that the rejection becomes a safety
+event."""
 
 MESSAGE_TOPICS: tuple[Topic, ...] = tuple(t for t in TOPICS if t.message is not None)
 """The topics that carry protobuf messages (all but liveliness tokens)."""

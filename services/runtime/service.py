@@ -14,6 +14,7 @@ A shell reads like a dora node:
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import threading
 import time
@@ -28,6 +29,10 @@ from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher, Received
 from hamnet.runtime.transport import TransportConfig, open_session
 
 log = logging.getLogger(__name__)
+
+SUPERVISOR_PID_ENV = "HAMNET_SUPERVISOR_PID"
+"""Set by `hamnet up` for its children: they stop when that process is gone, so a launcher
+killed with SIGKILL leaves nothing behind."""
 
 ALIVE = contract.topic("alive/<service>/<w>")
 HEALTH = contract.topic("health/<service>/<w>")
@@ -73,6 +78,8 @@ class Service:
         self._token: zenoh.LivelinessToken | None = None
         self._health: Publisher | None = None
         self._previous_handlers: dict[int, object] = {}
+        supervisor = os.environ.get(SUPERVISOR_PID_ENV)
+        self._supervisor_pid = int(supervisor) if supervisor else None
 
     @property
     def namespace(self) -> str:
@@ -132,7 +139,15 @@ class Service:
         self._loops += 1
         if time.monotonic() - self._last_health[0] >= self.health_period_s:
             self._publish_health(ServiceState.RUNNING)
+            self._check_supervisor()
         return self.inbox.get(timeout)
+
+    def _check_supervisor(self) -> None:
+        """Stop when the launcher that started this process is gone (we were re-parented)."""
+        if self._supervisor_pid is not None and os.getppid() != self._supervisor_pid:
+            log.warning("%s: its launcher (pid %d) is gone, stopping", self.identity.source,
+                        self._supervisor_pid)
+            self._stop.set()
 
     def _publish_health(self, state: int) -> None:
         now = time.monotonic()

@@ -169,3 +169,35 @@ services:
     assert processes["once/0"]["restarts"] == 0  # exit 0 is not a crash
     assert processes["watch/w"]["outcome"] == "stopped"
     assert_all_gone([pid for p in processes.values() for pid in p["pids"]])
+
+
+def test_children_stop_when_the_launcher_is_killed(tmp_path, transport):
+    """SIGKILL gives the launcher no chance to stop its children; they notice they were
+    re-parented and stop themselves instead of running on unsupervised."""
+    stack = write_stack(tmp_path, "services:\n  echo: {workers: [a, b]}\n")
+    with up(stack, transport, cwd=tmp_path) as run:
+        run.wait_for("stack ready")
+        pids = [pid for started in run.started().values() for pid in started]
+        os.kill(run.process.pid, signal.SIGKILL)
+        deadline = time.monotonic() + 10
+        while any(alive(pid) for pid in pids) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert_all_gone(pids)
+
+
+def test_a_hung_process_is_reported_when_its_liveliness_token_expires(tmp_path, transport):
+    """A process that stops answering keeps running, so only Zenoh liveliness can tell:
+    with a 1 s lease its token is withdrawn and the launcher says so."""
+    zenoh_file = tmp_path / "zenoh.json5"
+    zenoh_file.write_text("{ transport: { link: { tx: { lease: 1000 } } } }")
+    stack = write_stack(tmp_path, "services:\n  echo: {workers: [a]}\n")
+    with up(stack, transport, "--zenoh-config", str(zenoh_file), cwd=tmp_path) as run:
+        run.wait_for("stack ready")
+        [pid] = run.started()["echo/a"]
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            run.wait_for("echo/a lost its liveliness token while running", timeout=15)
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        run.process.send_signal(signal.SIGTERM)
+        assert run.wait() == 0, run.output
