@@ -8,8 +8,8 @@ protobuf, tensor checks) differs from `hamnet echo --reflect`.
 It is built like `hamnet echo`: the Zenoh callback only appends the sample to a bounded
 queue under a condition variable (as `hamnet.runtime.pubsub.Inbox._push` does), and the
 main thread pops it, copies the payload out of Zenoh with `ZBytes.to_bytes()` (as
-`Inbox.get` does before decoding) and publishes those bytes. `--forward zbytes` skips the
-copy and republishes Zenoh's own buffer, which is the fastest a Python echo can be.
+`Inbox.get` does before decoding) and publishes those bytes. It tunes the allocator as every
+`hamnet` process does (`keep_large_buffers`), so that this, too, is the same on both paths.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from types import FrameType
 
 import zenoh
 
+from hamnet.runtime.allocator import keep_large_buffers
 from hamnet.runtime.transport import TransportConfig, zenoh_config
 
 
@@ -38,18 +39,13 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--shm-pool-mb", type=int, default=64)
     parser.add_argument("--shm-threshold", type=int, default=3072)
     parser.add_argument("--capacity", type=int, default=1024, help="queue bound, as Inbox")
-    parser.add_argument(
-        "--forward",
-        choices=("bytes", "zbytes"),
-        default="bytes",
-        help="bytes: copy out with to_bytes() like Inbox.get; zbytes: forward Zenoh's buffer",
-    )
     return parser.parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Echo until SIGINT/SIGTERM; returns the exit status."""
     args = parse(argv)
+    keep_large_buffers()
     transport = TransportConfig(
         namespace=args.namespace,
         rendezvous=args.rendezvous,
@@ -78,14 +74,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         subscriber = session.declare_subscriber(args.key_in, push)
         publisher = session.declare_publisher(args.key_out)
         token = session.liveliness().declare_token(args.alive)
-        copy = args.forward == "bytes"
         while not stop.is_set():
             with ready:
                 if not queue:
                     ready.wait(0.1)
                     continue
                 payload, attachment = queue.popleft()
-            publisher.put(payload.to_bytes() if copy else payload, attachment=attachment)
+            publisher.put(payload.to_bytes(), attachment=attachment)
         token.undeclare()
         subscriber.undeclare()
         publisher.undeclare()

@@ -13,8 +13,9 @@ The two paths, measured in the same run and interleaved round by round:
 
 - runtime: this process publishes a `PerceptionTokens` whose environment_cloud is (B, P, 3)
   float32 with `pubsub.Publisher`; the product's `hamnet echo --reflect` decodes it through the
-  contract (tensor and finiteness checks), re-encodes and republishes it; this process gets it
-  back through `pubsub.Inbox` (decode and checks again) and views it with `tensor.from_tensor`.
+  contract (tensor and finiteness checks) and republishes it unchanged; this process gets it
+  back through `pubsub.Inbox` and, as a service shell would, parses it and views the cloud
+  with `tensor.from_tensor` (dtype, shape and finiteness checked once).
 - raw: the same serialized bytes through a plain zenoh publisher and subscriber, echoed
   unchanged by `benchmarks/raw_echo.py`.
 
@@ -59,6 +60,7 @@ import tyro
 import zenoh
 
 from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.runtime.allocator import keep_large_buffers
 from hamnet.runtime.codec import encode
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor
@@ -72,6 +74,7 @@ from transport_core import (
     SHAPES,
     TOKENS,
     core_profile,
+    decode_reply,
     make_message,
     stats_us,
 )
@@ -162,7 +165,7 @@ class RuntimeEnd:
         self.reply_key = reflect_key(namespace, ECHO_WORKER, self.ping_key)
         self.drops = DropCounter()
         self.inbox = Inbox(session, self.drops)
-        self.inbox.subscribe("reflect", self.reply_key, PerceptionTokens, finite=TOKENS.finite)
+        self.inbox.subscribe("reflect", self.reply_key, decoder=decode_reply)
         self.publisher = Publisher(session, self.ping_key, f"bench/{BENCH_WORKER}")
         self.message = PerceptionTokens()
         self.payload_bytes = 0
@@ -182,8 +185,8 @@ class RuntimeEnd:
         received = self.inbox.get(timeout)
         if received is None:
             return None
-        self.last = from_tensor(received.value.environment_cloud, np.float32, (None, None, 3))
-        return received.value.header.step, received.received_ns
+        step, self.last = received.value
+        return step, received.received_ns
 
     def echoed_intact(self) -> bool:
         """Whether the last echo carried the cloud that was sent."""
@@ -670,5 +673,6 @@ def main(config: TransportBenchConfig) -> dict:
 
 
 if __name__ == "__main__":
+    keep_large_buffers()  # as every `hamnet` process and raw_echo.py do
     figures = main(tyro.cli(TransportBenchConfig, description=__doc__))
     print(json.dumps(figures), flush=True)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from hamnet import __version__
+from hamnet.runtime.allocator import keep_large_buffers
 
 
 @dataclass(frozen=True)
@@ -78,4 +79,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         issue = f" (issue #{command.issue})" if command.issue else ""
         print(f"hamnet {command.name}: not built yet{issue}. {command.summary}.", file=sys.stderr)
         return 2
+    keep_large_buffers()
     return importlib.import_module(command.module).main(args[1:])

@@ -3,7 +3,8 @@
 `decode` parses a payload and validates every Tensor inside it (known dtype, byte count
 matching the shape, and, for topics that require it, only finite floats), so that a
 malformed payload becomes one `PayloadError` with a reason instead of an exception deep in
-a service. Services add their own shape checks when they turn messages into arrays.
+a service. Shells on hot paths `parse` instead and check each tensor they use as they turn
+it into an array (`from_tensor` with dtype, shape and finiteness).
 """
 
 from __future__ import annotations
@@ -25,18 +26,31 @@ def encode(message: Message) -> bytes:
     return message.SerializeToString()
 
 
-def decode(message_type: type[M], payload: bytes, finite: bool = True) -> M:
-    """Parse `payload` as `message_type` and validate its tensors.
+def parse(message_type: type[M], payload: bytes) -> M:
+    """Parse `payload` as `message_type` without looking inside its tensors.
+
+    For shells that turn the tensors they use into arrays with `from_tensor` and its checks
+    right away: each tensor is then copied and checked once, not twice.
 
     Raises:
-        PayloadError: reason `decode` when the bytes are not a valid message, else the
-            reason of the first invalid tensor (dtype, shape, nonfinite).
+        PayloadError: reason `decode` when the bytes are not a valid message.
     """
     message = message_type()
     try:
         message.ParseFromString(payload)
     except (DecodeError, ValueError, RuntimeError) as error:
         raise PayloadError("decode", f"not a {message_type.DESCRIPTOR.full_name}: {error}") from None
+    return message
+
+
+def decode(message_type: type[M], payload: bytes, finite: bool = True) -> M:
+    """Parse `payload` as `message_type` and validate every tensor inside it.
+
+    Raises:
+        PayloadError: reason `decode` when the bytes are not a valid message, else the
+            reason of the first invalid tensor (dtype, shape, nonfinite).
+    """
+    message = parse(message_type, payload)
     for path, tensor in iter_tensors(message):
         try:
             from_tensor(tensor, finite=finite)

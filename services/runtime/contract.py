@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 
 from google.protobuf.message import Message
 
@@ -108,6 +109,10 @@ def topic(path: str) -> Topic:
     raise KeyError(f"no topic {path!r} in the contract; see `hamnet topics`")
 
 
+@lru_cache(maxsize=4096)
 def match_key(key: str) -> Topic | None:
-    """The contract entry a concrete key belongs to, or None for keys outside the contract."""
+    """The contract entry a concrete key belongs to, or None for keys outside the contract.
+
+    Cached: a stack uses a few dozen keys, and tools that listen to everything look one up
+    for every message."""
     return next((entry for entry in TOPICS if entry.matches(key)), None)

@@ -167,7 +167,11 @@ class Publisher:
             header = message.header
             header.source = header.source or self.source
             header.stamp_ns = header.stamp_ns or time.time_ns()
-        self._publisher.put(encode(message))
+        self.put_encoded(encode(message))
+
+    def put_encoded(self, payload: bytes) -> None:
+        """Publish an already encoded message unchanged (relays: echo, replay)."""
+        self._publisher.put(payload)
         self.published += 1
 
     def close(self) -> None:

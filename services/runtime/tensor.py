@@ -1,6 +1,7 @@
 """numpy arrays <-> the `Tensor` message (dtype, shape, raw little-endian bytes).
 
-Decoding is zero-copy: the array is a read-only view over the message's bytes. Every check a
+Decoding makes no copy beyond the one protobuf makes when the bytes field is read: the
+array is a read-only view over those bytes. Every check a
 receiver needs (dtype, shape, byte count, finiteness) raises `PayloadError` with a reason, so
 the runtime can count and drop bad payloads by kind.
 """
@@ -78,30 +79,25 @@ def from_tensor(
     if dtype is not None and np_dtype.newbyteorder("=") != np.dtype(dtype).newbyteorder("="):
         raise PayloadError("dtype", f"expected {np.dtype(dtype)}, got {np_dtype}")
     dims = tuple(int(d) for d in tensor.shape)
+    # Each read of a bytes field copies it out of the protobuf message: read it once.
+    data = tensor.data
     count = math.prod(dims)
-    if count * np_dtype.itemsize != len(tensor.data):
+    if count * np_dtype.itemsize != len(data):
         raise PayloadError(
             "shape",
-            f"shape {dims} of {np_dtype} needs {count * np_dtype.itemsize} bytes, "
-            f"got {len(tensor.data)}",
+            f"shape {dims} of {np_dtype} needs {count * np_dtype.itemsize} bytes, got {len(data)}",
         )
     if shape is not None and (
         len(shape) != len(dims)
         or any(want is not None and want != got for want, got in zip(shape, dims))
     ):
         raise PayloadError("shape", f"expected shape {tuple(shape)}, got {dims}")
-    array = np.frombuffer(tensor.data, dtype=np_dtype).reshape(dims)
+    array = np.frombuffer(data, dtype=np_dtype).reshape(dims)
     if finite and not all_finite(array):
         raise PayloadError("nonfinite", f"NaN or Inf in a {dims} {np_dtype} tensor")
     return array
 
 
 def all_finite(array: np.ndarray) -> bool:
-    """True when a floating-point array holds no NaN or Inf (always True for integers).
-
-    min and max propagate NaN and expose Inf, so two vectorised reductions replace a
-    temporary boolean array of the same size.
-    """
-    if array.dtype.kind != "f" or array.size == 0:
-        return True
-    return bool(np.isfinite(array.min()) and np.isfinite(array.max()))
+    """True when a floating-point array holds no NaN or Inf (always True for integers)."""
+    return array.dtype.kind != "f" or bool(np.isfinite(array).all())

@@ -1,9 +1,10 @@
 """`hamnet echo`: decode everything published on a stack through the contract, print rates
-(or each message), and optionally reflect each message back re-encoded.
+(or each message), and optionally reflect each valid message back.
 
 Reflection republishes a message received on `hamnet/<ns>/<path>` to
-`hamnet/<ns>/echo/<w>/reflect/<path>` after a full decode and re-encode: a round trip
-through a second process that the contract tests and the transport benchmark rely on.
+`hamnet/<ns>/echo/<w>/reflect/<path>` once it has decoded and passed every check, unchanged,
+as a relay should: a round trip through a second process that the contract tests and the
+transport benchmark rely on.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ class EchoConfig:
     print_messages: bool = False
     """Print each message (tensors summarised) instead of periodic rate lines."""
     reflect: bool = False
-    """Republish each decoded message under hamnet/<ns>/echo/<worker>/reflect/<path>."""
+    """Republish each valid message unchanged under hamnet/<ns>/echo/<worker>/reflect/<path>."""
     period_s: float = 2.0
     """Seconds between rate lines."""
     count: int = 0
@@ -53,12 +54,16 @@ def reflect_key(namespace: str, worker: str, key: str) -> str:
     return f"{keys.ROOT}/{namespace}/echo/{worker}/reflect/{path}"
 
 
-def decode_by_contract(key: str, payload: bytes) -> Message | None:
-    """Decode a payload with the message type the contract gives its key (None if outside)."""
+def decode_by_contract(key: str, payload: bytes) -> tuple[Message | None, bytes]:
+    """Decode a payload with the message type the contract gives its key.
+
+    Returns:
+        The message (None for keys outside the contract) and the payload it came from.
+    """
     topic = match_key(key)
     if topic is None or topic.message is None:
-        return None
-    return decode(topic.message, payload, topic.finite)
+        return None, payload
+    return decode(topic.message, payload, topic.finite), payload
 
 
 def summary(message: Message, limit: int = 400) -> str:
@@ -98,15 +103,18 @@ def main(argv: Sequence[str]) -> int:
                 counts.clear()
                 last_report = now
             received = service.receive(timeout=0.1)
-            if received is None or received.value is None or received.key.startswith(own_prefix):
+            if received is None or received.key.startswith(own_prefix):
+                continue
+            message, payload = received.value
+            if message is None:
                 continue
             counts[received.key] += 1
             total += 1
             if config.print_messages:
-                print(f"{received.key}: {summary(received.value)}", flush=True)
+                print(f"{received.key}: {summary(message)}", flush=True)
             if config.reflect:
                 reflected = reflect_key(namespace, common.worker, received.key)
-                service.publisher(reflected).put(received.value)
+                service.publisher(reflected).put_encoded(payload)
             if config.count and total >= config.count:
                 break
     return 0
