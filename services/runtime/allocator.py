@@ -23,8 +23,8 @@ def keep_large_buffers(mmap_threshold: int = 32 << 20, trim_threshold: int = 256
     """Raise glibc's mmap and trim thresholds for this process.
 
     Args:
-        mmap_threshold: bytes; allocations up to this come from the heap (glibc caps it at
-            32 MiB on 64-bit systems).
+        mmap_threshold: bytes; allocations up to this come from the heap (4 MB payloads
+            and their copies included).
         trim_threshold: bytes of free heap kept before memory is returned to the OS.
 
     Returns:

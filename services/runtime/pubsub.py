@@ -93,19 +93,22 @@ class Inbox:
         message_type: type[Message] | None = None,
         finite: bool = True,
         decoder: Callable[[str, bytes], Any] | None = None,
+        remote_only: bool = False,
     ) -> None:
         """Receive `key_expr` under the local `name`.
 
         Either `message_type` (decoded and checked with `codec.decode`) or a custom
-        `decoder(key, payload)` raising PayloadError for bad input.
+        `decoder(key, payload)` raising PayloadError for bad input. `remote_only` ignores
+        what this process publishes itself (for tools that listen to everything).
         """
         if decoder is None:
             if message_type is None:
                 raise ValueError("subscribe needs a message_type or a decoder")
             decoder = lambda key, payload, mt=message_type: decode(mt, payload, finite)  # noqa: E731
         subscription = _Subscription(name, decoder)
+        origin = zenoh.Locality.REMOTE if remote_only else zenoh.Locality.ANY
         subscription.handle = self._session.declare_subscriber(
-            key_expr, lambda sample: self._push(subscription, sample)
+            key_expr, lambda sample: self._push(subscription, sample), allowed_origin=origin
         )
         self._subscriptions.append(subscription)
 

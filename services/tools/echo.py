@@ -91,7 +91,8 @@ def main(argv: Sequence[str]) -> int:
     started = last_report = time.monotonic()
     with Service(identity, common.transport) as service:
         key_expr = config.key_expr or keys.namespace_pattern(namespace)
-        service.inbox.subscribe("stack", key_expr, decoder=decode_by_contract)
+        # Remote only: its own reflections and health reports would come straight back.
+        service.inbox.subscribe("stack", key_expr, decoder=decode_by_contract, remote_only=True)
         while service.running:
             now = time.monotonic()
             if config.duration_s and now - started >= config.duration_s:
@@ -103,6 +104,7 @@ def main(argv: Sequence[str]) -> int:
                 counts.clear()
                 last_report = now
             received = service.receive(timeout=0.1)
+            # Never reflect what an echo (this one or another) published: no ping-pong.
             if received is None or received.key.startswith(own_prefix):
                 continue
             message, payload = received.value

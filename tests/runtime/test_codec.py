@@ -55,3 +55,20 @@ def test_truncated_payloads_never_raise_anything_but_payload_error() -> None:
             decode(sim_pb2.RobotState, payload[:end])
         except PayloadError:
             pass
+
+
+def test_parse_leaves_tensor_checks_to_the_shell() -> None:
+    """`parse` is for shells that check each tensor they use with `from_tensor`: a
+    non-finite tensor passes `parse` and is caught when the shell views it."""
+    from hamnet.runtime.codec import parse
+    from hamnet.runtime.tensor import from_tensor
+
+    state = sim_pb2.RobotState()
+    to_tensor(np.full((2, 7), np.nan, np.float32), state.q)
+    parsed = parse(sim_pb2.RobotState, encode(state))
+    with pytest.raises(PayloadError) as error:
+        from_tensor(parsed.q, np.float32, (None, 7), finite=True)
+    assert error.value.reason == "nonfinite"
+    with pytest.raises(PayloadError) as error:
+        parse(sim_pb2.RobotState, b"\xff\xff")
+    assert error.value.reason == "decode"
