@@ -79,7 +79,9 @@ class _LoopbackSession:
     A publisher's put does nothing; a subscriber's callback is kept for the caller to call.
     """
 
-    def declare_subscriber(self, key_expr: str, callback: Callable) -> SimpleNamespace:
+    def declare_subscriber(
+        self, key_expr: str, callback: Callable, allowed_origin: zenoh.Locality | None = None
+    ) -> SimpleNamespace:
         self.callback = callback
         return SimpleNamespace(undeclare=lambda: None)
 

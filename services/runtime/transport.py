@@ -74,6 +74,9 @@ def zenoh_config(transport: TransportConfig) -> zenoh.Config:
         "connect/exit_on_failure": False,
         "connect/timeout_ms": 0,
         "transport/shared_memory/enabled": transport.shared_memory,
+        # Zenoh creates the pool lazily by default, sending the first large messages over
+        # the network; create it at start instead.
+        "transport/shared_memory/mode": "init",
         "transport/shared_memory/transport_optimization/enabled": transport.shared_memory,
         "transport/shared_memory/transport_optimization/pool_size": transport.shm_pool_mb << 20,
         "transport/shared_memory/transport_optimization/message_size_threshold": (
