@@ -6,14 +6,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, TypeVar
+from typing import Annotated, Protocol, TypeVar
 
 import tyro
 
-from hamnet.runtime.logs import LogFormat
+from hamnet.runtime.logs import LogFormat, configure_logging
+from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.transport import TransportConfig
 
 C = TypeVar("C")
+S = TypeVar("S", bound="HasCommon")
 
 Flattened = tyro.conf.OmitArgPrefixes
 """Annotate a nested config field with this to expose its options without a prefix."""
@@ -47,3 +49,25 @@ def parse(config_type: type[C], argv: Sequence[str], prog: str, description: str
         prog=prog,
         description=description,
     )
+
+
+class HasCommon(Protocol):
+    """A service config: it nests the common options."""
+
+    @property
+    def common(self) -> CommonConfig: ...
+
+
+def parse_service(
+    config_type: type[S], argv: Sequence[str], service: str, description: str
+) -> tuple[S, ServiceIdentity]:
+    """Parse a service's command line and set up its logging.
+
+    Returns:
+        The config and who the service is on the network (`service/worker`).
+    """
+    config = parse(config_type, argv, f"hamnet {service}", description)
+    logging = config.common.logging
+    identity = ServiceIdentity(service, config.common.worker)
+    configure_logging(identity.source, logging.log_level, logging.log_format)
+    return config, identity

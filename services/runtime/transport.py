@@ -72,7 +72,9 @@ def zenoh_config(transport: TransportConfig) -> zenoh.Config:
         # The rendezvous is taken by another peer most of the time: keep going without it.
         "listen/exit_on_failure": not (transport.mode == "peer" and transport.rendezvous),
         "connect/exit_on_failure": False,
-        "connect/timeout_ms": 0,
+        # A client is nothing without its router: wait for it (a router started later is
+        # fine). Peers and routers go on at once and keep retrying in the background.
+        "connect/timeout_ms": -1 if transport.mode == "client" else 0,
         "transport/shared_memory/enabled": transport.shared_memory,
         # Zenoh creates the pool lazily by default, sending the first large messages over
         # the network; create it at start instead.

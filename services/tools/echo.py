@@ -20,11 +20,10 @@ from google.protobuf import text_format
 from google.protobuf.message import Message
 
 from hamnet.runtime import keys
-from hamnet.runtime.cli import CommonConfig, Flattened, parse
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.codec import decode
 from hamnet.runtime.contract import match_key
-from hamnet.runtime.logs import configure_logging
-from hamnet.runtime.service import Service, ServiceIdentity
+from hamnet.runtime.service import Service
 
 log = logging.getLogger(__name__)
 
@@ -80,10 +79,8 @@ CONFIG = EchoConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet echo` with command-line arguments `argv`; returns the exit status."""
-    config = parse(CONFIG, argv, "hamnet echo", __doc__)
+    config, identity = parse_service(CONFIG, argv, "echo", __doc__)
     common = config.common
-    identity = ServiceIdentity("echo", common.worker)
-    configure_logging(identity.source, common.logging.log_level, common.logging.log_format)
     namespace = common.transport.namespace
     own_prefix = f"{keys.ROOT}/{namespace}/echo/"
     counts: Counter[str] = Counter()

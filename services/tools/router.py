@@ -11,9 +11,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Annotated
 
-from hamnet.runtime.cli import CommonConfig, Flattened, parse
-from hamnet.runtime.logs import configure_logging
-from hamnet.runtime.service import Service, ServiceIdentity
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
 
 log = logging.getLogger(__name__)
 
@@ -31,10 +30,8 @@ CONFIG = RouterConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet router` with command-line arguments `argv`; returns the exit status."""
-    config = parse(CONFIG, argv, "hamnet router", __doc__)
+    config, identity = parse_service(CONFIG, argv, "router", __doc__)
     common = config.common
-    identity = ServiceIdentity("router", common.worker)
-    configure_logging(identity.source, common.logging.log_level, common.logging.log_format)
     transport = replace(common.transport, mode="router")
     with Service(identity, transport) as service:
         log.info("Zenoh router %s listening", service.session.zid())
