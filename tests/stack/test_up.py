@@ -90,7 +90,9 @@ services:
             tokens.wait(source, ["PUT"])
         started = run.started()
         assert sorted(started) == ["echo/a", "echo/b", "watch/0"]
-        run.wait_for(r"watch/0 \| .* hamnet/.*/health/echo/a")  # the children talk to each other
+        # The children talk to each other. By the second rate line watch has sent a RUNNING
+        # health report: the first line and the first report fall due together.
+        run.wait_for(r"watch/0 \| .* hamnet/.*/health/echo/a", count=2)
         run.process.send_signal(signal.SIGTERM)
         assert run.wait() == 0, run.output
     summary = run.summary()

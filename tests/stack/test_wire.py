@@ -124,12 +124,17 @@ def test_malformed_payloads_on_every_topic_are_counted_and_dropped(echo, transpo
     health_key = contract.topic("health/<service>/<w>").key(namespace, service="echo", w="e1")
     inbox.subscribe("health", health_key, Health)
     inbox.subscribe("reflected", f"{keys.ROOT}/{namespace}/echo/e1/reflect/**", decoder=lambda k, p: k)
+    probe_topic, probe_key = topics[0]
+    probe = encode(random_message(probe_topic.message, seed=1))
+    # Puts made before this session knows echo's subscription are lost: wait for a route.
+    deadline = time.monotonic() + 20
+    while inbox.get(timeout=0.2) is None or inbox.received["reflected"] == 0:
+        assert time.monotonic() < deadline, "echo never reflected the probe"
+        session.put(probe_key, probe)
     for key, payloads in batches.items():
         for payload in payloads:
             session.put(key, payload)
     # A valid message after the bad ones: once it is reflected, echo has judged them all.
-    probe_topic, probe_key = topics[0]
-    probe = encode(random_message(probe_topic.message, seed=1))
     counted: dict[tuple[str, str], int] = {}
     deadline = time.monotonic() + 20
     while counted != expected and time.monotonic() < deadline:
