@@ -1,0 +1,202 @@
+"""Goal and start poses of the object on a scene's flat faces (paper, appendix "Object
+Placement"), by vectorized rejection sampling.
+
+Consumes a `SceneBatch` and, per environment, the object's K precomputed stable orientations
+with their planar radius, resting height and top height; produces a `Placement`: goal and
+start positions and wxyz quaternions and a validity mask. Each environment draws a fixed
+number of candidates at once and keeps the first that passes, so there is no loop that
+could run forever: an environment with no passing candidate is reported invalid (resample
+its scene). The goal is drawn first, biased toward elevated plates; the start then prefers
+faces lower than the goal and keeps its distance from the goal in position and orientation,
+so an episode never starts in success. Shapes: B environments, K stable orientations,
+T tries, R regions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from hamnet.sim import quaternion
+from hamnet.sim.scene import SceneBatch
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    """How goal and start poses are drawn."""
+
+    min_position_separation: float = 0.1
+    """Smallest distance between goal and start positions, m (paper's success radius)."""
+    min_orientation_separation: float = 0.1
+    """Smallest angle between goal and start orientations, rad (paper's success angle)."""
+    elevated_goal_bias: float = 10.0
+    """Weight, relative to 1, of faces above the table top when drawing the goal, and of faces
+    lower than the goal when drawing the start; 1 draws both by area alone."""
+    max_tries: int = 64
+    """Candidates drawn per environment for the goal, and again for the start."""
+    random_yaw: bool = True
+    """Turn each stable orientation by a uniform yaw about the world z axis."""
+
+    def __post_init__(self) -> None:
+        if self.min_position_separation < 0 or self.min_orientation_separation < 0:
+            raise ValueError("separations must be >= 0")
+        if self.elevated_goal_bias <= 0:
+            raise ValueError("elevated_goal_bias must be > 0 (1 means no bias)")
+        if self.max_tries < 1:
+            raise ValueError("max_tries must be >= 1")
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Goal and start poses of the object in each environment (world frame)."""
+
+    goal_pos: np.ndarray
+    """(B, 3) object position at the goal, m."""
+    goal_quat: np.ndarray
+    """(B, 4) object orientation at the goal, wxyz."""
+    goal_pose: np.ndarray
+    """(B,) index of the goal's stable orientation among the K."""
+    start_pos: np.ndarray
+    """(B, 3) object position at the start, m."""
+    start_quat: np.ndarray
+    """(B, 4) object orientation at the start, wxyz."""
+    start_pose: np.ndarray
+    """(B,) index of the start's stable orientation among the K."""
+    valid: np.ndarray
+    """(B,) bool: both poses passed every check; other rows hold unchecked candidates."""
+
+
+class _Candidates(NamedTuple):
+    pos: np.ndarray  # (B, T, 3) m
+    quat: np.ndarray  # (B, T, 4) wxyz
+    pose: np.ndarray  # (B, T) stable orientation index
+    surface_z: np.ndarray  # (B, T) world z of the face the object rests on, m
+    valid: np.ndarray  # (B, T) bool
+
+
+def sample_placements(
+    rng: np.random.Generator,
+    scene: SceneBatch,
+    stable_quat: np.ndarray,
+    planar_radius: np.ndarray,
+    rest_height: np.ndarray,
+    top_height: np.ndarray,
+    config: PlacementConfig | None = None,
+) -> Placement:
+    """Draw a goal and a start pose per environment.
+
+    Args:
+        rng: source of randomness; the same generator state gives the same placements.
+        scene: the B scenes.
+        stable_quat: (B, K, 4) stable orientations, wxyz.
+        planar_radius: (B, K) largest horizontal distance from the object's origin to its
+            surface in each orientation, m: the margin kept from walls and plate edges.
+        rest_height: (B, K) height of the object's origin above the face it rests on, m.
+        top_height: (B, K) height of the object's top above that face, m (ceiling check).
+        config: sampling options.
+    Returns:
+        The placements; rows with `valid` False found no acceptable pose.
+    """
+    config = config if config is not None else PlacementConfig()
+    num_envs, num_poses = planar_radius.shape
+    if stable_quat.shape != (num_envs, num_poses, 4) or num_envs != scene.num_envs:
+        raise ValueError("stable_quat must be (B, K, 4) and B must match the scene")
+    if rest_height.shape != planar_radius.shape or top_height.shape != planar_radius.shape:
+        raise ValueError("planar_radius, rest_height and top_height must all be (B, K)")
+    if not (np.all(planar_radius > 0) and np.all(rest_height >= 0)):
+        raise ValueError("planar_radius must be > 0 and rest_height >= 0")
+    objects = (stable_quat, planar_radius, rest_height, top_height)
+    area = np.prod(scene.region_hi - scene.region_lo, axis=-1) * scene.region_flat  # (B, R)
+    bias = config.elevated_goal_bias
+    elevated = scene.region_z > scene.table_top[:, None]  # (B, R)
+    goal = _pick(_candidates(rng, scene, area * np.where(elevated, bias, 1.0), objects, config))
+
+    lower = scene.region_z < goal.surface_z[:, None]  # (B, R)
+    start = _candidates(rng, scene, area * np.where(lower, bias, 1.0), objects, config)
+    distance = np.linalg.norm(start.pos - goal.pos[:, None], axis=-1)  # (B, T), m
+    angle = quaternion.angle_between(start.quat, goal.quat[:, None])  # (B, T), rad
+    separated = (distance >= config.min_position_separation) & (
+        angle >= config.min_orientation_separation
+    )
+    start = _pick(start._replace(valid=start.valid & separated))
+    return Placement(
+        goal_pos=goal.pos,
+        goal_quat=goal.quat,
+        goal_pose=goal.pose,
+        start_pos=start.pos,
+        start_quat=start.quat,
+        start_pose=start.pose,
+        valid=goal.valid & start.valid,
+    )
+
+
+def _candidates(
+    rng: np.random.Generator,
+    scene: SceneBatch,
+    weight: np.ndarray,
+    objects: tuple[np.ndarray, ...],
+    config: PlacementConfig,
+) -> _Candidates:
+    """T poses per environment: a stable orientation, a region drawn by `weight` (B, R), a
+    uniform point in it and a yaw; valid where the footprint is flat and under the ceiling."""
+    stable_quat, planar_radius, rest_height, top_height = objects
+    num_envs, num_poses = planar_radius.shape
+    shape = (num_envs, config.max_tries)
+    pose = rng.integers(0, num_poses, size=shape)  # (B, T)
+    cdf = np.cumsum(weight, axis=-1)  # (B, R)
+    draw = rng.random(shape) * cdf[:, -1:]  # (B, T)
+    region = np.minimum((cdf[:, None, :] <= draw[..., None]).sum(axis=-1), weight.shape[1] - 1)
+    lo = np.take_along_axis(scene.region_lo, region[..., None], axis=1)  # (B, T, 2)
+    hi = np.take_along_axis(scene.region_hi, region[..., None], axis=1)  # (B, T, 2)
+    xy = lo + rng.random((*shape, 2)) * (hi - lo)  # (B, T, 2), m
+    yaw = rng.uniform(-np.pi, np.pi, size=shape) if config.random_yaw else np.zeros(shape)
+
+    radius = np.take_along_axis(planar_radius, pose, axis=1)  # (B, T), m
+    flat, elevation = _flat_footprint(scene, xy, radius)
+    surface_z = scene.table_top[:, None] + elevation  # (B, T), m
+    top_z = surface_z + np.take_along_axis(top_height, pose, axis=1)  # (B, T), m
+    valid = (cdf[:, -1:] > 0) & flat & (top_z <= scene.ceiling_z[:, None])
+    z = surface_z + np.take_along_axis(rest_height, pose, axis=1)  # (B, T), m
+    stable = np.take_along_axis(stable_quat, pose[..., None], axis=1)  # (B, T, 4)
+    turn = quaternion.from_axis_angle(np.array([0.0, 0.0, 1.0]), yaw)  # (B, T, 4)
+    return _Candidates(
+        pos=np.concatenate([xy, z[..., None]], axis=-1),
+        quat=quaternion.multiply(turn, stable),
+        pose=pose,
+        surface_z=surface_z,
+        valid=valid,
+    )
+
+
+def _flat_footprint(
+    scene: SceneBatch, xy: np.ndarray, radius: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the square of half side `radius` (B, T) around `xy` (B, T, 2) lies on the
+    table at one elevation, and the highest elevation under it (B, T), m.
+
+    The surface is max(profile_x, profile_y), so over the square it ranges from
+    max(low_x, low_y) to max(high_x, high_y), each taken over the segments the square
+    overlaps along that axis; equal ends mean no edge, step or slope under the object.
+    The square holds the object's bounding circle, so the check errs on the safe side.
+    """
+    inside = np.ones(radius.shape, dtype=bool)
+    low, high = [], []
+    for axis in (0, 1):
+        edges = scene.profile_edges[:, axis, None, :]  # (B, 1, 6)
+        start = xy[..., axis] - radius  # (B, T)
+        end = xy[..., axis] + radius
+        inside &= (start >= edges[..., 0]) & (end <= edges[..., -1])
+        overlap = (edges[..., :-1] < end[..., None]) & (edges[..., 1:] > start[..., None])
+        high.append(np.where(overlap, scene.profile_high[:, axis, None], -np.inf).max(-1))
+        low.append(np.where(overlap, scene.profile_low[:, axis, None], np.inf).min(-1))
+    top = np.maximum(*high)  # (B, T)
+    return inside & (top == np.maximum(*low)), top
+
+
+def _pick(candidates: _Candidates) -> _Candidates:
+    """The first valid candidate of each environment (the first one where none is)."""
+    first = np.argmax(candidates.valid, axis=1)  # (B,)
+    rows = np.arange(len(first))
+    return _Candidates(*(field[rows, first] for field in candidates))
