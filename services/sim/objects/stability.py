@@ -1,0 +1,225 @@
+"""Stable resting orientations, found by dropping the object on a plane in MuJoCo.
+
+As in the paper (Object Placement, after CORN): drop the object from many random
+orientations, let it settle, and group the rests by the object's down direction (a resting
+pose is fixed up to yaw by which way is down). Each group's most central rest is kept if
+enough drops ended there and it survives being released slightly tilted, which rejects
+knife-edge balances. Dropping, rather than a quasi-static hull analysis, tests the poses
+against the very collision geometry (the convex parts) and contact model the sim uses.
+All drops run at once in one model: copies of the object that collide with the plane only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from hamnet.sim.objects.asset import StablePoses
+from hamnet.sim.objects.config import StabilityConfig
+from hamnet.sim.objects.mesh import Mesh
+from hamnet.sim.objects.spec import DEFAULT_FRICTION, add_convex_body
+
+DOWN = np.array([0.0, 0.0, -1.0])
+DROP_MASS = 0.3
+"""kg; the resting pose does not depend on it."""
+GRID_SPACING = 1.0
+"""m between drops; they cannot collide anyway, this only keeps the broad phase quiet."""
+
+
+class UnstableObjectError(ValueError):
+    """No orientation of the object came to a stable rest."""
+
+
+def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """(N, 4) wxyz unit quaternions to (N, 3, 3) rotation matrices."""
+    w, x, y, z = np.moveaxis(quat, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def axis_angle_quat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(N, 4) wxyz quaternions of rotations by `angle` (N,) rad about unit `axis` (N, 3)."""
+    half = angle[:, None] / 2
+    return np.concatenate([np.cos(half), axis * np.sin(half)], axis=1)
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 4) Hamilton products a * b (apply b, then a), wxyz."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], -1)
+
+
+def down_directions(quat: np.ndarray) -> np.ndarray:
+    """(N, 3) world down (-z) expressed in the frames of objects at orientations (N, 4)."""
+    return np.einsum("nij,i->nj", quat_to_matrix(quat), DOWN)  # R^T @ down
+
+
+def tilt_quaternions(down: np.ndarray) -> np.ndarray:
+    """(N, 4) smallest rotations taking object-frame unit directions `down` (N, 3) to -z."""
+    axis = np.cross(down, DOWN)  # (N, 3)
+    sin = np.linalg.norm(axis, axis=1)
+    cos = down @ DOWN
+    # Upside down (down = +z): any horizontal axis does; take x.
+    axis = np.where(sin[:, None] > 1e-9, axis / np.maximum(sin, 1e-12)[:, None], [1.0, 0.0, 0.0])
+    return axis_angle_quat(axis, np.arctan2(sin, cos))
+
+
+def resting_geometry(points: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planar radius and resting height of a point set at each orientation.
+
+    Args:
+        points: (P, 3) object-frame points (surface and part vertices), m.
+        quat: (K, 4) orientations, wxyz.
+    Returns:
+        (K,) largest horizontal distance from the centre, m; (K,) centre height above the
+        lowest point, m.
+    """
+    world = np.einsum("kij,pj->kpi", quat_to_matrix(quat), points)  # (K, P, 3)
+    return np.linalg.norm(world[..., :2], axis=-1).max(axis=1), -world[..., 2].min(axis=1)
+
+
+def settle(
+    parts: Sequence[Mesh], unit_inertia: np.ndarray, quat: np.ndarray, config: StabilityConfig,
+    rolling_friction: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Release copies of the object just above a plane and let them come to rest.
+
+    Args:
+        parts: convex parts, object frame, m.
+        unit_inertia: (3, 3) inertia per kg, m^2.
+        quat: (N, 4) initial orientations, wxyz.
+        config: drop settings.
+        rolling_friction: m; > 0 turns on MuJoCo's rolling friction (condim 6).
+    Returns:
+        (N, 4) final orientations; (N,) whether each copy kept its down direction within
+        `config.rest_angle` during the last `config.rest_window` seconds.
+    """
+    spec = mujoco.MjSpec()
+    spec.option.timestep = config.timestep
+    # Bitmasks: copies touch the plane (1 & 1) but never each other (2 & 1 = 0).
+    friction = (config.friction, DEFAULT_FRICTION[1], rolling_friction)
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=1, conaffinity=2,
+        friction=list(friction), condim=6 if rolling_friction > 0 else 3,
+    )
+    points = np.concatenate([p.vertices for p in parts])  # (P, 3)
+    _, heights = resting_geometry(points, quat)  # (N,)
+    side = int(np.ceil(np.sqrt(len(quat))))
+    for i, (q, h) in enumerate(zip(quat, heights)):
+        pos = (GRID_SPACING * (i % side), GRID_SPACING * (i // side), h + config.drop_gap)
+        add_convex_body(
+            spec, f"drop{i}", parts, unit_inertia, DROP_MASS, mesh_prefix="object",
+            friction=friction, pos=pos, quat=q, contype=2, conaffinity=1,
+        )
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    steps = int(round(config.settle_time / config.timestep))
+    window = int(round(config.rest_window / config.timestep))
+    drift = np.zeros(len(quat))  # (N,) largest move of the down direction in the window, rad
+    for step in range(steps):
+        mujoco.mj_step(model, data)
+        if step >= steps - window:
+            down = down_directions(data.qpos.reshape(-1, 7)[:, 3:])  # (N, 3)
+            if step == steps - window:
+                start_down = down
+            drift = np.maximum(drift, angle_between(down, start_down))
+    final = data.qpos.reshape(-1, 7)[:, 3:].copy()  # (N, 4)
+    final /= np.linalg.norm(final, axis=1, keepdims=True)
+    still = drift < config.rest_angle
+    return final, still
+
+
+def cluster(down: np.ndarray, angle: float) -> list[np.ndarray]:
+    """Group unit directions (N, 3): each joins the first group whose leader is within `angle`.
+
+    Returns:
+        Index arrays of the groups, in order of their leaders.
+    """
+    leaders: list[int] = []
+    members: list[list[int]] = []
+    for i, d in enumerate(down):
+        for group, leader in enumerate(leaders):
+            if d @ down[leader] > np.cos(angle):
+                members[group].append(i)
+                break
+        else:
+            leaders.append(i)
+            members.append([i])
+    return [np.array(m) for m in members]
+
+
+def medoid(down: np.ndarray) -> np.ndarray:
+    """The direction (3,) among (N, 3) closest on average to all the others."""
+    return down[np.argmax((down @ down.T).sum(axis=1))]
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) angles between unit directions (N, 3) and (N, 3), rad."""
+    return np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0))
+
+
+def survives_tilt(
+    parts: Sequence[Mesh], unit_inertia: np.ndarray, down: np.ndarray, config: StabilityConfig,
+    rng: np.random.Generator, tilts: int = 4,
+) -> np.ndarray:
+    """Whether each resting direction (K, 3) returns after release tilted `config.check_tilt`.
+
+    Each direction is released `tilts` times, tilted about evenly spread horizontal axes.
+    Returns:
+        (K,) bool.
+    """
+    k = len(down)
+    heading = rng.uniform(0, 2 * np.pi) + np.arange(tilts) * 2 * np.pi / tilts  # (T,)
+    axis = np.stack([np.cos(heading), np.sin(heading), np.zeros(tilts)], axis=1)  # (T, 3)
+    tilt = axis_angle_quat(np.tile(axis, (k, 1)), np.full(k * tilts, config.check_tilt))  # (K*T, 4)
+    start = quat_multiply(tilt, np.repeat(tilt_quaternions(down), tilts, axis=0))  # (K*T, 4)
+    final, _ = settle(parts, unit_inertia, start, config)
+    drift = angle_between(down_directions(final), np.repeat(down, tilts, axis=0))  # (K*T,)
+    return (drift < config.stable_angle).reshape(k, tilts).all(axis=1)
+
+
+def find_stable_poses(
+    mesh: Mesh, parts: Sequence[Mesh], unit_inertia: np.ndarray, config: StabilityConfig
+) -> StablePoses:
+    """Stable resting orientations of an object, with planar radius and resting height.
+
+    Args:
+        mesh: the surface, object frame (centre of mass at the origin), m.
+        parts: the convex parts MuJoCo collides with.
+        unit_inertia: (3, 3) inertia per kg, m^2.
+        config: drop, grouping and check settings.
+    Returns:
+        Up to `config.max_orientations` poses, most probable first.
+    Raises:
+        UnstableObjectError: no drop came to rest, or no rest survived the tilt check.
+    """
+    rng = np.random.default_rng(config.seed)
+    start = rng.normal(size=(config.drops, 4))  # (N, 4): uniform over rotations once normalised
+    start /= np.linalg.norm(start, axis=1, keepdims=True)
+    final, still = settle(parts, unit_inertia, start, config, config.rolling_friction)
+    if not still.any():
+        raise UnstableObjectError("no drop came to rest")
+    down = down_directions(final[still])  # (S, 3)
+    groups = [g for g in cluster(down, config.cluster_angle) if len(g) / len(down) >= config.min_probability]
+    groups.sort(key=len, reverse=True)
+    groups = groups[: config.max_orientations]
+    candidates = np.array([medoid(down[g]) for g in groups]).reshape(-1, 3)  # (K, 3)
+    probability = np.array([len(g) / len(down) for g in groups])  # (K,)
+    keep = survives_tilt(parts, unit_inertia, candidates, config, rng) if len(groups) else np.zeros(0, bool)
+    if not keep.any():
+        raise UnstableObjectError("no resting orientation survived the tilt check")
+    quat = tilt_quaternions(candidates[keep])  # (K, 4)
+    points = np.concatenate([mesh.vertices, *(p.vertices for p in parts)])  # (P, 3)
+    radii, heights = resting_geometry(points, quat)
+    return StablePoses(quat, probability[keep], radii, heights)
