@@ -8,27 +8,31 @@ model file must equal them (also checked).
 
 Physics timestep: 2.5 ms with MuJoCo's `implicitfast` integrator. The control design is a
 joint impedance `tau = kp*(q_ref - q) - kd*qdot`, kp in [10, 200], kd = rho*sqrt(kp),
-rho in [0.3, 2.0], on top of the gravity compensation the FR3 does itself. Why 2.5 ms:
+rho in [0.3, 2.0], on top of the gravity compensation the FR3 does itself. Why 2.5 ms
+(figures from `benchmarks/sim_timestep.py`):
 
 - It divides both clocks of the design: 5 physics steps per 80 Hz torque tick (the authors'
   0.0125 s) and 40 per 10 Hz policy action.
-- Stability of the impedance loop. The FR3's reflected motor inertia (armature 0.21-0.61
-  kg m^2) dominates each joint's inertia, so with the torque recomputed every physics step a
-  0.2 rad step converges at every tested timestep up to 12.5 ms for kp=200, rho in {0.3, 2}.
-  The margin matters when armature is randomised down: at 0.1x armature, kp=200/rho=2 leaves a
-  0.024 rad limit cycle at 2.5 ms, 0.10 rad at 6.25 ms and 0.42 rad at 12.5 ms; holding the
-  torque for a whole 80 Hz tick instead leaves about 0.5 rad at any timestep. So the sim should
-  recompute the impedance torque every physics step (400 Hz), not once per 80 Hz tick.
-- Contact. A 5 cm, 0.1 kg box dropped on a table rests (velocity < 1e-7 m/s, 0.1 mm
-  penetration) at 1-10 ms. Swept by the paddle at 1.2 m/s, the box ends within a few cm of a
-  0.2 ms reference at 1-5 ms, but at 10 ms one run ejected it at 8.8 m/s; at 12.5 ms MuJoCo
-  must soften contacts (default solref time constant 0.02 s needs a timestep <= 0.01 s).
-  2.5 ms keeps a 4x margin on both and leaves room for contacts down to a 5 ms time constant.
-- Cost: about 17-19 us per step here (FR3, table, one box), 0.7 ms of physics per action.
+- Impedance loop. The FR3's reflected motor inertia (armature 0.21-0.61 kg m^2) dominates
+  each joint's inertia, so with the nominal model a 0.2 rad step converges with kp=200 and
+  rho=0.3 or 2 at every timestep up to 12.5 ms, torque recomputed each step or held for an
+  80 Hz tick. The margin shows when armature is randomised down to 0.1x: with kp=200, rho=2
+  the worst error over the last 0.5 s of 3 s is 0.007 rad at 2 ms, 0.024 at 2.5 ms, 0.063 at
+  5 ms and 0.47 at 10 ms; holding the torque for a whole 80 Hz tick leaves 0.45-0.68 rad at
+  any timestep. So the sim recomputes the impedance torque every physics step (400 Hz).
+- Contact. A 5 cm, 0.1 kg box dropped on a table rests (speed < 1e-8 m/s, 0.11 mm
+  penetration) at 1-10 ms. Swept by the paddle at about 1.2 m/s, the box ends 27-31 mm from a
+  0.2 ms reference at 1-5 ms (the impact is chaotic), 47 mm at 6.25 ms, but 1.1 m away at
+  10 ms (ejected at 4.3 m/s), and at 12.5 ms MuJoCo must soften every contact (its default
+  solref time constant, 0.02 s, needs a timestep <= 0.01 s). 2.5 ms keeps a 4x margin on
+  both and leaves room for stiffer contacts (time constants down to 5 ms).
+- Cost: about 8 us per step (FR3, table, one box, one core), 0.3 ms of physics per action.
 `implicitfast` gives the same trajectories as `Euler` for this model today (joint damping is
 implicit in both and the motors have no velocity term) at the same cost; it is chosen because
-it also integrates any velocity-dependent actuator force (e.g. a kv term) implicitly, and RK4
-costs 2.3x per step for no gain in the tests above.
+it also integrates any velocity-dependent actuator force (a kv term) implicitly. RK4 survives
+the 10 ms sweep, at 3.7x the cost per step (about four 2.5 ms steps), but it cannot help the
+impedance loop, whose torque stays fixed over a step (0.1x armature: 0.42 rad at 10 ms), and
+10 ms divides neither clock.
 """
 
 from __future__ import annotations
