@@ -1,0 +1,125 @@
+"""Rerun view of one procedural scene: its active cuboids and the object's start and goal.
+
+`log_scene` logs into the current (or a given) Rerun recording, so the monitor can call it
+at every reset; `save_scene` samples one scene from a seed and writes a `.rrd` file that a
+person opens with `rerun file.rrd` (no viewer is spawned, nothing is downloaded).
+Entities: scene/base (table, plates, ramps), scene/case (walls, ceiling, translucent),
+scene/start and scene/goal (a point and the object's axes).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+
+from hamnet.sim import quaternion
+from hamnet.sim.placement import Placement, sample_placements
+from hamnet.sim.scene import (
+    CEILING,
+    CUBOID_NAMES,
+    NUM_BASE,
+    NUM_CUBOIDS,
+    PLATES,
+    RAMPS,
+    TABLE,
+    SceneBatch,
+    sample_scenes,
+)
+from hamnet.sim.scene_config import SceneConfig
+
+
+def _slot_colours() -> np.ndarray:
+    """RGBA per cuboid slot (N, 4): grey table, tan plates, orange ramps, translucent case."""
+    colours = np.empty((NUM_CUBOIDS, 4), dtype=np.uint8)
+    colours[TABLE] = (150, 150, 150, 255)
+    colours[list(PLATES[0] + PLATES[1])] = (205, 170, 125, 255)
+    colours[list(RAMPS[0] + RAMPS[1])] = (230, 140, 60, 255)
+    colours[NUM_BASE:CEILING] = (60, 180, 90, 70)
+    colours[CEILING] = (60, 180, 90, 50)
+    return colours
+
+
+_COLOURS = _slot_colours()
+_POSE_COLOURS = {"start": (220, 50, 50, 255), "goal": (50, 90, 220, 255)}
+"""Start red, goal blue, as in the paper's figures."""
+
+
+def log_scene(
+    scene: SceneBatch,
+    env_index: int,
+    placement: Placement | None = None,
+    recording: rr.RecordingStream | None = None,
+) -> None:
+    """Log environment `env_index` of `scene` (and its start and goal, if given).
+
+    Args:
+        scene: the sampled scenes.
+        env_index: which environment to show.
+        placement: goal and start poses of the same batch, or None to show the cuboids only.
+        recording: where to log; None logs into the current recording.
+    """
+    rr.log("scene", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True, recording=recording)
+    active = scene.active[env_index]  # (N,)
+    for name, slots in (("base", np.arange(NUM_BASE)), ("case", np.arange(NUM_BASE, NUM_CUBOIDS))):
+        shown = slots[active[slots]]  # active slot indices of this group
+        rr.log(
+            f"scene/{name}",
+            rr.Boxes3D(
+                centers=scene.centre[env_index, shown],
+                half_sizes=scene.half_extent[env_index, shown],
+                quaternions=scene.quat[env_index, shown][:, [1, 2, 3, 0]],  # Rerun wants xyzw
+                colors=_COLOURS[shown],
+                labels=[CUBOID_NAMES[i] for i in shown],
+                fill_mode=rr.components.FillMode.Solid,
+            ),
+            recording=recording,
+        )
+    if placement is None:
+        return
+    poses = {
+        "start": (placement.start_pos[env_index], placement.start_quat[env_index]),
+        "goal": (placement.goal_pos[env_index], placement.goal_quat[env_index]),
+    }
+    for name, (pos, quat) in poses.items():
+        axes = 0.05 * quaternion.to_matrix(quat).T  # (3, 3): rows are the object's x, y, z
+        rr.log(
+            f"scene/{name}",
+            rr.Points3D([pos], radii=0.008, colors=[_POSE_COLOURS[name]], labels=[name]),
+            rr.Arrows3D(
+                origins=np.tile(pos, (3, 1)),
+                vectors=axes,
+                colors=[(230, 40, 40), (40, 200, 40), (40, 80, 230)],
+            ),
+            recording=recording,
+        )
+
+
+def save_scene(
+    path: Path,
+    seed: int,
+    config: SceneConfig | None = None,
+    object_radius: float = 0.05,
+    object_height: float = 0.08,
+) -> None:
+    """Sample one scene and its placement from `seed` and write them to the `.rrd` file `path`.
+
+    The object is a stand-in upright cylinder of `object_radius` and `object_height` (m)
+    with one stable orientation; an invalid placement is still shown (the cuboids matter).
+    """
+    rng = np.random.default_rng(seed)
+    scene = sample_scenes(rng, np.array([object_height]), config)
+    placement = sample_placements(
+        rng,
+        scene,
+        stable_quat=np.array([[[1.0, 0.0, 0.0, 0.0]]]),
+        planar_radius=np.array([[object_radius]]),
+        rest_height=np.array([[object_height / 2]]),
+        top_height=np.array([[object_height]]),
+    )
+    recording = rr.RecordingStream("hamnet_scene")
+    recording.save(path)
+    log_scene(scene, 0, placement, recording=recording)
+    recording.flush()
+    recording.disconnect()
