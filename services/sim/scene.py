@@ -147,22 +147,9 @@ def sample_scenes(
     origin = np.asarray(config.table_origin)
     table_centre = origin[:2] + table_pos[:, :2]  # (B, 2), m
     table_top = origin[2] + table_pos[:, 2] + table_dim[:, 2]  # (B,), m
-    centre = np.zeros((num_envs, NUM_CUBOIDS, 3))  # (B, N, 3)
-    half_extent = np.zeros((num_envs, NUM_CUBOIDS, 3))  # (B, N, 3)
-    quat = np.tile([1.0, 0.0, 0.0, 0.0], (num_envs, NUM_CUBOIDS, 1))  # (B, N, 4)
-    active = np.zeros((num_envs, NUM_CUBOIDS), dtype=bool)  # (B, N)
-    centre[:, TABLE] = np.column_stack([table_centre, table_top - table_dim[:, 2] / 2])
-    half_extent[:, TABLE] = table_dim / 2
-    active[:, TABLE] = True
-    boxes = (centre, quat, half_extent, active)
-    _place_interior(boxes, interior, table_centre, table_dim, table_top, config)
-    _place_case(boxes, case, table_centre, table_dim, table_top, config)
-    # Park inactive cuboids inside the table, beneath its top, keeping the slot.
-    hidden = ~active
-    centre[hidden] = np.broadcast_to(centre[:, [TABLE]], centre.shape)[hidden]
-    half_extent[hidden] = config.hidden_half_extent
-    quat[hidden] = [1.0, 0.0, 0.0, 0.0]
-
+    centre, quat, half_extent, active = _cuboids(
+        interior, case, table_centre, table_dim, table_top, config
+    )
     profile_low, profile_high = _profile(interior.height)
     profile_edges = interior.edges + table_centre[:, :, None]  # (B, 2, 6), m
     region_lo, region_hi, region_z, region_flat = _regions(
@@ -236,6 +223,37 @@ def _sample_case(
     wall[unsupported, support[unsupported]] = True
     height = np.where(tight, object_height + gap, nominal) + rise
     return _Case(height=height, wall=wall, ceiling=ceiling, tight=tight)
+
+
+def _cuboids(
+    interior: _Interior,
+    case: _Case,
+    table_centre: np.ndarray,
+    table_dim: np.ndarray,
+    table_top: np.ndarray,
+    config: SceneConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """All 16 slots: centre (B, N, 3), quat (B, N, 4), half extent (B, N, 3), active (B, N).
+
+    Inactive slots are parked inside the table, beneath its top: the slot stays, so the
+    simulator only moves and resizes its boxes.
+    """
+    num_envs = len(table_top)
+    centre = np.zeros((num_envs, NUM_CUBOIDS, 3))  # (B, N, 3)
+    half_extent = np.zeros((num_envs, NUM_CUBOIDS, 3))  # (B, N, 3)
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (num_envs, NUM_CUBOIDS, 1))  # (B, N, 4)
+    active = np.zeros((num_envs, NUM_CUBOIDS), dtype=bool)  # (B, N)
+    centre[:, TABLE] = np.column_stack([table_centre, table_top - table_dim[:, 2] / 2])
+    half_extent[:, TABLE] = table_dim / 2
+    active[:, TABLE] = True
+    boxes = (centre, quat, half_extent, active)
+    _place_interior(boxes, interior, table_centre, table_dim, table_top, config)
+    _place_case(boxes, case, table_centre, table_dim, table_top, config)
+    hidden = ~active
+    centre[hidden] = np.broadcast_to(centre[:, [TABLE]], centre.shape)[hidden]
+    half_extent[hidden] = config.hidden_half_extent
+    quat[hidden] = [1.0, 0.0, 0.0, 0.0]
+    return centre, quat, half_extent, active
 
 
 def _place_interior(
