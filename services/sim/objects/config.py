@@ -93,12 +93,17 @@ class StabilityConfig:
     """Most stable orientations kept per object (the most probable first)."""
     check_tilt: float = 0.02
     """Each kept orientation must come back after being released tilted by this much, rad."""
+    check_frictions: tuple[float, ...] = (0.2, 1.0)
+    """Sliding frictions the tilted releases are repeated at: the ends of the per-episode
+    object friction range, since soft contacts at a coarse timestep topple some poses at
+    high friction only."""
     stable_angle: float = 0.1
     """Largest drift of the down direction for a released orientation to count as stable."""
-    timestep: float = 0.004
-    """MuJoCo timestep of the drop simulation, s."""
-    friction: float = 0.7
-    """Sliding friction between object and plane during the drops."""
+    timestep: float = 0.0125
+    """MuJoCo timestep of drops and checks, s: the sim's step (80 Hz), so kept poses are
+    stable at the step they will be simulated at (finer steps are more forgiving)."""
+    friction: float = 0.6
+    """Sliding friction between object and plane during the drops (mid-range)."""
     rolling_friction: float = 0.001
     """Rolling friction during the drops, m. Point contacts on rounded or faceted bottoms
     otherwise keep rocking and rolling for seconds; it cannot hold a centre of mass more

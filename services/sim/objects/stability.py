@@ -90,8 +90,8 @@ def resting_geometry(points: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, 
 
 
 def settle(
-    parts: Sequence[Mesh], unit_inertia: np.ndarray, quat: np.ndarray, config: StabilityConfig,
-    rolling_friction: float = 0.0,
+    parts: Sequence[Mesh], unit_inertia: np.ndarray, quat: np.ndarray, friction: np.ndarray,
+    config: StabilityConfig, rolling_friction: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Release copies of the object just above a plane and let them come to rest.
 
@@ -99,34 +99,37 @@ def settle(
         parts: convex parts, object frame, m.
         unit_inertia: (3, 3) inertia per kg, m^2.
         quat: (N, 4) initial orientations, wxyz.
+        friction: (N,) sliding friction of each copy's contacts.
         config: drop settings.
         rolling_friction: m; > 0 turns on MuJoCo's rolling friction (condim 6).
     Returns:
-        (N, 4) final orientations; (N,) whether each copy kept its down direction within
-        `config.rest_angle` during the last `config.rest_window` seconds.
+        (N, 3) each copy's down direction (object frame) averaged over the last
+        `config.rest_window` seconds, which sits at the equilibrium of a slight rocking;
+        (N,) whether it stayed within `config.rest_angle` meanwhile.
     """
     spec = mujoco.MjSpec()
     spec.option.timestep = config.timestep
-    # Bitmasks: copies touch the plane (1 & 1) but never each other (2 & 1 = 0).
-    friction = (config.friction, DEFAULT_FRICTION[1], rolling_friction)
+    # Bitmasks: copies touch the plane (1 & 1) but never each other (2 & 1 = 0). MuJoCo
+    # takes the larger friction of two geoms, so a frictionless plane leaves each copy's own.
     spec.worldbody.add_geom(
         type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=1, conaffinity=2,
-        friction=list(friction), condim=6 if rolling_friction > 0 else 3,
+        friction=[0.0, 0.0, 0.0], condim=6 if rolling_friction > 0 else 3,
     )
     points = np.concatenate([p.vertices for p in parts])  # (P, 3)
     _, heights = resting_geometry(points, quat)  # (N,)
     side = int(np.ceil(np.sqrt(len(quat))))
-    for i, (q, h) in enumerate(zip(quat, heights)):
+    for i, (q, h, mu) in enumerate(zip(quat, heights, friction)):
         pos = (GRID_SPACING * (i % side), GRID_SPACING * (i // side), h + config.drop_gap)
         add_convex_body(
             spec, f"drop{i}", parts, unit_inertia, DROP_MASS, mesh_prefix="object",
-            friction=friction, pos=pos, quat=q, contype=2, conaffinity=1,
+            friction=(mu, DEFAULT_FRICTION[1], rolling_friction), pos=pos, quat=q, contype=2, conaffinity=1,
         )
     model = spec.compile()
     data = mujoco.MjData(model)
     steps = int(round(config.settle_time / config.timestep))
     window = int(round(config.rest_window / config.timestep))
     drift = np.zeros(len(quat))  # (N,) largest move of the down direction in the window, rad
+    mean_down = np.zeros((len(quat), 3))  # (N, 3)
     for step in range(steps):
         mujoco.mj_step(model, data)
         if step >= steps - window:
@@ -134,10 +137,8 @@ def settle(
             if step == steps - window:
                 start_down = down
             drift = np.maximum(drift, angle_between(down, start_down))
-    final = data.qpos.reshape(-1, 7)[:, 3:].copy()  # (N, 4)
-    final /= np.linalg.norm(final, axis=1, keepdims=True)
-    still = drift < config.rest_angle
-    return final, still
+            mean_down += down
+    return mean_down / np.linalg.norm(mean_down, axis=1, keepdims=True), drift < config.rest_angle
 
 
 def cluster(down: np.ndarray, angle: float) -> list[np.ndarray]:
@@ -175,24 +176,53 @@ def survives_tilt(
 ) -> np.ndarray:
     """Whether each resting direction (K, 3) returns after release tilted `config.check_tilt`.
 
-    Each direction is released `tilts` times, tilted about evenly spread horizontal axes.
+    Each direction is released tilted about `tilts` evenly spread horizontal axes, at each
+    of `config.check_frictions`, without rolling friction.
     Returns:
         (K,) bool.
     """
-    k = len(down)
     heading = rng.uniform(0, 2 * np.pi) + np.arange(tilts) * 2 * np.pi / tilts  # (T,)
     axis = np.stack([np.cos(heading), np.sin(heading), np.zeros(tilts)], axis=1)  # (T, 3)
-    tilt = axis_angle_quat(np.tile(axis, (k, 1)), np.full(k * tilts, config.check_tilt))  # (K*T, 4)
-    start = quat_multiply(tilt, np.repeat(tilt_quaternions(down), tilts, axis=0))  # (K*T, 4)
-    final, _ = settle(parts, unit_inertia, start, config)
-    drift = angle_between(down_directions(final), np.repeat(down, tilts, axis=0))  # (K*T,)
-    return (drift < config.stable_angle).reshape(k, tilts).all(axis=1)
+    tilt = axis_angle_quat(axis, np.full(tilts, config.check_tilt))  # (T, 4)
+    frictions = np.asarray(config.check_frictions)  # (M,)
+    k, t, m = len(down), tilts, len(frictions)
+    start = quat_multiply(  # (K*T*M, 4), order (K, T, M)
+        np.tile(np.repeat(tilt, m, axis=0), (k, 1)), np.repeat(tilt_quaternions(down), t * m, axis=0)
+    )
+    rest, _ = settle(parts, unit_inertia, start, np.tile(frictions, k * t), config)
+    drift = angle_between(rest, np.repeat(down, t * m, axis=0))  # (K*T*M,)
+    return (drift < config.stable_angle).reshape(k, t * m).all(axis=1)
+
+
+def drop_candidates(
+    parts: Sequence[Mesh], unit_inertia: np.ndarray, config: StabilityConfig, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Drop from random orientations and group the rests.
+
+    Returns:
+        (K, 3) down direction at the centre of each frequent group, most frequent first;
+        (K,) share of the resting drops in it.
+    """
+    start = rng.normal(size=(config.drops, 4))  # (N, 4): uniform over rotations once normalised
+    start /= np.linalg.norm(start, axis=1, keepdims=True)
+    friction = np.full(config.drops, config.friction)  # (N,)
+    down, still = settle(parts, unit_inertia, start, friction, config, config.rolling_friction)
+    down = down[still]  # (S, 3)
+    groups = cluster(down, config.cluster_angle)
+    groups = sorted((g for g in groups if len(g) >= config.min_probability * len(down)), key=len, reverse=True)
+    groups = groups[: config.max_orientations]
+    centres = np.array([medoid(down[g]) for g in groups]).reshape(-1, 3)  # (K, 3)
+    return centres, np.array([len(g) / max(len(down), 1) for g in groups])
 
 
 def find_stable_poses(
     mesh: Mesh, parts: Sequence[Mesh], unit_inertia: np.ndarray, config: StabilityConfig
 ) -> StablePoses:
     """Stable resting orientations of an object, with planar radius and resting height.
+
+    Drops (with rolling friction, to end rocking) give candidates; each is released again
+    without rolling friction, whose rest is the stored orientation, and must survive the
+    tilted releases of `survives_tilt`.
 
     Args:
         mesh: the surface, object frame (centre of mass at the origin), m.
@@ -202,24 +232,17 @@ def find_stable_poses(
     Returns:
         Up to `config.max_orientations` poses, most probable first.
     Raises:
-        UnstableObjectError: no drop came to rest, or no rest survived the tilt check.
+        UnstableObjectError: no drop came to rest, or no rest survived the checks.
     """
     rng = np.random.default_rng(config.seed)
-    start = rng.normal(size=(config.drops, 4))  # (N, 4): uniform over rotations once normalised
-    start /= np.linalg.norm(start, axis=1, keepdims=True)
-    final, still = settle(parts, unit_inertia, start, config, config.rolling_friction)
-    if not still.any():
-        raise UnstableObjectError("no drop came to rest")
-    down = down_directions(final[still])  # (S, 3)
-    groups = [g for g in cluster(down, config.cluster_angle) if len(g) / len(down) >= config.min_probability]
-    groups.sort(key=len, reverse=True)
-    groups = groups[: config.max_orientations]
-    candidates = np.array([medoid(down[g]) for g in groups]).reshape(-1, 3)  # (K, 3)
-    probability = np.array([len(g) / len(down) for g in groups])  # (K,)
-    keep = survives_tilt(parts, unit_inertia, candidates, config, rng) if len(groups) else np.zeros(0, bool)
+    candidates, probability = drop_candidates(parts, unit_inertia, config, rng)
+    friction = np.full(len(candidates), config.friction)  # (K,)
+    rest, still = settle(parts, unit_inertia, tilt_quaternions(candidates), friction, config)
+    keep = still & (angle_between(rest, candidates) < config.stable_angle)
+    keep[keep] = survives_tilt(parts, unit_inertia, rest[keep], config, rng)
     if not keep.any():
-        raise UnstableObjectError("no resting orientation survived the tilt check")
-    quat = tilt_quaternions(candidates[keep])  # (K, 4)
+        raise UnstableObjectError("no resting orientation survived the checks")
+    quat = tilt_quaternions(rest[keep])  # (K, 4)
     points = np.concatenate([mesh.vertices, *(p.vertices for p in parts)])  # (P, 3)
     radii, heights = resting_geometry(points, quat)
     return StablePoses(quat, probability[keep], radii, heights)
