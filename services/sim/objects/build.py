@@ -30,12 +30,17 @@ def finish(name: str, mesh: Mesh, parts: tuple[Mesh, ...], source: str, config: 
     return ObjectAsset(name, mesh, parts, mesh.volume, inertia, stable, source)
 
 
-def cached(cache: ObjectCache | None, key: str, name: str, build: Callable[[], ObjectAsset]) -> ObjectAsset:
-    """The entry under `key` renamed to `name`, or `build()` stored under `key`."""
+def cached(
+    cache: ObjectCache | None, key: str, build: Callable[[], ObjectAsset], name: str, source: str
+) -> ObjectAsset:
+    """The entry under `key` (with this `name` and `source`), or `build()` stored under `key`.
+
+    Entries are keyed by content, so a renamed or moved file still hits.
+    """
     if cache is not None:
         hit = cache.load(key)
         if hit is not None:
-            return dataclasses.replace(hit, name=name)
+            return dataclasses.replace(hit, name=name, source=source)
     asset = build()
     if cache is not None:
         cache.store(key, asset)
@@ -50,7 +55,7 @@ def procedural_asset(
     Raises:
         UnstableObjectError: `MAX_ATTEMPTS` draws all failed to rest stably.
     """
-    name = f"{kind}-s{seed}-{index:04d}"
+    name, source = f"{kind}-s{seed}-{index:04d}", f"procedural:{kind}"
     for attempt in range(MAX_ATTEMPTS):
         shape = generate(kind, np.random.default_rng([seed, index, attempt]), config.shapes)
         key = cache_key(
@@ -59,8 +64,7 @@ def procedural_asset(
         )
         try:
             return cached(
-                cache, key, name,
-                lambda: finish(name, shape.mesh, shape.parts, f"procedural:{kind}", config),
+                cache, key, lambda: finish(name, shape.mesh, shape.parts, source, config), name, source
             )
         except UnstableObjectError:
             continue

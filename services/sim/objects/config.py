@@ -28,8 +28,8 @@ class ShapeConfig:
     """Shape kinds a procedural set cycles through (object i gets kinds[i % len(kinds)])."""
     cylinder_sections: int = 32
     """Facets around a cylinder; also the mug's body."""
-    superellipsoid_subdivisions: int = 3
-    """Icosphere subdivisions before projecting onto a superellipsoid (3: 642 vertices)."""
+    superellipsoid_subdivisions: int = 2
+    """Icosphere subdivisions before projecting onto a superellipsoid (2: 162 vertices)."""
     superellipsoid_exponents: tuple[float, float] = (0.3, 1.6)
     """Range of both superellipsoid exponents; below 2 the shape stays convex (0: a box,
     1: an ellipsoid)."""

@@ -51,6 +51,8 @@ def unit_scale(longest: float, extent: tuple[float, float]) -> float:
 def load_surface(path: Path, extent: tuple[float, float]) -> trimesh.Trimesh:
     """The file's mesh, cleaned (merged vertices, no degenerate faces, outward normals) and scaled."""
     mesh = trimesh.load(path, force="mesh")
+    if len(mesh.faces) < 4:
+        raise ValueError("no closed surface in the file (fewer than 4 triangles)")
     mesh.merge_vertices()
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.remove_unreferenced_vertices()
@@ -84,7 +86,8 @@ def import_mesh(path: Path, config: ObjectLibraryConfig, cache: ObjectCache | No
     """
     path = Path(path)
     key = cache_key(path.read_bytes(), path.suffix.lower(), config.shapes.extent, config.decomposition, config.stability)
-    return cached(cache, key, name or path.stem, lambda: _build(name or path.stem, path, config))
+    name = name or path.stem
+    return cached(cache, key, lambda: _build(name, path, config), name=name, source=str(path))
 
 
 def import_folder(folder: Path, config: ObjectLibraryConfig, cache: ObjectCache | None) -> list[ObjectAsset]:
