@@ -30,7 +30,10 @@ class StablePoses:
 
     def scaled(self, scale: float) -> StablePoses:
         return StablePoses(
-            self.orientations, self.probabilities, self.planar_radii * scale, self.resting_heights * scale
+            self.orientations,
+            self.probabilities,
+            self.planar_radii * scale,
+            self.resting_heights * scale,
         )
 
 

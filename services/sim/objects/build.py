@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 
@@ -23,7 +24,9 @@ MAX_ATTEMPTS = 8
 """Draws tried per procedural object before giving up on it."""
 
 
-def finish(name: str, mesh: Mesh, parts: tuple[Mesh, ...], source: str, config: ObjectLibraryConfig) -> ObjectAsset:
+def finish(
+    name: str, mesh: Mesh, parts: tuple[Mesh, ...], source: str, config: ObjectLibraryConfig
+) -> ObjectAsset:
     """Complete an object centred at its centre of mass: inertia, volume, stable poses."""
     inertia = unit_inertia(mesh)
     stable = find_stable_poses(mesh, parts, inertia, config.stability)
@@ -59,13 +62,14 @@ def procedural_asset(
     for attempt in range(MAX_ATTEMPTS):
         shape = generate(kind, np.random.default_rng([seed, index, attempt]), config.shapes)
         key = cache_key(
-            shape.mesh.vertices.tobytes(), shape.mesh.faces.tobytes(),
-            *(p.vertices.tobytes() for p in shape.parts), config.stability,
+            shape.mesh.vertices.tobytes(),
+            shape.mesh.faces.tobytes(),
+            *(p.vertices.tobytes() for p in shape.parts),
+            config.stability,
         )
+        build = partial(finish, name, shape.mesh, shape.parts, source, config)
         try:
-            return cached(
-                cache, key, lambda: finish(name, shape.mesh, shape.parts, source, config), name, source
-            )
+            return cached(cache, key, build, name, source)
         except UnstableObjectError:
             continue
     raise UnstableObjectError(f"{name}: no stable draw in {MAX_ATTEMPTS} attempts")

@@ -47,7 +47,10 @@ def _pack(asset: ObjectAsset) -> dict[str, np.ndarray]:
         "part_face_counts": np.array([len(p.faces) for p in asset.parts]),
         "volume": np.array(asset.volume),
         "unit_inertia": asset.unit_inertia,
-        **{f"stable_{f.name}": getattr(asset.stable, f.name) for f in dataclasses.fields(StablePoses)},
+        **{
+            f"stable_{f.name}": getattr(asset.stable, f.name)
+            for f in dataclasses.fields(StablePoses)
+        },
     }
 
 
@@ -56,9 +59,14 @@ def _unpack(data: dict[str, np.ndarray]) -> ObjectAsset:
     face_splits = np.cumsum(data["part_face_counts"])[:-1]
     parts = tuple(
         Mesh(v, f)
-        for v, f in zip(np.split(data["part_vertices"], vertex_splits), np.split(data["part_faces"], face_splits))
+        for v, f in zip(
+            np.split(data["part_vertices"], vertex_splits),
+            np.split(data["part_faces"], face_splits),
+        )
     )
-    stable = StablePoses(**{f.name: data[f"stable_{f.name}"] for f in dataclasses.fields(StablePoses)})
+    stable = StablePoses(
+        **{f.name: data[f"stable_{f.name}"] for f in dataclasses.fields(StablePoses)}
+    )
     return ObjectAsset(
         name=str(data["name"]),
         mesh=Mesh(data["vertices"], data["faces"]),

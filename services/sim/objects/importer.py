@@ -32,7 +32,9 @@ UNIT_SCALES = (1.0, 0.01, 0.001)
 
 def mesh_files(folder: Path) -> list[Path]:
     """Mesh files anywhere under `folder`, sorted, so a folder always imports the same way."""
-    return sorted(p for p in Path(folder).rglob("*") if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    return sorted(
+        p for p in Path(folder).rglob("*") if p.is_file() and p.suffix.lower() in MESH_SUFFIXES
+    )
 
 
 def unit_scale(longest: float, extent: tuple[float, float]) -> float:
@@ -49,7 +51,7 @@ def unit_scale(longest: float, extent: tuple[float, float]) -> float:
 
 
 def load_surface(path: Path, extent: tuple[float, float]) -> trimesh.Trimesh:
-    """The file's mesh, cleaned (merged vertices, no degenerate faces, outward normals) and scaled."""
+    """The file's mesh, cleaned (merged vertices, no degenerate faces, outward normals), scaled."""
     mesh = trimesh.load(path, force="mesh")
     if len(mesh.faces) < 4:
         raise ValueError("no closed surface in the file (fewer than 4 triangles)")
@@ -73,11 +75,17 @@ def _build(name: str, path: Path, config: ObjectLibraryConfig) -> ObjectAsset:
         surface = union(list(parts))
     offset = -center_of_mass(surface)
     return finish(
-        name, surface.translated(offset), tuple(p.translated(offset) for p in parts), str(path), config
+        name,
+        surface.translated(offset),
+        tuple(p.translated(offset) for p in parts),
+        str(path),
+        config,
     )
 
 
-def import_mesh(path: Path, config: ObjectLibraryConfig, cache: ObjectCache | None, name: str | None = None) -> ObjectAsset:
+def import_mesh(
+    path: Path, config: ObjectLibraryConfig, cache: ObjectCache | None, name: str | None = None
+) -> ObjectAsset:
     """One mesh file as a library object, from the cache when the file and settings are unchanged.
 
     Raises:
@@ -85,12 +93,20 @@ def import_mesh(path: Path, config: ObjectLibraryConfig, cache: ObjectCache | No
         ValueError: the file holds no usable mesh.
     """
     path = Path(path)
-    key = cache_key(path.read_bytes(), path.suffix.lower(), config.shapes.extent, config.decomposition, config.stability)
+    key = cache_key(
+        path.read_bytes(),
+        path.suffix.lower(),
+        config.shapes.extent,
+        config.decomposition,
+        config.stability,
+    )
     name = name or path.stem
     return cached(cache, key, lambda: _build(name, path, config), name=name, source=str(path))
 
 
-def import_folder(folder: Path, config: ObjectLibraryConfig, cache: ObjectCache | None) -> list[ObjectAsset]:
+def import_folder(
+    folder: Path, config: ObjectLibraryConfig, cache: ObjectCache | None
+) -> list[ObjectAsset]:
     """Every mesh file under `folder` that imports, named by its path relative to the folder.
 
     A file that fails (unreadable, no closed volume, never stable) is logged and skipped.

@@ -53,7 +53,11 @@ class ObjectSet:
 
     @classmethod
     def procedural(
-        cls, count: int, seed: int = 0, config: ObjectLibraryConfig | None = None, cache: ObjectCache | None = None
+        cls,
+        count: int,
+        seed: int = 0,
+        config: ObjectLibraryConfig | None = None,
+        cache: ObjectCache | None = None,
     ) -> ObjectSet:
         """`count` procedural objects from `seed`, cycling through `config.shapes.kinds`.
 
@@ -63,11 +67,19 @@ class ObjectSet:
         config = config or ObjectLibraryConfig()
         cache = cache if cache is not None else default_cache(config)
         kinds = config.shapes.kinds
-        return cls(tuple(procedural_asset(kinds[i % len(kinds)], seed, i, config, cache) for i in range(count)))
+        return cls(
+            tuple(
+                procedural_asset(kinds[i % len(kinds)], seed, i, config, cache)
+                for i in range(count)
+            )
+        )
 
     @classmethod
     def from_folder(
-        cls, folder: Path, config: ObjectLibraryConfig | None = None, cache: ObjectCache | None = None
+        cls,
+        folder: Path,
+        config: ObjectLibraryConfig | None = None,
+        cache: ObjectCache | None = None,
     ) -> ObjectSet:
         """Every mesh file under `folder` (see `importer.import_folder`)."""
         config = config or ObjectLibraryConfig()
@@ -85,7 +97,10 @@ class ObjectSet:
 
     def __getitem__(self, key: int | str) -> ObjectAsset:
         if isinstance(key, str):
-            return next(a for a in self.assets if a.name == key)
+            for asset in self.assets:
+                if asset.name == key:
+                    return asset
+            raise KeyError(key)
         return self.assets[key]
 
     @property

@@ -27,7 +27,9 @@ class Mesh:
         vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
         faces = np.ascontiguousarray(self.faces, dtype=np.int32)
         if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
-            raise ValueError(f"need (V, 3) vertices and (F, 3) faces, got {vertices.shape}, {faces.shape}")
+            raise ValueError(
+                f"need (V, 3) vertices and (F, 3) faces, got {vertices.shape}, {faces.shape}"
+            )
         object.__setattr__(self, "vertices", vertices)
         object.__setattr__(self, "faces", faces)
 
@@ -63,6 +65,12 @@ class Mesh:
     def digest(self) -> str:
         """SHA-256 of the vertex and face bytes: a cache key for the geometry."""
         return hashlib.sha256(self.vertices.tobytes() + self.faces.tobytes()).hexdigest()
+
+
+def box_mesh(low: np.ndarray, high: np.ndarray) -> Mesh:
+    """Axis-aligned box between corners `low` and `high` (3,), m."""
+    box = trimesh.creation.box(extents=np.asarray(high) - np.asarray(low))
+    return Mesh.from_trimesh(box).translated((np.asarray(low) + np.asarray(high)) / 2)
 
 
 def convex_hull(points: np.ndarray) -> Mesh:

@@ -65,7 +65,9 @@ class ObjectPhysics:
     """(B,) coefficient of restitution."""
 
 
-def sample_physics(config: ObjectRandomization, rng: np.random.Generator, object_radius: np.ndarray) -> ObjectPhysics:
+def sample_physics(
+    config: ObjectRandomization, rng: np.random.Generator, object_radius: np.ndarray
+) -> ObjectPhysics:
     """Draw physical parameters for a batch of objects.
 
     Args:

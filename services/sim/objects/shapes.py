@@ -16,7 +16,7 @@ import numpy as np
 import trimesh
 
 from hamnet.sim.objects.config import ShapeConfig
-from hamnet.sim.objects.mesh import Mesh, center_of_mass, convex_hull, union
+from hamnet.sim.objects.mesh import Mesh, box_mesh, center_of_mass, convex_hull, union
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,12 +51,6 @@ def generate(kind: str, rng: np.random.Generator, config: ShapeConfig) -> Shape:
     return Shape(raw.mesh.translated(offset), tuple(p.translated(offset) for p in raw.parts))
 
 
-def _box(low: np.ndarray, high: np.ndarray) -> Mesh:
-    """Axis-aligned box between corners `low` and `high` (3,), m."""
-    box = trimesh.creation.box(extents=high - low)
-    return Mesh.from_trimesh(box).translated((low + high) / 2)
-
-
 def _fit_extents(mesh: Mesh, extents: np.ndarray) -> Mesh:
     """Stretch a convex mesh per axis so its bounding box is exactly `extents` (3,)."""
     low, high = mesh.bounds
@@ -70,7 +64,7 @@ def _convex(mesh: Mesh) -> Shape:
 @shape("box")
 def box(rng: np.random.Generator, config: ShapeConfig) -> Shape:
     extents = rng.uniform(*config.extent, size=3)  # (3,), m
-    return _convex(_box(-extents / 2, extents / 2))
+    return _convex(box_mesh(-extents / 2, extents / 2))
 
 
 @shape("cylinder")
@@ -120,10 +114,12 @@ def l_shape(rng: np.random.Generator, config: ShapeConfig) -> Shape:
     foot = rng.uniform(low, height / 2)  # thickness of the horizontal bar, m
     leg = rng.uniform(low, length / 2)  # thickness of the vertical bar, m
     y = depth / 2
-    return _compound([
-        _box(np.array([0, -y, 0]), np.array([length, y, foot])),
-        _box(np.array([0, -y, 0]), np.array([leg, y, height])),
-    ])
+    return _compound(
+        [
+            box_mesh(np.array([0, -y, 0]), np.array([length, y, foot])),
+            box_mesh(np.array([0, -y, 0]), np.array([leg, y, height])),
+        ]
+    )
 
 
 @shape("t_shape")
@@ -135,10 +131,12 @@ def t_shape(rng: np.random.Generator, config: ShapeConfig) -> Shape:
     bar = rng.uniform(low, height / 2)
     stem = rng.uniform(low, width / 2)
     y = depth / 2
-    return _compound([
-        _box(np.array([-width / 2, -y, height - bar]), np.array([width / 2, y, height])),
-        _box(np.array([-stem / 2, -y, 0]), np.array([stem / 2, y, height])),
-    ])
+    return _compound(
+        [
+            box_mesh(np.array([-width / 2, -y, height - bar]), np.array([width / 2, y, height])),
+            box_mesh(np.array([-stem / 2, -y, 0]), np.array([stem / 2, y, height])),
+        ]
+    )
 
 
 @shape("mug")
@@ -153,10 +151,14 @@ def mug(rng: np.random.Generator, config: ShapeConfig) -> Shape:
     y = rng.uniform(0.15, 0.25) * diameter  # half depth of the handle, m
     inner, outer = 0.75 * radius, radius + reach  # arms start inside the body
     bottom, top = 0.2 * height, 0.8 * height
-    body = trimesh.creation.cylinder(radius=radius, height=height, sections=config.cylinder_sections)
-    return _compound([
-        Mesh.from_trimesh(body).translated(np.array([0, 0, height / 2])),
-        _box(np.array([inner, -y, top - bar]), np.array([outer, y, top])),
-        _box(np.array([inner, -y, bottom]), np.array([outer, y, bottom + bar])),
-        _box(np.array([outer - bar, -y, bottom]), np.array([outer, y, top])),
-    ])
+    body = trimesh.creation.cylinder(
+        radius=radius, height=height, sections=config.cylinder_sections
+    )
+    return _compound(
+        [
+            Mesh.from_trimesh(body).translated(np.array([0, 0, height / 2])),
+            box_mesh(np.array([inner, -y, top - bar]), np.array([outer, y, top])),
+            box_mesh(np.array([inner, -y, bottom]), np.array([outer, y, bottom + bar])),
+            box_mesh(np.array([outer - bar, -y, bottom]), np.array([outer, y, top])),
+        ]
+    )

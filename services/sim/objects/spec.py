@@ -89,7 +89,14 @@ def add_convex_body(
     body.explicitinertial = True
     body.mass = mass
     body.ipos = [0.0, 0.0, 0.0]
-    body.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+    body.fullinertia = [
+        inertia[0, 0],
+        inertia[1, 1],
+        inertia[2, 2],
+        inertia[0, 1],
+        inertia[0, 2],
+        inertia[1, 2],
+    ]
     for j, part in enumerate(parts):
         body.add_geom(
             name=f"{name}/part{j}",

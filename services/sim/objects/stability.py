@@ -35,11 +35,14 @@ class UnstableObjectError(ValueError):
 def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     """(N, 4) wxyz unit quaternions to (N, 3, 3) rotation matrices."""
     w, x, y, z = np.moveaxis(quat, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
 def axis_angle_quat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -52,12 +55,15 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N, 4) Hamilton products a * b (apply b, then a), wxyz."""
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
     bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], -1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
 
 
 def down_directions(quat: np.ndarray) -> np.ndarray:
@@ -90,8 +96,12 @@ def resting_geometry(points: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, 
 
 
 def settle(
-    parts: Sequence[Mesh], unit_inertia: np.ndarray, quat: np.ndarray, friction: np.ndarray,
-    config: StabilityConfig, rolling_friction: float = 0.0,
+    parts: Sequence[Mesh],
+    unit_inertia: np.ndarray,
+    quat: np.ndarray,
+    friction: np.ndarray,
+    config: StabilityConfig,
+    rolling_friction: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Release copies of the object just above a plane and let them come to rest.
 
@@ -112,8 +122,12 @@ def settle(
     # Bitmasks: copies touch the plane (1 & 1) but never each other (2 & 1 = 0). MuJoCo
     # takes the larger friction of two geoms, so a frictionless plane leaves each copy's own.
     spec.worldbody.add_geom(
-        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=1, conaffinity=2,
-        friction=[0.0, 0.0, 0.0], condim=6 if rolling_friction > 0 else 3,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0, 0, 1],
+        contype=1,
+        conaffinity=2,
+        friction=[0.0, 0.0, 0.0],
+        condim=6 if rolling_friction > 0 else 3,
     )
     points = np.concatenate([p.vertices for p in parts])  # (P, 3)
     _, heights = resting_geometry(points, quat)  # (N,)
@@ -121,8 +135,17 @@ def settle(
     for i, (q, h, mu) in enumerate(zip(quat, heights, friction)):
         pos = (GRID_SPACING * (i % side), GRID_SPACING * (i // side), h + config.drop_gap)
         add_convex_body(
-            spec, f"drop{i}", parts, unit_inertia, DROP_MASS, mesh_prefix="object",
-            friction=(mu, DEFAULT_FRICTION[1], rolling_friction), pos=pos, quat=q, contype=2, conaffinity=1,
+            spec,
+            f"drop{i}",
+            parts,
+            unit_inertia,
+            DROP_MASS,
+            mesh_prefix="object",
+            friction=(mu, DEFAULT_FRICTION[1], rolling_friction),
+            pos=pos,
+            quat=q,
+            contype=2,
+            conaffinity=1,
         )
     model = spec.compile()
     data = mujoco.MjData(model)
@@ -171,8 +194,12 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def survives_tilt(
-    parts: Sequence[Mesh], unit_inertia: np.ndarray, down: np.ndarray, config: StabilityConfig,
-    rng: np.random.Generator, tilts: int = 4,
+    parts: Sequence[Mesh],
+    unit_inertia: np.ndarray,
+    down: np.ndarray,
+    config: StabilityConfig,
+    rng: np.random.Generator,
+    tilts: int = 4,
 ) -> np.ndarray:
     """Whether each resting direction (K, 3) returns after release tilted `config.check_tilt`.
 
@@ -187,7 +214,8 @@ def survives_tilt(
     frictions = np.asarray(config.check_frictions)  # (M,)
     k, t, m = len(down), tilts, len(frictions)
     start = quat_multiply(  # (K*T*M, 4), order (K, T, M)
-        np.tile(np.repeat(tilt, m, axis=0), (k, 1)), np.repeat(tilt_quaternions(down), t * m, axis=0)
+        np.tile(np.repeat(tilt, m, axis=0), (k, 1)),
+        np.repeat(tilt_quaternions(down), t * m, axis=0),
     )
     rest, _ = settle(parts, unit_inertia, start, np.tile(frictions, k * t), config)
     drift = angle_between(rest, np.repeat(down, t * m, axis=0))  # (K*T*M,)
@@ -195,7 +223,10 @@ def survives_tilt(
 
 
 def drop_candidates(
-    parts: Sequence[Mesh], unit_inertia: np.ndarray, config: StabilityConfig, rng: np.random.Generator
+    parts: Sequence[Mesh],
+    unit_inertia: np.ndarray,
+    config: StabilityConfig,
+    rng: np.random.Generator,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Drop from random orientations and group the rests.
 
@@ -209,7 +240,9 @@ def drop_candidates(
     down, still = settle(parts, unit_inertia, start, friction, config, config.rolling_friction)
     down = down[still]  # (S, 3)
     groups = cluster(down, config.cluster_angle)
-    groups = sorted((g for g in groups if len(g) >= config.min_probability * len(down)), key=len, reverse=True)
+    groups = sorted(
+        (g for g in groups if len(g) >= config.min_probability * len(down)), key=len, reverse=True
+    )
     groups = groups[: config.max_orientations]
     centres = np.array([medoid(down[g]) for g in groups]).reshape(-1, 3)  # (K, 3)
     return centres, np.array([len(g) / max(len(down), 1) for g in groups])

@@ -39,12 +39,16 @@ def folder(tmp_path: Path) -> tuple[Path, dict[str, np.ndarray]]:
     return tmp_path / "meshes", write_meshes(tmp_path / "meshes")
 
 
-def test_import_guesses_units_and_decomposes(folder: tuple[Path, dict[str, np.ndarray]], tmp_path: Path) -> None:
+def test_import_guesses_units_and_decomposes(
+    folder: tuple[Path, dict[str, np.ndarray]], tmp_path: Path
+) -> None:
     path, expected = folder
     objects = ObjectSet.from_folder(path, ObjectLibraryConfig(cache_dir=tmp_path / "cache"))
     assert objects.names == ("ell_mm", "sub-mug", "unit_box")
     for asset in objects:
-        np.testing.assert_allclose(np.ptp(asset.mesh.vertices, axis=0), expected[asset.name], rtol=1e-6)
+        np.testing.assert_allclose(
+            np.ptp(asset.mesh.vertices, axis=0), expected[asset.name], rtol=1e-6
+        )
         assert asset.mesh.to_trimesh().is_watertight
         np.testing.assert_allclose(asset.mesh.to_trimesh().center_mass, 0.0, atol=1e-9)
         assert len(asset.orientations) >= 1
@@ -87,7 +91,9 @@ def test_changed_file_or_settings_miss_the_cache(tmp_path: Path) -> None:
     trimesh.creation.box([0.1, 0.08, 0.05]).export(path)
     cache = ObjectCache(tmp_path / "cache")
     ObjectSet.from_folder(path.parent, ObjectLibraryConfig(), cache)
-    ObjectSet.from_folder(path.parent, ObjectLibraryConfig(shapes=ShapeConfig(extent=(0.05, 0.15))), cache)
+    ObjectSet.from_folder(
+        path.parent, ObjectLibraryConfig(shapes=ShapeConfig(extent=(0.05, 0.15))), cache
+    )
     trimesh.creation.box([0.1, 0.08, 0.06]).export(path)
     ObjectSet.from_folder(path.parent, ObjectLibraryConfig(), cache)
     assert (cache.hits, cache.misses) == (0, 3)
@@ -95,7 +101,9 @@ def test_changed_file_or_settings_miss_the_cache(tmp_path: Path) -> None:
     assert (cache.hits, cache.misses) == (1, 3)
 
 
-def test_unreadable_files_are_skipped_with_a_warning(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+def test_unreadable_files_are_skipped_with_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     (tmp_path / "broken.obj").write_text("v 1 2\nf 1 2 3 4 garbage\n")
     (tmp_path / "empty.stl").write_text("solid x\nendsolid x\n")
     trimesh.creation.box([0.1, 0.08, 0.05]).export(tmp_path / "good.obj")

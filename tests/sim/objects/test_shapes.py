@@ -74,7 +74,9 @@ def test_procedural_set_is_deterministic_without_cache() -> None:
         assert np.array_equal(a.stable.probabilities, b.stable.probabilities)
 
 
-def test_procedural_set_cycles_kinds_and_extends(one_of_each: ObjectSet, library_config: ObjectLibraryConfig) -> None:
+def test_procedural_set_cycles_kinds_and_extends(
+    one_of_each: ObjectSet, library_config: ObjectLibraryConfig
+) -> None:
     assert [a.source for a in one_of_each] == [f"procedural:{k}" for k in SHAPE_KINDS]
     smaller = ObjectSet.procedural(3, seed=0, config=library_config)
     assert smaller.names == one_of_each.names[:3]

@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from hamnet.sim.objects import ObjectAsset, ObjectSet, add_object, restitution_solref
-from hamnet.sim.objects.mesh import Mesh, unit_inertia
-from hamnet.sim.objects.shapes import _box
 from hamnet.sim.objects.asset import StablePoses
+from hamnet.sim.objects.mesh import Mesh, box_mesh, unit_inertia
 
 
 def scene(objects: list[tuple[ObjectAsset, float]], timestep: float = 0.0125) -> mujoco.MjModel:
@@ -20,8 +19,15 @@ def scene(objects: list[tuple[ObjectAsset, float]], timestep: float = 0.0125) ->
     for i, (asset, scale) in enumerate(objects):
         height = asset.resting_heights[0] * scale
         add_object(
-            spec, asset, f"object{i}", scale=scale, mass=0.25, friction=0.5, restitution=0.1,
-            pos=(0.5 * i, 0.0, height + 0.01), quat=asset.orientations[0],
+            spec,
+            asset,
+            f"object{i}",
+            scale=scale,
+            mass=0.25,
+            friction=0.5,
+            restitution=0.1,
+            pos=(0.5 * i, 0.0, height + 0.01),
+            quat=asset.orientations[0],
         )
     return spec.compile()
 
@@ -52,7 +58,11 @@ def test_body_inertia_is_the_scaled_solid(one_of_each: ObjectSet) -> None:
 def test_parts_collide_and_the_visual_surface_does_not(one_of_each: ObjectSet) -> None:
     asset = one_of_each["mug-s0-0006"]
     model = scene([(asset, 1.0), (asset, 1.0), (asset, 1.5)])
-    geoms = [model.geom(i) for i in range(model.ngeom) if model.geom(i).bodyid[0] == model.body("object0").id]
+    geoms = [
+        model.geom(i)
+        for i in range(model.ngeom)
+        if model.geom(i).bodyid[0] == model.body("object0").id
+    ]
     colliding = [g for g in geoms if g.contype[0] or g.conaffinity[0]]
     assert len(colliding) == len(asset.parts) and len(geoms) == len(asset.parts) + 1
     # Two bodies of the same object and scale share mesh assets; another scale has its own.
@@ -65,12 +75,16 @@ def test_restitution_solref_inverts_the_damped_spring() -> None:
     assert solref.shape == (4, 2) and np.all(solref[:, 0] == 0.03)
     zeta = solref[:, 1]
     assert zeta[0] == 1.0  # MuJoCo's default: no bounce
-    np.testing.assert_allclose(np.exp(-np.pi * zeta[1:] / np.sqrt(1 - zeta[1:] ** 2)), restitution[1:])
+    np.testing.assert_allclose(
+        np.exp(-np.pi * zeta[1:] / np.sqrt(1 - zeta[1:] ** 2)), restitution[1:]
+    )
 
 
 def cube(side: float = 0.1) -> ObjectAsset:
-    mesh = _box(np.full(3, -side / 2), np.full(3, side / 2))
-    stable = StablePoses(np.array([[1.0, 0, 0, 0]]), np.ones(1), np.full(1, side / np.sqrt(2)), np.full(1, side / 2))
+    mesh = box_mesh(np.full(3, -side / 2), np.full(3, side / 2))
+    stable = StablePoses(
+        np.array([[1.0, 0, 0, 0]]), np.ones(1), np.full(1, side / np.sqrt(2)), np.full(1, side / 2)
+    )
     return ObjectAsset("cube", mesh, (mesh,), mesh.volume, unit_inertia(mesh), stable, "test")
 
 

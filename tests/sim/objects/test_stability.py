@@ -9,8 +9,7 @@ import pytest
 from hamnet.sim.objects import ObjectAsset, ObjectSet, StabilityConfig, add_object
 from hamnet.sim.objects.build import finish
 from hamnet.sim.objects.config import ObjectLibraryConfig
-from hamnet.sim.objects.mesh import unit_inertia
-from hamnet.sim.objects.shapes import _box
+from hamnet.sim.objects.mesh import box_mesh, unit_inertia
 from hamnet.sim.objects.stability import (
     angle_between,
     down_directions,
@@ -22,13 +21,23 @@ from hamnet.sim.objects.stability import (
 BOX = np.array([0.06, 0.10, 0.16])  # extents, m
 
 
-def release(asset: ObjectAsset, friction: float, timestep: float, seconds: float = 2.0) -> np.ndarray:
+def release(
+    asset: ObjectAsset, friction: float, timestep: float, seconds: float = 2.0
+) -> np.ndarray:
     """Final (K, 7) free-joint poses of the object released at each of its stable poses."""
     spec = mujoco.MjSpec()
     spec.option.timestep = timestep
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], friction=[0, 0, 0])
     for k, (quat, height) in enumerate(zip(asset.orientations, asset.resting_heights)):
-        add_object(spec, asset, f"pose{k}", pos=(k, 0, height + 0.002), quat=quat, friction=friction, visual=False)
+        add_object(
+            spec,
+            asset,
+            f"pose{k}",
+            pos=(k, 0, height + 0.002),
+            quat=quat,
+            friction=friction,
+            visual=False,
+        )
     model = spec.compile()
     data = mujoco.MjData(model)
     for _ in range(int(seconds / timestep)):
@@ -38,27 +47,35 @@ def release(asset: ObjectAsset, friction: float, timestep: float, seconds: float
 
 @pytest.mark.parametrize("friction", [0.2, 1.0])
 @pytest.mark.parametrize("timestep", [0.0125, 0.002])
-def test_released_at_a_stable_orientation_the_object_stays(one_of_each: ObjectSet, friction: float, timestep: float) -> None:
+def test_released_at_a_stable_orientation_the_object_stays(
+    one_of_each: ObjectSet, friction: float, timestep: float
+) -> None:
     """Each stored pose, released at its resting height, keeps its orientation and height."""
     stable_angle = StabilityConfig().stable_angle
     for asset in one_of_each:
         final = release(asset, friction, timestep)  # (K, 7)
-        drift = angle_between(down_directions(final[:, 3:]), down_directions(asset.orientations))  # (K,)
+        drift = angle_between(
+            down_directions(final[:, 3:]), down_directions(asset.orientations)
+        )  # (K,)
         assert np.all(drift < stable_angle), (asset.name, drift)
-        np.testing.assert_allclose(final[:, 2], asset.resting_heights, atol=3e-3, err_msg=asset.name)
+        np.testing.assert_allclose(
+            final[:, 2], asset.resting_heights, atol=3e-3, err_msg=asset.name
+        )
 
 
 def test_planar_radius_matches_the_simulated_rest(one_of_each: ObjectSet) -> None:
     for asset in one_of_each:
         final = release(asset, 0.6, 0.0125)  # (K, 7)
-        world = np.einsum("kij,pj->kpi", quat_to_matrix(final[:, 3:]), asset.mesh.vertices)  # (K, P, 3)
+        world = np.einsum(
+            "kij,pj->kpi", quat_to_matrix(final[:, 3:]), asset.mesh.vertices
+        )  # (K, P, 3)
         radius = np.linalg.norm(world[..., :2], axis=-1).max(axis=1)  # (K,)
         np.testing.assert_allclose(radius, asset.planar_radii, atol=5e-3, err_msg=asset.name)
 
 
 @pytest.fixture(scope="module")
 def box_asset() -> ObjectAsset:
-    mesh = _box(-BOX / 2, BOX / 2)
+    mesh = box_mesh(-BOX / 2, BOX / 2)
     return finish("box", mesh, (mesh,), "test", ObjectLibraryConfig(use_cache=False))
 
 
@@ -85,11 +102,15 @@ def test_orientations_are_yaw_free_unit_quaternions(one_of_each: ObjectSet) -> N
 def test_tilt_check_rejects_a_box_balanced_on_its_edge() -> None:
     """A box standing on an edge, centre of mass right above it, is an equilibrium but not a
     stable one; flat on a face it is."""
-    mesh = _box(-BOX / 2, BOX / 2)
+    mesh = box_mesh(-BOX / 2, BOX / 2)
     on_face = np.array([1.0, 0.0, 0.0])
-    on_edge = np.array([BOX[0], 0.0, BOX[2]]) / np.linalg.norm([BOX[0], BOX[2]])  # towards the +x+z edge
+    on_edge = np.array([BOX[0], 0.0, BOX[2]]) / np.linalg.norm(
+        [BOX[0], BOX[2]]
+    )  # towards the +x+z edge
     down = np.stack([on_face, on_edge])  # (2, 3)
-    check = survives_tilt((mesh,), unit_inertia(mesh), down, StabilityConfig(), np.random.default_rng(0))
+    check = survives_tilt(
+        (mesh,), unit_inertia(mesh), down, StabilityConfig(), np.random.default_rng(0)
+    )
     assert check.tolist() == [True, False]
 
 

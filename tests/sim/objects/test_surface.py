@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from hamnet.sim.objects import Mesh, ObjectSet, sample_surface
-from hamnet.sim.objects.shapes import _box
+from hamnet.sim.objects.mesh import box_mesh
 
 
 def on_surface(points: np.ndarray, mesh: Mesh, tolerance: float = 1e-9) -> np.ndarray:
@@ -13,7 +13,9 @@ def on_surface(points: np.ndarray, mesh: Mesh, tolerance: float = 1e-9) -> np.nd
     a, b, c = (mesh.vertices[mesh.faces[:, i]] for i in range(3))  # (F, 3) each
     normal = np.cross(b - a, c - a)  # (F, 3)
     offset = points[:, None, :] - a[None]  # (N, F, 3)
-    in_plane = np.abs(np.einsum("nfi,fi->nf", offset, normal)) / np.linalg.norm(normal, axis=1) < tolerance
+    in_plane = (
+        np.abs(np.einsum("nfi,fi->nf", offset, normal)) / np.linalg.norm(normal, axis=1) < tolerance
+    )
     # Barycentric coordinates from the two edge vectors.
     e0, e1 = b - a, c - a  # (F, 3)
     d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)  # (F,)
@@ -35,13 +37,16 @@ def test_samples_lie_on_every_object_surface(one_of_each: ObjectSet) -> None:
 
 def test_points_off_the_surface_are_detected() -> None:
     """The checker itself can fail: a point inside the box is not on its surface."""
-    box = _box(np.full(3, -0.05), np.full(3, 0.05))
-    assert on_surface(np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.049]]), box).tolist() == [True, False]
+    box = box_mesh(np.full(3, -0.05), np.full(3, 0.05))
+    assert on_surface(np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.049]]), box).tolist() == [
+        True,
+        False,
+    ]
 
 
 def test_faces_are_hit_in_proportion_to_their_area() -> None:
     half = np.array([0.01, 0.04, 0.10])  # a box whose face pairs differ in area
-    box = _box(-half, half)
+    box = box_mesh(-half, half)
     points = sample_surface(box, 40_000, np.random.default_rng(1))
     axis = np.argmax(np.abs(points) / half, axis=1)  # (N,) which face pair each point is on
     share = np.bincount(axis, minlength=3) / len(points)
