@@ -1,12 +1,15 @@
 """Stable resting orientations, found by dropping the object on a plane in MuJoCo.
 
 As in the paper (Object Placement, after CORN): drop the object from many random
-orientations, let it settle, and group the rests by the object's down direction (a resting
-pose is fixed up to yaw by which way is down). Each group's most central rest is kept if
-enough drops ended there and it survives being released slightly tilted, which rejects
-knife-edge balances. Dropping, rather than a quasi-static hull analysis, tests the poses
-against the very collision geometry (the convex parts) and contact model the sim uses.
-All drops run at once in one model: copies of the object that collide with the plane only.
+orientations (with a little rolling friction, so rocking on faceted bottoms ends), keep the
+drops that stopped turning, and group them by the object's down direction (a resting pose
+is fixed up to yaw by which way is down). The centre of each frequent group is released
+again without rolling friction; where it settles is the stored orientation, kept only if it
+also comes back from small tilts at both ends of the object friction range, which rejects
+knife-edge balances. Dropping, rather than a quasi-static analysis of the convex hull
+(trimesh's `compute_stable_poses`), tests the poses against the collision geometry (the
+convex parts, so a mug may rest on its handle), the contact model and the timestep the sim
+uses. All drops run at once in one model: copies of the object that touch the plane only.
 """
 
 from __future__ import annotations
@@ -248,6 +251,27 @@ def drop_candidates(
     return centres, np.array([len(g) / max(len(down), 1) for g in groups])
 
 
+def merge(down: np.ndarray, probability: np.ndarray, angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """Fold directions (K, 3) within `angle` of a more probable one into it.
+
+    Two groups of drops can settle to the same rest once released without rolling friction.
+    Returns:
+        The remaining directions and their summed probabilities, most probable first.
+    """
+    kept: list[int] = []
+    total: list[float] = []
+    for i in np.argsort(-probability, kind="stable"):
+        for j, k in enumerate(kept):
+            if down[i] @ down[k] > np.cos(angle):
+                total[j] += probability[i]
+                break
+        else:
+            kept.append(int(i))
+            total.append(float(probability[i]))
+    order = np.argsort(-np.array(total), kind="stable")
+    return down[np.array(kept)[order]], np.array(total)[order]
+
+
 def find_stable_poses(
     mesh: Mesh, parts: Sequence[Mesh], unit_inertia: np.ndarray, config: StabilityConfig
 ) -> StablePoses:
@@ -272,10 +296,12 @@ def find_stable_poses(
     friction = np.full(len(candidates), config.friction)  # (K,)
     rest, still = settle(parts, unit_inertia, tilt_quaternions(candidates), friction, config)
     keep = still & (angle_between(rest, candidates) < config.stable_angle)
-    keep[keep] = survives_tilt(parts, unit_inertia, rest[keep], config, rng)
+    if keep.any():
+        keep[keep] = survives_tilt(parts, unit_inertia, rest[keep], config, rng)
     if not keep.any():
         raise UnstableObjectError("no resting orientation survived the checks")
-    quat = tilt_quaternions(rest[keep])  # (K, 4)
+    down, probability = merge(rest[keep], probability[keep], config.cluster_angle)
+    quat = tilt_quaternions(down)  # (K, 4)
     points = np.concatenate([mesh.vertices, *(p.vertices for p in parts)])  # (P, 3)
     radii, heights = resting_geometry(points, quat)
-    return StablePoses(quat, probability[keep], radii, heights)
+    return StablePoses(quat, probability, radii, heights)

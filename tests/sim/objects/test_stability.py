@@ -13,6 +13,7 @@ from hamnet.sim.objects.mesh import box_mesh, unit_inertia
 from hamnet.sim.objects.stability import (
     angle_between,
     down_directions,
+    merge,
     quat_to_matrix,
     survives_tilt,
     tilt_quaternions,
@@ -119,3 +120,11 @@ def test_tilt_quaternion_takes_down_to_minus_z() -> None:
     down /= np.linalg.norm(down, axis=1, keepdims=True)
     down[0] = [0, 0, 1]  # upside down: the degenerate case
     np.testing.assert_allclose(down_directions(tilt_quaternions(down)), down, atol=1e-9)
+
+
+def test_merge_folds_a_nearby_rest_into_the_more_probable_one() -> None:
+    z, x = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    near_z = np.array([np.sin(0.05), 0.0, np.cos(0.05)])
+    down, probability = merge(np.stack([z, near_z, x]), np.array([0.2, 0.3, 0.5]), angle=0.2)
+    np.testing.assert_allclose(down, np.stack([x, near_z]))
+    np.testing.assert_allclose(probability, [0.5, 0.5])
