@@ -95,6 +95,8 @@ class World:
     """(J,) qpos indices of the arm joints."""
     robot_dof: np.ndarray
     """(J,) dof indices of the arm joints."""
+    robot_bodies: np.ndarray
+    """Ids of the arm's moving bodies (links 1-7 and the paddle)."""
     ee_site: int
     """Site at the paddle's contact face."""
 
@@ -216,6 +218,12 @@ def _loosen_bounding_volumes(model: mujoco.MjModel, bodies: list[int]) -> None:
         model.bvh_aabb[start : start + count] = [0, 0, 0, _LARGE_BOUND, _LARGE_BOUND, _LARGE_BOUND]
 
 
+def _moving_robot_bodies(model: mujoco.MjModel) -> np.ndarray:
+    """Bodies of the arm that move: those below a joint of the FR3 (link0 is fixed)."""
+    first = model.jnt_bodyid[model.joint(robot.JOINT_NAMES[0]).id]
+    return np.array([b for b in range(first, model.nbody) if model.body(b).name.startswith("fr3_")])
+
+
 def _drop_shortcuts(model: mujoco.MjModel, geoms: np.ndarray, body: int, dofs: np.ndarray) -> None:
     """Make MuJoCo read the frames that change per environment.
 
@@ -253,5 +261,6 @@ def build_world(objects: ObjectSet) -> World:
         object_dof=object_dof,
         robot_qpos=robot.robot_qpos_index(model),
         robot_dof=robot.robot_dof_index(model),
+        robot_bodies=_moving_robot_bodies(model),
         ee_site=model.site(robot.EE_SITE).id,
     )

@@ -1,0 +1,63 @@
+"""Configuration of the sim: batch size, clocks, library, scenes, task and curriculum.
+
+One frozen dataclass whose defaults run on a CPU laptop; `hamnet sim --help` is generated
+from the field docstrings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hamnet.sim.curriculum import CurriculumConfig
+from hamnet.sim.objects.config import ObjectLibraryConfig
+from hamnet.sim.objects.randomization import ObjectRandomization
+from hamnet.sim.placement import PlacementConfig
+from hamnet.sim.robot import TIMESTEP
+from hamnet.sim.robot_init import RobotInitConfig
+from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.task_config import TaskConfig
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """A batch of simulated FR3 environments with procedural scenes."""
+
+    num_envs: int = 4
+    """Environments stepped together by this worker."""
+    nthread: int = 0
+    """Physics threads (0: every core)."""
+    seed: int = 0
+    """Seed of every random draw (scenes, objects, placements, starts)."""
+    policy_period_s: float = 0.1
+    """Time between two actions, s (10 Hz)."""
+    control_samples: int = 8
+    """Reference samples per action (80 Hz); each is held for the physics steps in between."""
+    num_objects: int = 16
+    """Procedural objects in the library."""
+    object_folder: Path | None = None
+    """Folder of meshes (OBJ/STL/GLB) to add to the library."""
+    size_bins: int = 3
+    """Sizes per object across `objects.radius` (meshes are compiled once, so sizes are discrete)."""
+    library: ObjectLibraryConfig = field(default_factory=ObjectLibraryConfig)
+    objects: ObjectRandomization = field(default_factory=ObjectRandomization)
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    placement: PlacementConfig = field(default_factory=PlacementConfig)
+    robot_init: RobotInitConfig = field(default_factory=RobotInitConfig)
+    task: TaskConfig = field(default_factory=TaskConfig)
+    curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
+
+    def __post_init__(self) -> None:
+        if self.num_envs < 1 or self.num_objects < 1 or self.size_bins < 1:
+            raise ValueError("num_envs, num_objects and size_bins must be >= 1")
+        period = self.physics_steps_per_sample * self.control_samples * TIMESTEP
+        if self.physics_steps_per_sample < 1 or abs(period - self.policy_period_s) > 1e-9:
+            raise ValueError(
+                f"policy_period_s / control_samples must be a multiple of the {TIMESTEP} s "
+                "physics timestep"
+            )
+
+    @property
+    def physics_steps_per_sample(self) -> int:
+        """Physics steps each reference sample is held for."""
+        return round(self.policy_period_s / self.control_samples / TIMESTEP)

@@ -1,0 +1,203 @@
+"""`VectorEnv`: B simulated FR3 environments with a Gymnasium-style vector API.
+
+`reset(seed)` draws every episode; `step(command)` applies one safe command (joint
+references per control sample, gains, torque clip) for one policy period and returns the
+batched observation, the reward terms, and the termination flags. Environments whose
+episode ended are reset inside `step` (auto-reset): the returned observation is then the
+first of the new episode, while rewards, flags and `episode_ids` belong to the step that
+ended the old one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.sim import episodes as draw
+from hamnet.sim.config import SimConfig
+from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
+from hamnet.sim.objects.library import ObjectSet
+from hamnet.sim.physics import BatchPhysics
+from hamnet.sim.rewards import REWARD_NAMES, Potentials, potentials, reward_terms
+from hamnet.sim.scene import NUM_CUBOIDS, TABLE
+from hamnet.sim.termination import termination, workspace_bounds
+from hamnet.sim.world import build_world
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the safety filter sends for one policy period (the SafeCommand message)."""
+
+    q_ref: np.ndarray
+    """(B, S, J) joint references, one per control sample, rad."""
+    kp: np.ndarray
+    """(B, J) stiffness, N m/rad."""
+    kd: np.ndarray
+    """(B, J) damping, N m s/rad."""
+    tau_limit: np.ndarray
+    """(B, J) torque clip, N m."""
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Batched state after a step (the RobotState message; `privileged` fields sim-only)."""
+
+    episode_ids: np.ndarray  # (B,) int64
+    episode_step: np.ndarray  # (B,) int32
+    q: np.ndarray  # (B, J) rad
+    dq: np.ndarray  # (B, J) rad/s
+    tau: np.ndarray  # (B, J) N m, actuator torque (gravity compensation included)
+    ee_pose: np.ndarray  # (B, 9): position (3) + first two rotation columns (6)
+    goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
+    object_pose: np.ndarray  # (B, 7), privileged
+    object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
+    physics_params: np.ndarray  # (B, 6), privileged (see episodes.Episodes)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """One step of every environment."""
+
+    observation: Observation
+    reward_terms: np.ndarray
+    """(B, R) float32, columns `REWARD_NAMES`."""
+    terminated: np.ndarray  # (B,) bool
+    truncated: np.ndarray  # (B,) bool
+    success: np.ndarray  # (B,) bool
+    reason: np.ndarray  # (B,) int8, termination.Reason
+    episode_ids: np.ndarray
+    """(B,) int64 episode each step belonged to (before any auto-reset)."""
+    reset_ids: np.ndarray
+    """Environments that started a new episode (their scenes are in `scenes()`)."""
+
+
+class VectorEnv:
+    """The sim's in-process core: no Zenoh, arrays in and out."""
+
+    reward_names = REWARD_NAMES
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        self.config = config = config if config is not None else SimConfig()
+        objects = ObjectSet.procedural(config.num_objects, config.seed, config.library)
+        if config.object_folder is not None:
+            objects = objects + ObjectSet.from_folder(config.object_folder, config.library)
+        radii = np.linspace(*config.objects.radius, config.size_bins) if config.objects.radius else None
+        sized = draw.sized_library(objects, radii) if radii is not None else objects
+        scale = np.array([a.radius for a in sized]) / np.repeat([a.radius for a in objects], len(radii) if radii is not None else 1)
+        self.library = draw.Library.of(sized, scale)
+        self.world = build_world(sized)
+        self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)
+        self.num_envs = config.num_envs
+        self.rng = np.random.default_rng(config.seed)
+        self.schedule = curriculum_values(0, config.curriculum)
+        b = config.num_envs
+        self.episode_ids = np.zeros(b, dtype=np.int64)
+        self.episode_step = np.zeros(b, dtype=np.int32)
+        self._next_episode = 0
+        self.object_index = np.zeros(b, dtype=np.int64)
+        self.goal_pos = np.zeros((b, 3))
+        self.goal_quat = np.tile([1.0, 0.0, 0.0, 0.0], (b, 1))
+        self.physics_params = np.zeros((b, 6), dtype=np.float32)
+        self.workspace = (np.full((b, 3), -np.inf), np.full((b, 3), np.inf))
+        self.scene_arrays: dict[str, np.ndarray] = {
+            "centre": np.zeros((b, NUM_CUBOIDS, 3)), "quat": np.zeros((b, NUM_CUBOIDS, 4)),
+            "half_extent": np.zeros((b, NUM_CUBOIDS, 3)), "active": np.zeros((b, NUM_CUBOIDS), bool),
+            "env_code": np.zeros((b, 25), np.float32),
+        }  # fmt: skip
+        self.potentials = Potentials(np.zeros(b), np.zeros(b))
+        self.reset_seconds = 0.0
+        """Wall time spent drawing episodes so far, s."""
+
+    def set_schedule(self, values: CurriculumValues) -> None:
+        """Curriculum values for the episodes drawn from now on (the trainer's schedule)."""
+        self.schedule = values
+
+    def reset(self, seed: int | None = None) -> Observation:
+        """Draw a new episode in every environment."""
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
+        self._new_episodes(np.arange(self.num_envs))
+        return self.observe()
+
+    def step(self, command: Command) -> StepResult:
+        """Apply `command` for one policy period, then score, terminate and auto-reset."""
+        self.physics.set_gains(command.kp, command.kd, command.tau_limit)
+        self.physics.step(command.q_ref, self.config.physics_steps_per_sample)
+        self.episode_step += 1
+        pos, quat = self._object_pose()
+        ends = termination(
+            pos, quat, self.goal_pos, self.goal_quat, self.workspace, self.episode_step, self.config.task
+        )
+        current = self._potentials(pos, quat)
+        rewards = reward_terms(ends.success, self.potentials, current, self.config.task)
+        self.potentials = current
+        stepped_ids = self.episode_ids.copy()
+        done = np.flatnonzero(ends.done)
+        if len(done):
+            self._new_episodes(done)
+        return StepResult(
+            observation=self.observe(),
+            reward_terms=rewards,
+            terminated=ends.terminated,
+            truncated=ends.truncated,
+            success=ends.success,
+            reason=ends.reason,
+            episode_ids=stepped_ids,
+            reset_ids=done,
+        )
+
+    def observe(self) -> Observation:
+        """The current batched observation."""
+        w, p = self.world, self.physics
+        pos, quat = self._object_pose()
+        site_pos = p.bind("site_xpos")[:, w.ee_site]  # (B, 3)
+        site_rot = p.bind("site_xmat")[:, w.ee_site].reshape(-1, 3, 3)  # (B, 3, 3)
+        six_d = site_rot[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)  # (B, 6): columns 1, 2
+        return Observation(
+            episode_ids=self.episode_ids.copy(),
+            episode_step=self.episode_step.copy(),
+            q=p.qpos[:, w.robot_qpos].astype(np.float32),
+            dq=p.qvel[:, w.robot_dof].astype(np.float32),
+            tau=p.bind("qfrc_actuator")[:, w.robot_dof].astype(np.float32),
+            ee_pose=np.concatenate([site_pos, six_d], axis=1).astype(np.float32),
+            goal_pose=np.concatenate([self.goal_pos, self.goal_quat], axis=1).astype(np.float32),
+            object_pose=np.concatenate([pos, quat], axis=1).astype(np.float32),
+            object_velocity=p.qvel[:, w.object_dof].astype(np.float32),
+            physics_params=self.physics_params.copy(),
+        )
+
+    def _object_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        qpos = self.physics.qpos[:, self.world.object_qpos]  # (B, 7)
+        return qpos[:, :3], qpos[:, 3:]
+
+    def _potentials(self, pos: np.ndarray, quat: np.ndarray) -> Potentials:
+        tip = self.physics.bind("site_xpos")[:, self.world.ee_site]  # (B, 3)
+        bbox = self.library.bbox[self.object_index]  # (B, 2, 3)
+        return potentials(pos, quat, self.goal_pos, self.goal_quat, bbox, tip, self.config.task)
+
+    def _new_episodes(self, env_ids: np.ndarray) -> None:
+        started = time.perf_counter()
+        scene_config = scene_config_at(self.schedule, self.config.scene)
+        drawn = draw.draw_episodes(
+            self.rng, self.physics, self.library, env_ids, self.config, scene_config,
+            self.schedule.p_near_init,
+        )  # fmt: skip
+        self.object_index[env_ids] = drawn.object_index
+        self.goal_pos[env_ids] = drawn.goal_pos
+        self.goal_quat[env_ids] = drawn.goal_quat
+        self.physics_params[env_ids] = drawn.physics_params
+        scenes = drawn.scenes
+        lo, hi = workspace_bounds(scenes.centre[:, TABLE], scenes.half_extent[:, TABLE], self.config.task)
+        self.workspace[0][env_ids], self.workspace[1][env_ids] = lo, hi
+        for name, array in self.scene_arrays.items():
+            array[env_ids] = getattr(scenes, name)
+        self.episode_ids[env_ids] = self._next_episode + np.arange(len(env_ids))
+        self._next_episode += len(env_ids)
+        self.episode_step[env_ids] = 0
+        pos, quat = self._object_pose()
+        fresh = self._potentials(pos, quat)
+        self.potentials.goal[env_ids] = fresh.goal[env_ids]
+        self.potentials.contact[env_ids] = fresh.contact[env_ids]
+        self.reset_seconds += time.perf_counter() - started

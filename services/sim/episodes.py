@@ -1,0 +1,176 @@
+"""Drawing new episodes for a set of environments: object, size and physics, scene, goal and
+start poses, and the arm's start, written into the batched physics.
+
+Objects come in `size_bins` discrete sizes (meshes are compiled once), so the library the
+world is built from holds every object at every size; `Library` keeps, per entry, the
+stable poses and heights that placement and the tight ceiling need.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.sim import quaternion, robot_init
+from hamnet.sim.config import SimConfig
+from hamnet.sim.objects.library import ObjectSet
+from hamnet.sim.objects.spec import restitution_solref
+from hamnet.sim.physics import BatchPhysics
+from hamnet.sim.placement import sample_placements
+from hamnet.sim.robot import Q_HOME
+from hamnet.sim.scene import SceneBatch, sample_scenes
+from hamnet.sim.scene_config import SceneConfig
+
+
+def sized_library(objects: ObjectSet, radii: np.ndarray) -> ObjectSet:
+    """Every object scaled to every bounding radius in `radii`, named `<name>@<radius>`."""
+    return ObjectSet(
+        tuple(
+            dataclasses.replace(asset.scaled(radius / asset.radius), name=f"{asset.name}@{radius:.3f}")
+            for asset in objects
+            for radius in radii
+        )
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Library:
+    """Per library entry (N entries, K stable poses padded), what episodes are drawn from."""
+
+    objects: ObjectSet
+    stable_quat: np.ndarray
+    """(N, K, 4) stable orientations, wxyz."""
+    probability: np.ndarray
+    """(N, K) how often each orientation occurs (0 for padding)."""
+    planar_radius: np.ndarray
+    """(N, K) m."""
+    rest_height: np.ndarray
+    """(N, K) centre above the support, m."""
+    top_height: np.ndarray
+    """(N, K) top above the support, m."""
+    bbox: np.ndarray
+    """(N, 2, 3) bounding box in the object frame, m."""
+    scale: np.ndarray
+    """(N,) size relative to the generated or imported object."""
+
+    @classmethod
+    def of(cls, objects: ObjectSet, scale: np.ndarray) -> Library:
+        table = objects.stable_table()
+        top = np.stack([
+            [(_rotate(asset.mesh.vertices, q)[:, 2]).max() for q in orientations]
+            for asset, orientations in zip(objects, table.orientations, strict=True)
+        ])  # (N, K), centre to top
+        return cls(
+            objects=objects,
+            stable_quat=table.orientations,
+            probability=table.probabilities,
+            planar_radius=table.planar_radii,
+            rest_height=table.resting_heights,
+            top_height=table.resting_heights + top,
+            bbox=np.stack([asset.bbox for asset in objects]),
+            scale=scale,
+        )
+
+
+def _rotate(points: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    return points @ quaternion.to_matrix(quat).T
+
+
+@dataclass(frozen=True, eq=False)
+class Episodes:
+    """What was drawn for K environments."""
+
+    env_ids: np.ndarray
+    object_index: np.ndarray
+    """(K,) library entry."""
+    scenes: SceneBatch
+    goal_pos: np.ndarray
+    """(K, 3) m."""
+    goal_quat: np.ndarray
+    """(K, 4) wxyz."""
+    physics_params: np.ndarray
+    """(K, 6) object mass, object friction, restitution, robot friction, scene friction, scale."""
+    near_start: np.ndarray
+    """(K,) bool: the arm started near the object."""
+
+
+def draw_episodes(
+    rng: np.random.Generator,
+    physics: BatchPhysics,
+    library: Library,
+    env_ids: np.ndarray,
+    config: SimConfig,
+    scene_config: SceneConfig,
+    p_near_init: float,
+) -> Episodes:
+    """Draw and apply new episodes for `env_ids`; their state is reset at rest."""
+    count = len(env_ids)
+    entry = rng.integers(len(library.objects), size=count)  # (K,)
+    height = library.top_height[entry].max(axis=1)  # (K,), tallest resting pose
+    scenes = sample_scenes(rng, height, scene_config)
+    placement = sample_placements(
+        rng, scenes, library.stable_quat[entry], library.planar_radius[entry],
+        library.rest_height[entry], library.top_height[entry], config.placement,
+    )  # fmt: skip
+    draws = _object_draws(rng, config, count)
+    physics.set_scene(env_ids, scenes.centre, scenes.quat, scenes.half_extent, scenes.friction)
+    solref = restitution_solref(draws["restitution"])
+    physics.set_object(env_ids, entry, draws["mass"], draws["friction"], solref)
+    near = rng.random(count) < p_near_init  # (K,)
+    radius = library.planar_radius[entry].max(axis=1)  # (K,)
+    q = _arm_starts(rng, physics, env_ids, near, placement.start_pos, placement.start_quat, radius, config)
+    physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
+    robot_friction = np.full(count, 1.0)  # MuJoCo's default for the arm's geoms
+    params = np.stack([
+        draws["mass"], draws["friction"], draws["restitution"], robot_friction, scenes.friction,
+        library.scale[entry],
+    ], axis=1).astype(np.float32)  # fmt: skip
+    return Episodes(env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near)
+
+
+def _object_draws(rng: np.random.Generator, config: SimConfig, count: int) -> dict[str, np.ndarray]:
+    ranges = config.objects
+    return {
+        "mass": rng.uniform(*ranges.mass, size=count),
+        "friction": rng.uniform(*ranges.friction, size=count),
+        "restitution": rng.uniform(*ranges.restitution, size=count),
+    }
+
+
+def _arm_starts(
+    rng: np.random.Generator,
+    physics: BatchPhysics,
+    env_ids: np.ndarray,
+    near: np.ndarray,
+    object_pos: np.ndarray,
+    object_quat: np.ndarray,
+    object_radius: np.ndarray,
+    config: SimConfig,
+) -> np.ndarray:
+    """(K, J) collision-free arm starts; home where every draw collided."""
+    init = config.robot_init
+    q = np.tile(Q_HOME, (len(env_ids), 1))
+    pending = np.ones(len(env_ids), dtype=bool)
+    for _ in range(init.rounds):
+        rows = np.flatnonzero(pending)
+        if len(rows) == 0:
+            break
+        ids = env_ids[rows]
+        candidate = robot_init.random_configurations(rng, len(rows), init.range_fraction)
+        physics.set_state(ids, candidate, object_pos[rows], object_quat[rows])
+        is_near = near[rows]
+        if is_near.any():
+            targets = robot_init.near_targets(rng, object_pos[rows][is_near], object_radius[rows][is_near], init.near_gap)
+            start = np.tile(Q_HOME, (int(is_near.sum()), 1))
+            candidate[is_near] = robot_init.solve_ik(physics, ids[is_near], start, targets, init)
+            reached = robot_init.paddle_distance(physics, ids[is_near], targets) <= init.ik_tolerance
+            physics.set_state(ids, candidate, object_pos[rows], object_quat[rows])
+        else:
+            reached = np.ones(0, dtype=bool)
+        ok = ~robot_init.arm_in_contact(physics, ids)
+        ok[is_near] &= reached
+        q[rows[ok]] = candidate[ok]
+        pending[rows[ok]] = False
+    return q
