@@ -1,0 +1,134 @@
+"""`VectorEnv`: the sim's in-process core, stepped with real MuJoCo."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hamnet.sim import robot
+from hamnet.sim.config import SimConfig
+from hamnet.sim.curriculum import CurriculumValues
+from hamnet.sim.env import Command, VectorEnv
+from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.sim.task_config import TaskConfig
+from hamnet.sim.termination import Reason
+
+B = 4
+
+
+def make_env(**overrides) -> VectorEnv:
+    return VectorEnv(replace(SimConfig(num_envs=B, num_objects=3, nthread=1), **overrides))
+
+
+def hold(observation, kp: float = 100.0) -> Command:
+    """Hold the current joint positions."""
+    q = observation.q.astype(np.float64)  # (B, J)
+    gains = np.full_like(q, kp)
+    return Command(
+        q_ref=np.repeat(q[:, None, :], 8, axis=1),
+        kp=gains,
+        kd=2.0 * np.sqrt(gains),
+        tau_limit=np.tile(robot.FR3.tau_max, (len(q), 1)),
+    )
+
+
+@pytest.fixture(scope="module")
+def env() -> VectorEnv:
+    return make_env()
+
+
+def test_observations_and_results_have_the_contract_shapes(env: VectorEnv) -> None:
+    observation = env.reset(seed=1)
+    result = env.step(hold(observation))
+    o = result.observation
+    shapes = {
+        "q": (B, 7), "dq": (B, 7), "tau": (B, 7), "ee_pose": (B, 9), "goal_pose": (B, 7),
+        "object_pose": (B, 7), "object_velocity": (B, 6), "physics_params": (B, 6),
+    }  # fmt: skip
+    for name, shape in shapes.items():
+        value = getattr(o, name)
+        assert value.shape == shape and value.dtype == np.float32 and np.isfinite(value).all(), name
+    assert result.reward_terms.shape == (B, len(REWARD_NAMES))
+    assert np.isfinite(result.reward_terms).all()
+    for flags in (result.terminated, result.truncated, result.success):
+        assert flags.shape == (B,) and flags.dtype == bool
+    rotation = o.ee_pose[:, 3:].reshape(B, 2, 3)
+    np.testing.assert_allclose(np.linalg.norm(rotation, axis=2), 1.0, atol=1e-5)
+
+
+def test_same_seed_same_episodes_and_trajectories() -> None:
+    first, second = make_env(), make_env()
+    a, b = first.reset(seed=5), second.reset(seed=5)
+    for _ in range(3):
+        a = first.step(hold(a)).observation
+        b = second.step(hold(b)).observation
+    for name in ("q", "object_pose", "goal_pose", "physics_params"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    np.testing.assert_array_equal(first.scene_arrays["centre"], second.scene_arrays["centre"])
+    other = make_env()
+    c = other.reset(seed=6)
+    assert not np.array_equal(c.goal_pose, a.goal_pose)
+
+
+def test_objects_start_at_rest_on_the_scene(env: VectorEnv) -> None:
+    """Placements are on horizontal surfaces, clear of walls: a held arm leaves them put."""
+    observation = env.reset(seed=2)
+    start = observation.object_pose[:, :3].copy()
+    for _ in range(5):
+        observation = env.step(hold(observation)).observation
+    moved = np.linalg.norm(observation.object_pose[:, :3] - start, axis=1)
+    assert np.all(moved < 0.02), moved
+
+
+def test_dropped_object_terminates_and_the_environment_starts_a_new_episode(env: VectorEnv) -> None:
+    observation = env.reset(seed=3)
+    ids = observation.episode_ids.copy()
+    qpos = env.physics.qpos
+    qpos[1, env.world.object_qpos[:3]] = [0.5, 0.0, -1.0]  # far below any table
+    env.physics.batch.forward([1])
+    result = env.step(hold(observation))
+    assert result.terminated[1] and not result.success[1] and result.reason[1] == Reason.DROPPED
+    assert not result.terminated[[0, 2, 3]].any()
+    assert result.episode_ids[1] == ids[1]  # the transition belongs to the old episode
+    assert result.observation.episode_ids[1] > ids.max()  # the observation to the new one
+    assert result.observation.episode_step[1] == 0 and result.reset_ids.tolist() == [1]
+
+
+def test_object_at_its_goal_succeeds_and_earns_the_success_reward(env: VectorEnv) -> None:
+    observation = env.reset(seed=4)
+    goal = observation.goal_pose.astype(np.float64)
+    qpos = env.physics.qpos
+    qpos[2, env.world.object_qpos] = goal[2]
+    env.physics.batch.forward([2])
+    result = env.step(hold(observation))
+    assert result.success[2] and result.terminated[2] and result.reason[2] == Reason.SUCCESS
+    assert result.reward_terms[2, REWARD_NAMES.index("success")] == pytest.approx(1.0)
+    assert result.reward_terms[~result.success, REWARD_NAMES.index("success")].sum() == 0.0
+
+
+def test_timeout_truncates_every_episode_without_terminating_it() -> None:
+    short = make_env(task=TaskConfig(timeout=3))
+    observation = short.reset(seed=0)
+    first_ids = observation.episode_ids.copy()
+    for _ in range(3):
+        result = short.step(hold(observation))
+        observation = result.observation
+    assert result.truncated.all() and not result.terminated.any()
+    assert set(result.observation.episode_ids).isdisjoint(first_ids)
+
+
+def test_near_starts_put_the_paddle_beside_the_object_without_touching_anything() -> None:
+    near = make_env()
+    near.set_schedule(CurriculumValues(p_near_init=1.0, p_tight=0.0))
+    observation = near.reset(seed=8)
+    gap = np.linalg.norm(observation.ee_pose[:, :3] - observation.object_pose[:, :3], axis=1)
+    assert np.median(gap) < 0.25, gap
+    ncon = near.physics.bind("ncon")
+    for env_index in range(B):
+        data = near.physics.batch.get_data(env_index)
+        bodies = near.world.model.geom_bodyid[[data.contact.geom1, data.contact.geom2]]
+        arm_contacts = np.isin(bodies, near.world.robot_bodies).any(axis=0).sum()
+        assert arm_contacts == 0 or (observation.q[env_index] == robot.Q_HOME.astype(np.float32)).all()
+    assert ncon.shape == (B,)
