@@ -28,7 +28,7 @@ class Command:
 
 
 COMMANDS: tuple[Command, ...] = (
-    Command("sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", None, 3),
+    Command("sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", "hamnet.sim.cli", 3),
     Command("bridge", "real FR3 in place of the sim (same contract)", None, None),
     Command("perception", "point clouds and UniCORN tokens", None, 6),
     Command("policy", "HAMnet and baseline inference with hot-reloaded weights", None, 5),

@@ -49,12 +49,12 @@ def test_a_stack_cannot_run_the_launcher() -> None:
 
 
 def test_commands_not_built_yet_are_missing_not_errors() -> None:
-    stack = parse({"services": {"sim": {"args": {"anything": 1}}, "robot": {"command": "bridge"},
-                                "echo": {}}}, "t")
+    stack = parse({"services": {"perception": {"args": {"anything": 1}},
+                                "robot": {"command": "bridge"}, "echo": {}}}, "t")
     result = check(stack, {})
     assert [v.status for v in result] == [
-        "not validated: not built yet (issue #3)", "not validated: not built yet", "ok"]
-    assert not_built(result) == "sim (issue #3), robot: hamnet bridge"
+        "not validated: not built yet (issue #6)", "not validated: not built yet", "ok"]
+    assert not_built(result) == "perception (issue #6), robot: hamnet bridge"
 
 
 def test_check_exits_2_and_names_the_problem(tmp_path: Path, capsys) -> None:

@@ -1,0 +1,65 @@
+"""`hamnet sim`: B simulated FR3 environments with procedural scenes, stepped by the safety
+filter's commands over Zenoh (see `hamnet.sim.shell` for the topics and the pacing).
+
+`--show-scene SEED` writes a Rerun recording of one procedural scene and exits;
+`--print-model-path` prints the FR3 model file and exits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+import tyro
+
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
+from hamnet.sim.config import SimConfig
+from hamnet.sim.env import VectorEnv
+from hamnet.sim.robot import model_path
+from hamnet.sim.shell import LoopConfig, SimShell
+
+OwnPrefix = tyro.conf.arg(name="")
+"""Drop this field's own prefix (`--num-envs`, not `--sim.num-envs`) but keep its
+sub-configs' (`--scene.p-tight`): their field names repeat, so they need them."""
+
+
+@dataclass(frozen=True)
+class SimServiceConfig:
+    """One sim worker: the environments, how they are paced, and one-shot tools."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    sim: Annotated[SimConfig, OwnPrefix] = field(default_factory=SimConfig)
+    loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
+    show_scene: int | None = None
+    """Write a Rerun recording of the procedural scene drawn from this seed, print its path
+    and exit (open it with `rerun <file>`)."""
+    scene_file: Path | None = None
+    """Where `--show-scene` writes; None: runs/scene-<seed>.rrd."""
+    print_model_path: bool = False
+    """Print the path of the FR3 MJCF model file and exit."""
+
+
+CONFIG = SimServiceConfig
+"""The config `hamnet sim` parses (the launcher validates stack files against it)."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet sim` with command-line arguments `argv`; returns the exit status."""
+    config, identity = parse_service(CONFIG, argv, "sim", __doc__)
+    if config.print_model_path:
+        print(model_path())
+        return 0
+    if config.show_scene is not None:
+        from hamnet.sim.scene_view import save_scene  # Rerun loads in 0.3 s: only when used
+
+        path = config.scene_file or Path("runs") / f"scene-{config.show_scene}.rrd"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_scene(path, config.show_scene, config.sim.scene)
+        print(path)
+        return 0
+    env = VectorEnv(config.sim)
+    with Service(identity, config.common.transport) as service:
+        return SimShell(service, env, config.loop).run()

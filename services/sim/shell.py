@@ -1,0 +1,366 @@
+"""The sim's Zenoh shell: steps a `VectorEnv` with the safety filter's commands and
+publishes what happened.
+
+Consumes `safety/<w>/command` (SafeCommand) and `trainer/schedule` (Schedule: the
+curriculum's `p_near_init` and `p_tight`); produces `sim/<w>/state` (RobotState, every
+step), `sim/<w>/transition` (Transition, every step) and `sim/<w>/scene` (Scene, for the
+environments that start a new episode).
+
+Steps are numbered: state k (`header.step` = k) is the state after k policy steps; the
+command answering it carries `header.step` = k; transition k is its outcome, published just
+before state k+1 (and the scenes of the episodes that start in it, before that state).
+Lock-step (default): the sim steps only on the command of the current step, so a slow
+policy slows the sim down instead of losing steps; while it waits it publishes the scenes
+and the state again every `resend_s`, so services that start after it get going.
+Free-running (`--realtime`): one step per policy period of wall-clock time with the latest
+command, whatever its step, or holding the current joint positions until one arrives.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import logging
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.proto.common_pb2 import DType, Header
+from hamnet.proto.safety_pb2 import SafeCommand
+from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
+from hamnet.proto.trainer_pb2 import Schedule
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.pubsub import Received
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.sim.commands import hold_command
+from hamnet.sim.curriculum import SCHEDULE_NAMES
+from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.sim.robot import JOINT_NAMES
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+SCENE = contract.topic("sim/<w>/scene")
+TRANSITION = contract.topic("sim/<w>/transition")
+COMMAND = contract.topic("safety/<w>/command")
+SCHEDULE = contract.topic("trainer/schedule")
+
+NUM_JOINTS = len(JOINT_NAMES)
+OBJECT_SCALE = 5
+"""Column of `physics_params` holding the object's scale (PrivilegedState in sim.proto)."""
+
+
+# --- encode / decode: pure functions, tested without a session -------------------------
+
+
+def encode_state(obs: Observation, step: int) -> RobotState:
+    """RobotState k (with the privileged block) from the observation after `step` steps."""
+    message = RobotState(header=Header(step=step))
+    to_tensor(obs.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
+    to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
+    for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
+        to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
+    privileged = message.privileged
+    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, 6)
+        to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))
+    return message
+
+
+def encode_scene(
+    obs: Observation,
+    scene_arrays: Mapping[str, np.ndarray],
+    object_ids: Sequence[str],
+    env_ids: np.ndarray,
+    step: int,
+) -> Scene:
+    """The Scene of the episodes starting in `env_ids` (K environments).
+
+    Args:
+        obs: the first observation of those episodes (B rows; start pose = object pose).
+        scene_arrays: `VectorEnv.scene_arrays`: centre (B, C, 3), quat (B, C, 4),
+            half_extent (B, C, 3), active (B, C), env_code (B, 25).
+        object_ids: (B,) library name of each environment's object.
+        env_ids: (K,) environments to describe.
+        step: the step of the state these episodes start in.
+    """
+    env_ids = np.asarray(env_ids, dtype=np.int64)
+    message = Scene(header=Header(step=step), object_ids=[object_ids[i] for i in env_ids])
+    to_tensor(env_ids.astype(np.int32), message.env_ids)  # (K,)
+    to_tensor(obs.episode_ids[env_ids].astype(np.int64), message.episode_ids)  # (K,)
+    to_tensor(scene_arrays["centre"][env_ids].astype(np.float32), message.cuboid_pos)  # (K, C, 3)
+    to_tensor(scene_arrays["quat"][env_ids].astype(np.float32), message.cuboid_quat)  # (K, C, 4)
+    to_tensor(scene_arrays["half_extent"][env_ids].astype(np.float32), message.cuboid_half_size)
+    to_tensor(scene_arrays["active"][env_ids].astype(bool), message.cuboid_active)  # (K, C)
+    to_tensor(obs.physics_params[env_ids, OBJECT_SCALE].astype(np.float32), message.object_scale)
+    to_tensor(obs.object_pose[env_ids].astype(np.float32), message.start_pose)  # (K, 7)
+    to_tensor(obs.goal_pose[env_ids].astype(np.float32), message.goal_pose)  # (K, 7)
+    to_tensor(scene_arrays["env_code"][env_ids].astype(np.float32), message.env_code)  # (K, 25)
+    return message
+
+
+def encode_transition(result: StepResult, reward_names: Sequence[str], step: int) -> Transition:
+    """Transition k: the outcome of command k (episode ids before any auto-reset)."""
+    message = Transition(header=Header(step=step), reward_names=list(reward_names))
+    to_tensor(result.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
+    to_tensor(result.reward_terms.astype(np.float32), message.reward_terms)  # (B, R)
+    to_tensor(result.terminated.astype(bool), message.terminated)  # (B,)
+    to_tensor(result.truncated.astype(bool), message.truncated)  # (B,)
+    to_tensor(result.success.astype(bool), message.success)  # (B,)
+    return message
+
+
+def _floats(message: SafeCommand, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """Field `name` as a finite float array of `shape` (float32 or float64 on the wire)."""
+    if not message.HasField(name):
+        raise PayloadError("missing", f"SafeCommand.{name} is not set")
+    tensor = getattr(message, name)
+    dtype = np.float64 if tensor.dtype == DType.FLOAT64 else np.float32
+    try:
+        return from_tensor(tensor, dtype, shape, finite=True)
+    except PayloadError as error:
+        raise PayloadError(error.reason, f"SafeCommand.{name}: {error.detail}") from None
+
+
+def decode_command(
+    message: SafeCommand, num_envs: int, control_samples: int, control_dt: float
+) -> tuple[int, Command]:
+    """The step a SafeCommand answers and the Command to apply.
+
+    Args:
+        message: the parsed SafeCommand.
+        num_envs: B; control_samples: S; control_dt: the sim's sample period, s.
+    Returns:
+        (header.step, Command with q_ref (B, S, J), kp, kd, tau_limit (B, J)).
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (batch size, sample count or joint count
+            differ from the sim's), `nonfinite`, `range` (negative gain or torque limit), or
+            `control_dt` (a sample period other than the sim's).
+    """
+    b, s, j = num_envs, control_samples, NUM_JOINTS
+    q_ref = _floats(message, "q_ref", (b, s, j))
+    gains = {name: _floats(message, name, (b, j)) for name in ("kp", "kd", "tau_limit")}
+    if message.HasField("dq_ref"):  # checked, unused: the impedance law damps towards rest
+        _floats(message, "dq_ref", (b, s, j))
+    if message.HasField("episode_ids"):
+        from_tensor(message.episode_ids, np.int64, (b,))
+    negative = [name for name, value in gains.items() if (value < 0).any()]
+    if negative:
+        raise PayloadError("range", f"SafeCommand.{', '.join(negative)} must be >= 0")
+    if message.control_dt and abs(message.control_dt - control_dt) > 1e-9:
+        raise PayloadError(
+            "control_dt", f"samples of {message.control_dt} s, the sim's are {control_dt} s"
+        )
+    return message.header.step, Command(q_ref=q_ref, **gains)
+
+
+def decode_schedule(message: Schedule) -> dict[str, float]:
+    """The curriculum values of a Schedule the sim uses (others are the trainer's own).
+
+    Raises:
+        PayloadError: `range` when a value is not a probability.
+    """
+    given = message.values
+    values = {name: float(given[name]) for name in SCHEDULE_NAMES if name in given}
+    bad = {name: value for name, value in values.items() if not 0.0 <= value <= 1.0}
+    if bad:
+        raise PayloadError("range", f"schedule values must be probabilities, got {bad}")
+    return values
+
+
+# --- the loop ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """How the shell paces its steps."""
+
+    realtime: bool = False
+    """Free-running: step every policy period of wall-clock time with the latest command,
+    instead of waiting for the command of each step (lock-step)."""
+    max_steps: int = 0
+    """Exit after this many policy steps (0: run until stopped)."""
+    resend_s: float = 1.0
+    """Lock-step: while waiting for a command, publish the scenes and the state again this
+    often, s, so services started after the sim get going."""
+    report_period_s: float = 10.0
+    """Seconds between rate lines in the log."""
+
+
+class SimShell:
+    """One sim worker on the network: its topics, its step counter and its rates."""
+
+    def __init__(self, service: Service, env: VectorEnv, loop: LoopConfig) -> None:
+        self.service, self.env, self.loop = service, env, loop
+        ns, w = service.namespace, service.identity.worker
+        config = env.config
+        control_dt = config.policy_period_s / config.control_samples
+        decoder = functools.partial(
+            _decode_command_payload,
+            num_envs=env.num_envs,
+            control_samples=config.control_samples,
+            control_dt=control_dt,
+        )
+        service.inbox.subscribe("command", COMMAND.key(ns, w=w), decoder=decoder)
+        service.inbox.subscribe("schedule", SCHEDULE.key(ns), decoder=_decode_schedule_payload)
+        self.state = service.publisher(STATE.key(ns, w=w))
+        self.scene = service.publisher(SCENE.key(ns, w=w))
+        self.transition = service.publisher(TRANSITION.key(ns, w=w))
+        self.names = [asset.name for asset in env.library.objects]
+        self.step = 0
+        self.observation: Observation | None = None
+        self.stale = 0
+        """Commands ignored because they answered another step than the current one."""
+        self._rates = _Rates(env)
+
+    def run(self) -> int:
+        """Reset, then step until stopped or `max_steps`; returns the exit status."""
+        self.observation = self.env.reset()
+        self._rates = _Rates(self.env)  # rates of the steps, not of the first reset
+        self._publish_all()
+        mode = "free-running" if self.loop.realtime else "lock-step"
+        log.info("%d environments, %s, %.0f ms policy period", self.env.num_envs, mode,
+                 1e3 * self.env.config.policy_period_s)  # fmt: skip
+        if self.loop.realtime:
+            self._free_running()
+        else:
+            self._lock_step()
+        env_steps = self.step * self.env.num_envs
+        log.info("stopped after %d steps (%d environment steps)", self.step, env_steps)
+        return 0
+
+    @property
+    def finished(self) -> bool:
+        """Stopped, or `max_steps` done."""
+        return not self.service.running or 0 < self.loop.max_steps <= self.step
+
+    def _lock_step(self) -> None:
+        last_sent = time.monotonic()
+        while not self.finished:
+            self._rates.maybe_report(self)
+            received = self.service.receive(timeout=0.05)
+            if received is None:
+                if time.monotonic() - last_sent >= self.loop.resend_s:
+                    self._publish_all()
+                    last_sent = time.monotonic()
+                continue
+            command = self._handle(received)
+            if command is None:
+                continue
+            step, command = command
+            if step != self.step:
+                self._stale(step)
+                continue
+            self._step(command)
+            last_sent = time.monotonic()
+
+    def _free_running(self) -> None:
+        period = self.env.config.policy_period_s
+        command: Command | None = None
+        tick = time.monotonic()
+        while not self.finished:
+            self._rates.maybe_report(self)
+            tick += period
+            while self.service.running and (remaining := tick - time.monotonic()) > 0:
+                received = self.service.receive(timeout=min(remaining, 0.1))
+                latest = self._handle(received) if received is not None else None
+                command = latest[1] if latest is not None else command
+            if command is None and self.step == 0:
+                log.info("no command yet: holding the current joint positions until one arrives")
+            self._step(command or hold_command(self.observation.q, self.env.config.control_samples))
+            if time.monotonic() - tick > period:  # fell a period behind: do not burst to catch up
+                self._rates.late += 1
+                tick = time.monotonic()
+
+    def _handle(self, received: Received) -> tuple[int, Command] | None:
+        """A command to consider, or None after applying a schedule."""
+        if received.name == "schedule":
+            self.env.set_schedule(dataclasses.replace(self.env.schedule, **received.value))
+            log.debug("curriculum: %s", self.env.schedule)
+            return None
+        return received.value
+
+    def _step(self, command: Command) -> None:
+        """Step every environment; publish transition k, new scenes and state k+1."""
+        result = self._rates.timed_step(command)
+        self.transition.put(encode_transition(result, self.env.reward_names, self.step))
+        self.step += 1
+        self.observation = result.observation
+        if len(result.reset_ids):
+            self._publish_scene(result.reset_ids)
+        self.state.put(encode_state(self.observation, self.step))
+
+    def _publish_all(self) -> None:
+        """Scenes of every environment, then the current state."""
+        self._publish_scene(np.arange(self.env.num_envs))
+        self.state.put(encode_state(self.observation, self.step))
+
+    def _publish_scene(self, env_ids: np.ndarray) -> None:
+        object_ids = [self.names[i] for i in self.env.object_index]  # (B,)
+        arrays = self.env.scene_arrays
+        self.scene.put(encode_scene(self.observation, arrays, object_ids, env_ids, self.step))
+
+    def _stale(self, step: int) -> None:
+        self.stale += 1
+        if self.stale == 1:
+            log.info("ignoring a command for step %d at step %d (further ones are counted in "
+                     "the rate line)", step, self.step)  # fmt: skip
+
+
+class _Rates:
+    """Steps, resets and time shares since the last rate line."""
+
+    def __init__(self, env: VectorEnv) -> None:
+        self.env = env
+        self.steps = 0
+        """Policy steps since the last rate line."""
+        self.late = 0
+        """Free-running ticks that started more than a period late."""
+        self.step_seconds = 0.0
+        """Wall time inside `VectorEnv.step` (resets included), s."""
+        self._last = self._mark()
+
+    def _mark(self) -> tuple[float, float, float, int]:
+        """(now, step seconds, reset seconds, episodes started) so far."""
+        env = self.env
+        return time.monotonic(), self.step_seconds, env.reset_seconds, int(env.episode_ids.max())
+
+    def timed_step(self, command: Command) -> StepResult:
+        """`env.step(command)`, counted and timed."""
+        started = time.perf_counter()
+        result = self.env.step(command)
+        self.step_seconds += time.perf_counter() - started
+        self.steps += 1
+        return result
+
+    def maybe_report(self, shell: SimShell) -> None:
+        """Log the rate line when one is due."""
+        now, stepping, resetting, episodes = self._mark()
+        then, stepping0, resetting0, episodes0 = self._last
+        elapsed = now - then
+        if elapsed < shell.loop.report_period_s:
+            return
+        b = self.env.num_envs
+        schedule = ", ".join(f"{k} {v:.2f}" for k, v in self.env.schedule.as_dict().items())
+        log.info(
+            "%.0f env steps/s (%.1f steps/s of %d envs), %.1f resets/s, stepping %.0f%% of the "
+            "time (resets %.0f%%), stale commands %d, late ticks %d; %s",
+            self.steps * b / elapsed, self.steps / elapsed, b, (episodes - episodes0) / elapsed,
+            100 * (stepping - stepping0) / elapsed, 100 * (resetting - resetting0) / elapsed,
+            shell.stale, self.late, schedule,
+        )  # fmt: skip
+        self.steps = 0
+        self._last = (now, stepping, resetting, episodes)
+
+
+def _decode_command_payload(
+    key: str, payload: bytes, num_envs: int, control_samples: int, control_dt: float
+) -> tuple[int, Command]:
+    return decode_command(parse(SafeCommand, payload), num_envs, control_samples, control_dt)
+
+
+def _decode_schedule_payload(key: str, payload: bytes) -> dict[str, float]:
+    return decode_schedule(parse(Schedule, payload))

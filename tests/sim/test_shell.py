@@ -1,0 +1,273 @@
+"""The sim's shell without a network: every message it encodes round-trips through the wire
+format, bad SafeCommands are rejected with the reason the inbox counts them under, and the
+lock-step loop, fed a scripted list of messages, publishes what the contract says."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pytest
+
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.safety_pb2 import SafeCommand
+from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
+from hamnet.proto.trainer_pb2 import Schedule
+from hamnet.runtime.codec import decode, encode
+from hamnet.runtime.pubsub import DropCounter, Received
+from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.sim.commands import hold_command
+from hamnet.sim.config import SimConfig
+from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.sim.scene import NUM_CUBOIDS
+from hamnet.sim.shell import (
+    LoopConfig,
+    SimShell,
+    decode_command,
+    decode_schedule,
+    encode_scene,
+    encode_state,
+    encode_transition,
+)
+
+B, S, J = 4, 8, 7
+CONTROL_DT = 0.1 / S
+
+
+def observation(rng: np.random.Generator, b: int = B) -> Observation:
+    """Random finite observation of `b` environments with the env's dtypes."""
+    f = lambda *shape: rng.standard_normal((b, *shape)).astype(np.float32)  # noqa: E731
+    return Observation(
+        episode_ids=rng.integers(0, 1000, b).astype(np.int64),
+        episode_step=rng.integers(0, 300, b).astype(np.int32),
+        q=f(J), dq=f(J), tau=f(J), ee_pose=f(9), goal_pose=f(7),
+        object_pose=f(7), object_velocity=f(6), physics_params=f(6),
+    )  # fmt: skip
+
+
+def safe_command(command: Command, step: int, **overrides: np.ndarray) -> SafeCommand:
+    """The SafeCommand the safety filter would send for `command` at `step`."""
+    arrays = {"q_ref": command.q_ref, "kp": command.kp, "kd": command.kd,
+              "tau_limit": command.tau_limit, **overrides}  # fmt: skip
+    message = SafeCommand(header=Header(step=step), control_dt=CONTROL_DT)
+    for name, array in arrays.items():
+        to_tensor(np.asarray(array), getattr(message, name))
+    return message
+
+
+equal, close = np.testing.assert_array_equal, np.testing.assert_allclose
+
+
+def wire(message):
+    """Through the wire format, checked the way a generic receiver checks it."""
+    return decode(type(message), encode(message))
+
+
+def test_state_round_trips_with_its_privileged_block() -> None:
+    obs = observation(np.random.default_rng(0))
+    message = wire(encode_state(obs, step=7))
+    assert message.header.step == 7
+    for name in ("episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose"):
+        equal(from_tensor(getattr(message, name)), getattr(obs, name))
+    for name in ("object_pose", "object_velocity", "physics_params"):
+        equal(from_tensor(getattr(message.privileged, name)), getattr(obs, name))
+    assert from_tensor(message.episode_ids).dtype == np.int64
+    assert from_tensor(message.episode_step).dtype == np.int32
+
+
+def test_scene_describes_only_the_reset_environments() -> None:
+    rng = np.random.default_rng(1)
+    obs = observation(rng)
+    c = NUM_CUBOIDS
+    arrays = {
+        "centre": rng.standard_normal((B, c, 3)), "quat": rng.standard_normal((B, c, 4)),
+        "half_extent": rng.random((B, c, 3)), "active": rng.random((B, c)) < 0.5,
+        "env_code": rng.standard_normal((B, 25)).astype(np.float32),
+    }  # fmt: skip
+    names = ["box@0.050", "mug@0.100", "cylinder@0.075", "box@0.100"]
+    ids = np.array([3, 1])
+    message = wire(encode_scene(obs, arrays, names, ids, step=5))
+    assert message.header.step == 5
+    assert list(message.object_ids) == ["box@0.100", "mug@0.100"]
+    equal(from_tensor(message.env_ids, np.int32, (2,)), ids)
+    equal(from_tensor(message.episode_ids, np.int64, (2,)), obs.episode_ids[ids])
+    cuboids = {"cuboid_pos": "centre", "cuboid_quat": "quat", "cuboid_half_size": "half_extent"}
+    for name, key in {**cuboids, "env_code": "env_code"}.items():
+        close(from_tensor(getattr(message, name), np.float32), arrays[key][ids], rtol=1e-6)
+    equal(from_tensor(message.cuboid_active, bool, (2, c)), arrays["active"][ids])
+    equal(from_tensor(message.object_scale, np.float32, (2,)), obs.physics_params[ids, 5])
+    equal(from_tensor(message.start_pose, np.float32, (2, 7)), obs.object_pose[ids])
+    equal(from_tensor(message.goal_pose, np.float32, (2, 7)), obs.goal_pose[ids])
+
+
+def test_transition_round_trips_with_named_reward_terms() -> None:
+    rng = np.random.default_rng(2)
+    flags = lambda: rng.random(B) < 0.5  # noqa: E731
+    result = StepResult(
+        observation=observation(rng),
+        reward_terms=rng.standard_normal((B, 3)).astype(np.float32),
+        terminated=flags(), truncated=flags(), success=flags(), reason=np.zeros(B, np.int8),
+        episode_ids=np.arange(B, dtype=np.int64) + 10, reset_ids=np.array([], np.int64),
+    )  # fmt: skip
+    message = wire(encode_transition(result, REWARD_NAMES, step=3))
+    assert message.header.step == 3 and list(message.reward_names) == list(REWARD_NAMES)
+    equal(from_tensor(message.reward_terms, np.float32, (B, 3)), result.reward_terms)
+    equal(from_tensor(message.episode_ids, np.int64, (B,)), result.episode_ids)
+    for name in ("terminated", "truncated", "success"):
+        equal(from_tensor(getattr(message, name), bool, (B,)), getattr(result, name))
+
+
+def test_command_round_trips_in_float32_and_float64() -> None:
+    q = np.random.default_rng(3).standard_normal((B, J))
+    command = hold_command(q, S)
+    for dtype in (np.float64, np.float32):
+        cast = {n: getattr(command, n).astype(dtype) for n in ("q_ref", "kp", "kd", "tau_limit")}
+        message = wire(safe_command(command, step=11, **cast))
+        step, decoded = decode_command(message, B, S, CONTROL_DT)
+        assert step == 11
+        for name, array in cast.items():
+            equal(getattr(decoded, name), array)
+
+
+def one_env_fewer(c: Command) -> dict[str, np.ndarray]:
+    return {n: getattr(c, n)[:-1] for n in ("q_ref", "kp", "kd", "tau_limit")}
+
+
+BAD_COMMANDS: dict[str, tuple[Callable[[Command], dict], str]] = {
+    "batch size": (one_env_fewer, "shape"),
+    "sample count": (lambda c: {"q_ref": c.q_ref[:, :-1]}, "shape"),
+    "joint count": (lambda c: {"kp": c.kp[:, :6]}, "shape"),
+    "integer gains": (lambda c: {"kp": c.kp.astype(np.int64)}, "dtype"),
+    "NaN reference": (lambda c: {"q_ref": np.where(np.arange(J) == 2, np.nan, c.q_ref)},
+                      "nonfinite"),
+    "negative torque limit": (lambda c: {"tau_limit": -c.tau_limit}, "range"),
+}
+"""A change to a valid command, and the reason it must be dropped under."""
+
+
+@pytest.mark.parametrize("case", BAD_COMMANDS, ids=str)
+def test_bad_command_is_rejected_with_its_reason(case: str) -> None:
+    change, reason = BAD_COMMANDS[case]
+    command = hold_command(np.zeros((B, J)), S)
+    with pytest.raises(PayloadError) as error:
+        decode_command(safe_command(command, 0, **change(command)), B, S, CONTROL_DT)
+    assert error.value.reason == reason
+
+
+def test_command_without_gains_or_at_another_rate_is_rejected() -> None:
+    command = hold_command(np.zeros((B, J)), S)
+    message = safe_command(command, 0)
+    message.ClearField("kd")
+    with pytest.raises(PayloadError, match="kd") as error:
+        decode_command(message, B, S, CONTROL_DT)
+    assert error.value.reason == "missing"
+    message = safe_command(command, 0)
+    message.control_dt = 0.01
+    with pytest.raises(PayloadError) as error:
+        decode_command(message, B, S, CONTROL_DT)
+    assert error.value.reason == "control_dt"
+
+
+def test_schedule_keeps_the_sim_values_and_rejects_non_probabilities() -> None:
+    values = {"p_near_init": 0.5, "p_tight": 0.75, "entropy_coef": 3.0}
+    message = Schedule(global_step=5, values=values)
+    assert decode_schedule(message) == {"p_near_init": 0.5, "p_tight": 0.75}
+    for bad in (1.5, float("nan")):
+        with pytest.raises(PayloadError) as error:
+            decode_schedule(Schedule(values={"p_tight": bad}))
+        assert error.value.reason == "range"
+
+
+# --- the loop, fed a script instead of a network -----------------------------------------
+
+
+@dataclass
+class ScriptedService:
+    """Stands in for `Service`: `receive` asks `script` for the next (name, payload) given
+    what was published so far, decodes it with the shell's own decoder, and stops the loop
+    when the script returns None."""
+
+    script: Callable[[list[tuple[str, object]]], tuple[str, bytes] | None]
+    namespace: str = "t"
+    identity: ServiceIdentity = field(default_factory=lambda: ServiceIdentity("sim", "0"))
+    published: list[tuple[str, object]] = field(default_factory=list)
+    drops: DropCounter = field(default_factory=DropCounter)
+    running: bool = True
+
+    def __post_init__(self) -> None:
+        self.inbox, self.decoders = self, {}
+
+    def subscribe(self, name: str, key: str, decoder) -> None:
+        self.decoders[name] = (key, decoder)
+
+    def publisher(self, key: str):
+        topic = key.rsplit("/", 1)[1]
+        return type("P", (), {"put": lambda _, m: self.published.append((topic, wire(m)))})()
+
+    def receive(self, timeout: float = 0.1) -> Received | None:
+        while (item := self.script(self.published)) is not None:
+            name, payload = item
+            key, decoder = self.decoders[name]
+            try:
+                return Received(name, key, decoder(key, payload), 0)
+            except PayloadError as error:
+                self.drops.drop(key, error.reason, error.detail)
+        self.running = False
+        return None
+
+
+@pytest.fixture(scope="module")
+def env() -> VectorEnv:
+    config = SimConfig(num_envs=2, num_objects=2, nthread=1)
+    return VectorEnv(replace(config, task=replace(config.task, timeout=3)))
+
+
+def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: VectorEnv) -> None:
+    """Each state k is answered by command k. A command for an earlier step, a repeated one
+    and a malformed one (counted as a drop) are not executed, and a schedule changes the
+    curriculum. Episodes time out after 3 steps, so resets publish their scenes."""
+    pending: list[tuple[str, bytes]] = []
+    seen: set[int] = set()
+
+    def script(published):
+        state = [m for topic, m in published if topic == "state"][-1]
+        step = state.header.step
+        if step not in seen and step < 6:
+            seen.add(step)
+            command = hold_command(from_tensor(state.q, np.float32, (2, J)), S)
+            answer = encode(safe_command(command, step))
+            if step == 0:
+                schedule = Schedule(values={"p_near_init": 0.25, "p_tight": 0.5})
+                pending.append(("schedule", encode(schedule)))
+            if step == 2:
+                short = {n: getattr(command, n)[:1] for n in ("q_ref", "kp", "kd", "tau_limit")}
+                pending.append(("command", encode(safe_command(command, 0))))  # earlier step
+                pending.append(("command", encode(safe_command(command, 2, **short))))  # batch 1
+            pending.append(("command", answer))
+            if step == 2:
+                pending.append(("command", answer))  # repeated: arrives at step 3
+        return pending.pop(0) if pending else None
+
+    service = ScriptedService(script)
+    shell = SimShell(service, env, LoopConfig(report_period_s=1e9))
+    assert shell.run() == 0
+    assert [topic for topic, _ in service.published][:2] == ["scene", "state"]
+    states = [m for t, m in service.published if t == "state"]
+    transitions = [m for t, m in service.published if t == "transition"]
+    assert [m.header.step for m in states] == list(range(7))
+    assert [m.header.step for m in transitions] == list(range(6))
+    for state, transition in zip(states, transitions, strict=False):  # transition k follows state k
+        equal(from_tensor(transition.episode_ids), from_tensor(state.episode_ids))
+        assert from_tensor(transition.reward_terms, np.float32, (2, 3)).shape == (2, 3)
+    truncated = np.array([from_tensor(t.truncated, bool) for t in transitions])  # (T, B)
+    assert truncated[2].all() and truncated[5].all()
+    scenes = [m for t, m in service.published if t == "scene"]
+    assert [m.header.step for m in scenes] == [0, 3, 6]
+    equal(from_tensor(scenes[1].episode_ids), from_tensor(states[3].episode_ids))
+    assert set(from_tensor(states[3].episode_ids)).isdisjoint(from_tensor(states[2].episode_ids))
+    assert shell.step == 6 and shell.stale == 2
+    assert dict(service.drops.counts) == {("hamnet/t/safety/0/command", "shape"): 1}
+    assert (env.schedule.p_near_init, env.schedule.p_tight) == (0.25, 0.5)
