@@ -1,7 +1,8 @@
 """Drawing new episodes for a set of environments: object, size and physics, scene, goal and
 start poses, and the arm's start, written into the batched physics.
 
-Objects come in `size_bins` discrete sizes (meshes are compiled once), so the library the
+An environment whose placement fails (no pose fits its scene) gets a new scene until one
+fits. Objects come in `size_bins` discrete sizes (meshes are compiled once), so the library the
 world is built from holds every object at every size; `Library` keeps, per entry, the
 stable poses and heights that placement and the tight ceiling need.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -18,10 +20,12 @@ from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.objects.spec import restitution_solref
 from hamnet.sim.physics import BatchPhysics
-from hamnet.sim.placement import sample_placements
+from hamnet.sim.placement import Placement, sample_placements
 from hamnet.sim.robot import Q_HOME
 from hamnet.sim.scene import SceneBatch, sample_scenes
 from hamnet.sim.scene_config import SceneConfig
+
+T = TypeVar("T", SceneBatch, Placement)
 
 
 def sized_library(objects: ObjectSet, radii: np.ndarray) -> ObjectSet:
@@ -108,12 +112,7 @@ def draw_episodes(
     """Draw and apply new episodes for `env_ids`; their state is reset at rest."""
     count = len(env_ids)
     entry = rng.integers(len(library.objects), size=count)  # (K,)
-    height = library.top_height[entry].max(axis=1)  # (K,), tallest resting pose
-    scenes = sample_scenes(rng, height, scene_config)
-    placement = sample_placements(
-        rng, scenes, library.stable_quat[entry], library.planar_radius[entry],
-        library.rest_height[entry], library.top_height[entry], config.placement,
-    )  # fmt: skip
+    scenes, placement = _scenes_and_placements(rng, library, entry, scene_config, config)
     draws = _object_draws(rng, config, count)
     physics.set_scene(env_ids, scenes.centre, scenes.quat, scenes.half_extent, scenes.friction)
     solref = restitution_solref(draws["restitution"])
@@ -128,6 +127,58 @@ def draw_episodes(
         library.scale[entry],
     ], axis=1).astype(np.float32)  # fmt: skip
     return Episodes(env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near)
+
+
+def _scenes_and_placements(
+    rng: np.random.Generator,
+    library: Library,
+    entry: np.ndarray,
+    scene_config: SceneConfig,
+    config: SimConfig,
+) -> tuple[SceneBatch, Placement]:
+    """A scene and valid goal and start poses for each object `entry` (K,).
+
+    `sample_placements` gives up on a scene where no candidate fits (rows with `valid`
+    False hold unchecked poses, e.g. overhanging a plate); those environments get a new
+    scene, up to `max_scene_draws` in all. The object is kept, so large objects are drawn
+    as often as small ones.
+
+    Raises:
+        RuntimeError: some object found no placement in `max_scene_draws` scenes.
+    """
+    height = library.top_height[entry].max(axis=1)  # (K,), tallest resting pose
+    rows = np.arange(len(entry))  # environments still without a valid placement
+    scenes = placement = None
+    for _ in range(config.placement.max_scene_draws):
+        drawn = entry[rows]
+        new_scenes = sample_scenes(rng, height[rows], scene_config)
+        new_placement = sample_placements(
+            rng, new_scenes, library.stable_quat[drawn], library.planar_radius[drawn],
+            library.rest_height[drawn], library.top_height[drawn], config.placement,
+        )  # fmt: skip
+        if scenes is None:
+            scenes, placement = new_scenes, new_placement
+        else:
+            scenes = _with_rows(scenes, rows, new_scenes)
+            placement = _with_rows(placement, rows, new_placement)
+        rows = rows[~new_placement.valid]
+        if len(rows) == 0:
+            return scenes, placement
+    names = sorted({library.objects[int(i)].name for i in entry[rows]})
+    raise RuntimeError(
+        f"no valid placement in {config.placement.max_scene_draws} scenes for {names}: "
+        "lower objects.radius or raise placement.max_scene_draws"
+    )
+
+
+def _with_rows(batch: T, rows: np.ndarray, new: T) -> T:
+    """`batch` (a dataclass of (K, ...) arrays) with rows `rows` taken from `new` (R, ...)."""
+    values = {}
+    for field in dataclasses.fields(batch):
+        value = getattr(batch, field.name).copy()
+        value[rows] = getattr(new, field.name)
+        values[field.name] = value
+    return dataclasses.replace(batch, **values)
 
 
 def _object_draws(rng: np.random.Generator, config: SimConfig, count: int) -> dict[str, np.ndarray]:

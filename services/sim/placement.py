@@ -36,6 +36,10 @@ class PlacementConfig:
     lower than the goal when drawing the start; 1 draws both by area alone."""
     max_tries: int = 64
     """Candidates drawn per environment for the goal, and again for the start."""
+    max_scene_draws: int = 100
+    """Scenes drawn for an environment whose placement keeps failing, before giving up with
+    an error; a large object often fits nowhere on a small table (up to 80% of scenes at a
+    0.1 m bounding radius)."""
     random_yaw: bool = True
     """Turn each stable orientation by a uniform yaw about the world z axis."""
 
@@ -44,8 +48,8 @@ class PlacementConfig:
             raise ValueError("separations must be >= 0")
         if self.elevated_goal_bias <= 0:
             raise ValueError("elevated_goal_bias must be > 0 (1 means no bias)")
-        if self.max_tries < 1:
-            raise ValueError("max_tries must be >= 1")
+        if self.max_tries < 1 or self.max_scene_draws < 1:
+            raise ValueError("max_tries and max_scene_draws must be >= 1")
 
 
 @dataclass(frozen=True)

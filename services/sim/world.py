@@ -123,8 +123,19 @@ def _impedance_actuators(spec: mujoco.MjSpec) -> None:
 
 
 def _mesh(spec: mujoco.MjSpec, name: str, vertices: np.ndarray, faces: np.ndarray) -> str:
+    """Add an object part's mesh once, with the convex-hull data collision needs.
+
+    MuJoCo builds a mesh's hull graph and polygons (`mesh_graphadr`, `mesh_poly*`) only for
+    meshes that a colliding geom names, or whose inertia comes from the hull. Catalogue
+    geoms never collide, yet the live object takes their meshes per environment: without
+    hull data, convex collision of such a mesh returns one contact at the wrong depth, and a
+    box sinks and rocks (1-6 cm) into the table. Hull inertia forces the hull for every
+    part; parts are convex, so it equals the exact inertia (which is unused anyway: bodies
+    set theirs explicitly).
+    """
     if spec.mesh(name) is None:
-        spec.add_mesh(name=name, uservert=vertices.ravel(), userface=faces.ravel())
+        mesh = spec.add_mesh(name=name, uservert=vertices.ravel(), userface=faces.ravel())
+        mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX
     return name
 
 

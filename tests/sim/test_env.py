@@ -11,6 +11,7 @@ from hamnet.sim import robot
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues
 from hamnet.sim.env import Command, VectorEnv
+from hamnet.sim.placement import PlacementConfig
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.task_config import TaskConfig
 from hamnet.sim.termination import Reason
@@ -80,6 +81,41 @@ def test_objects_start_at_rest_on_the_scene(env: VectorEnv) -> None:
         observation = env.step(hold(observation)).observation
     moved = np.linalg.norm(observation.object_pose[:, :3] - start, axis=1)
     assert np.all(moved < 0.02), moved
+
+
+FOLDED = np.array([0.0, -1.5, 0.0, -2.8, 0.0, 1.5, 0.78])
+"""Arm folded up and back, out of the way of anything on the table."""
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_drawn_start_and_goal_pose_stays_put(seed: int) -> None:
+    """Two bugs let drawn poses move on their own: episodes used placements that
+    `sample_placements` had marked invalid (unchecked candidates overhanging a plate, which
+    slid 0.19 m off it), and objects other than the world's first collided without hull
+    data (sinking 1-6 cm). Over many environments, each start and goal pose, held for
+    0.5 s with the arm folded away, must move less than 1 cm."""
+    num_envs = 32
+    env = VectorEnv(SimConfig(num_envs=num_envs, num_objects=6, nthread=2))
+    observation = env.reset(seed=seed)
+    start = observation.object_pose.astype(np.float64)  # (B, 7)
+    goal = np.concatenate([env.goal_pos, env.goal_quat], axis=1)  # (B, 7)
+    folded = np.tile(FOLDED, (num_envs, 1))  # (B, J)
+    ids = np.arange(num_envs)
+    for pose in (start, goal):
+        env.physics.set_state(ids, folded, pose[:, :3], pose[:, 3:])
+        for _ in range(5):
+            env.physics.step(np.repeat(folded[:, None, :], 8, axis=1), substeps=5)
+        moved = np.linalg.norm(env.physics.qpos[:, env.world.object_qpos[:3]] - pose[:, :3], axis=1)
+        assert np.all(moved < 0.01), moved
+
+
+def test_an_object_that_finds_no_placement_fails_loudly() -> None:
+    """An environment whose placement failed in every scene it was given must not start
+    from the unchecked candidate: one scene per environment is too few for 32 of them."""
+    once = PlacementConfig(max_scene_draws=1)
+    env = VectorEnv(SimConfig(num_envs=32, num_objects=3, nthread=1, placement=once))
+    with pytest.raises(RuntimeError, match="no valid placement"):
+        env.reset(seed=0)
 
 
 def test_dropped_object_terminates_and_the_environment_starts_a_new_episode(env: VectorEnv) -> None:
