@@ -4,6 +4,8 @@ lock-step loop, fed a scripted list of messages, publishes what the contract say
 
 from __future__ import annotations
 
+import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -184,13 +186,25 @@ def test_schedule_keeps_the_sim_values_and_rejects_non_probabilities() -> None:
 # --- the loop, fed a script instead of a network -----------------------------------------
 
 
+class CapturingPublisher:
+    """Keeps what is put, through the wire format, under the topic's last key segment."""
+
+    def __init__(self, key: str, published: list[tuple[str, object]]) -> None:
+        self.topic, self.published = key.rsplit("/", 1)[1], published
+
+    def put(self, message) -> None:
+        self.published.append((self.topic, wire(message)))
+
+
 @dataclass
 class ScriptedService:
     """Stands in for `Service`: `receive` asks `script` for the next (name, payload) given
-    what was published so far, decodes it with the shell's own decoder, and stops the loop
-    when the script returns None."""
+    what was published so far and decodes it with the shell's own decoder (counting a
+    PayloadError as the inbox does). When the script has nothing, it stops the loop, or,
+    with `idle`, waits out the timeout as a quiet network would."""
 
     script: Callable[[list[tuple[str, object]]], tuple[str, bytes] | None]
+    idle: bool = False
     namespace: str = "t"
     identity: ServiceIdentity = field(default_factory=lambda: ServiceIdentity("sim", "0"))
     published: list[tuple[str, object]] = field(default_factory=list)
@@ -203,9 +217,8 @@ class ScriptedService:
     def subscribe(self, name: str, key: str, decoder) -> None:
         self.decoders[name] = (key, decoder)
 
-    def publisher(self, key: str):
-        topic = key.rsplit("/", 1)[1]
-        return type("P", (), {"put": lambda _, m: self.published.append((topic, wire(m)))})()
+    def publisher(self, key: str) -> CapturingPublisher:
+        return CapturingPublisher(key, self.published)
 
     def receive(self, timeout: float = 0.1) -> Received | None:
         while (item := self.script(self.published)) is not None:
@@ -215,7 +228,10 @@ class ScriptedService:
                 return Received(name, key, decoder(key, payload), 0)
             except PayloadError as error:
                 self.drops.drop(key, error.reason, error.detail)
-        self.running = False
+        if self.idle:
+            time.sleep(timeout)
+        else:
+            self.running = False
         return None
 
 
@@ -271,3 +287,32 @@ def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: Vecto
     assert shell.step == 6 and shell.stale == 2
     assert dict(service.drops.counts) == {("hamnet/t/safety/0/command", "shape"): 1}
     assert (env.schedule.p_near_init, env.schedule.p_tight) == (0.25, 0.5)
+
+
+def test_free_running_loop_holds_the_arm_until_a_command_then_reuses_it(caplog) -> None:
+    """At wall-clock rate: without a command the arm holds still (said once in the log); a
+    command arriving later is applied whatever its step, and again at every later step."""
+    caplog.set_level(logging.INFO, logger="hamnet.sim.shell")
+    # Seed 1: both arms start clear of the scene (with seed 0, one starts at the home pose
+    # inside a ceiling case and is thrown about by the contacts, held or not).
+    env = VectorEnv(SimConfig(num_envs=2, num_objects=2, nthread=1, seed=1))
+    sent = []
+
+    def script(published):
+        state = [m for topic, m in published if topic == "state"][-1]
+        if state.header.step < 2 or sent:
+            return None
+        reference = from_tensor(state.q, np.float32, (2, J)) + np.array([0.1] + [0.0] * 6)
+        sent.append(reference)
+        return "command", encode(safe_command(hold_command(reference, S), step=99))
+
+    service = ScriptedService(script, idle=True)
+    started = time.monotonic()
+    SimShell(service, env, LoopConfig(realtime=True, max_steps=6)).run()
+    assert time.monotonic() - started >= 0.5  # 6 periods of 0.1 s
+    states = [m for t, m in service.published if t == "state"]
+    assert [m.header.step for m in states] == list(range(7))
+    q = np.array([from_tensor(m.q, np.float32, (2, J)) for m in states])  # (T, B, J)
+    assert np.abs(q[2] - q[0]).max() < 0.01  # held
+    assert (q[6, :, 0] - q[2, :, 0] > 0.03).all()  # tracking the command's +0.1 rad
+    assert sum("no command yet" in r.getMessage() for r in caplog.records) == 1
