@@ -247,10 +247,10 @@ class SimShell:
                     self._publish_all()
                     last_sent = time.monotonic()
                 continue
-            command = self._handle(received)
-            if command is None:
+            answer = self._handle(received)
+            if answer is None:
                 continue
-            step, command = command
+            step, command = answer
             if step != self.step:
                 self._stale(step)
                 continue
@@ -266,11 +266,16 @@ class SimShell:
             tick += period
             while self.service.running and (remaining := tick - time.monotonic()) > 0:
                 received = self.service.receive(timeout=min(remaining, 0.1))
-                latest = self._handle(received) if received is not None else None
-                command = latest[1] if latest is not None else command
-            if command is None and self.step == 0:
-                log.info("no command yet: holding the current joint positions until one arrives")
-            self._step(command or hold_command(self.observation.q, self.env.config.control_samples))
+                answer = self._handle(received) if received is not None else None
+                command = answer[1] if answer is not None else command  # whatever its step
+            if self.finished:
+                break
+            if command is None:
+                if self.step == 0:
+                    log.info("no command yet: holding the joint positions until one arrives")
+                self._step(hold_command(self.observation.q, self.env.config.control_samples))
+            else:
+                self._step(command)
             if time.monotonic() - tick > period:  # fell a period behind: do not burst to catch up
                 self._rates.late += 1
                 tick = time.monotonic()
