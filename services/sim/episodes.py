@@ -155,6 +155,7 @@ def _scenes_and_placements(
         new_placement = sample_placements(
             rng, new_scenes, library.stable_quat[drawn], library.planar_radius[drawn],
             library.rest_height[drawn], library.top_height[drawn], config.placement,
+            pose_weight=library.probability[drawn],
         )  # fmt: skip
         if scenes is None:
             scenes, placement = new_scenes, new_placement

@@ -88,6 +88,7 @@ def sample_placements(
     rest_height: np.ndarray,
     top_height: np.ndarray,
     config: PlacementConfig | None = None,
+    pose_weight: np.ndarray | None = None,
 ) -> Placement:
     """Draw a goal and a start pose per environment.
 
@@ -98,6 +99,8 @@ def sample_placements(
         planar_radius: (B, K) largest horizontal distance from the object's origin to its
             surface in each orientation, m: the margin kept from walls and plate edges.
         rest_height: (B, K) height of the object's origin above the face it rests on, m.
+        pose_weight: (B, K) how often each orientation is drawn (e.g. how often it occurs
+            when the object is dropped; 0 for padding), None for uniform.
         top_height: (B, K) height of the object's top above that face, m (ceiling check).
         config: sampling options.
     Returns:
@@ -111,7 +114,11 @@ def sample_placements(
         raise ValueError("planar_radius, rest_height and top_height must all be (B, K)")
     if not (np.all(planar_radius > 0) and np.all(rest_height >= 0)):
         raise ValueError("planar_radius must be > 0 and rest_height >= 0")
-    objects = (stable_quat, planar_radius, rest_height, top_height)
+    if pose_weight is None:
+        pose_weight = np.ones_like(planar_radius)
+    if pose_weight.shape != planar_radius.shape or not np.all(pose_weight.sum(axis=1) > 0):
+        raise ValueError("pose_weight must be (B, K) with a positive sum per row")
+    objects = (stable_quat, planar_radius, rest_height, top_height, pose_weight)
     area = np.prod(scene.region_hi - scene.region_lo, axis=-1) * scene.region_flat  # (B, R)
     bias = config.elevated_goal_bias
     elevated = scene.region_z > scene.table_top[:, None]  # (B, R)
@@ -136,6 +143,13 @@ def sample_placements(
     )
 
 
+def _categorical(rng: np.random.Generator, weight: np.ndarray, count: int) -> np.ndarray:
+    """(B, count) indices drawn per row with probabilities proportional to `weight` (B, N)."""
+    cdf = np.cumsum(weight, axis=-1)  # (B, N)
+    draw = rng.random((weight.shape[0], count)) * cdf[:, -1:]  # (B, count)
+    return np.minimum((cdf[:, None, :] <= draw[..., None]).sum(axis=-1), weight.shape[1] - 1)
+
+
 def _candidates(
     rng: np.random.Generator,
     scene: SceneBatch,
@@ -145,13 +159,10 @@ def _candidates(
 ) -> _Candidates:
     """T poses per environment: a stable orientation, a region drawn by `weight` (B, R), a
     uniform point in it and a yaw; valid where the footprint is flat and under the ceiling."""
-    stable_quat, planar_radius, rest_height, top_height = objects
-    num_envs, num_poses = planar_radius.shape
-    shape = (num_envs, config.max_tries)
-    pose = rng.integers(0, num_poses, size=shape)  # (B, T)
-    cdf = np.cumsum(weight, axis=-1)  # (B, R)
-    draw = rng.random(shape) * cdf[:, -1:]  # (B, T)
-    region = np.minimum((cdf[:, None, :] <= draw[..., None]).sum(axis=-1), weight.shape[1] - 1)
+    stable_quat, planar_radius, rest_height, top_height, pose_weight = objects
+    shape = (planar_radius.shape[0], config.max_tries)
+    pose = _categorical(rng, pose_weight, shape[1])  # (B, T)
+    region = _categorical(rng, weight, shape[1])  # (B, T)
     lo = np.take_along_axis(scene.region_lo, region[..., None], axis=1)  # (B, T, 2)
     hi = np.take_along_axis(scene.region_hi, region[..., None], axis=1)  # (B, T, 2)
     xy = lo + rng.random((*shape, 2)) * (hi - lo)  # (B, T, 2), m
@@ -161,7 +172,7 @@ def _candidates(
     flat, elevation = _flat_footprint(scene, xy, radius)
     surface_z = scene.table_top[:, None] + elevation  # (B, T), m
     top_z = surface_z + np.take_along_axis(top_height, pose, axis=1)  # (B, T), m
-    valid = (cdf[:, -1:] > 0) & flat & (top_z <= scene.ceiling_z[:, None])
+    valid = (weight.sum(axis=-1, keepdims=True) > 0) & flat & (top_z <= scene.ceiling_z[:, None])
     z = surface_z + np.take_along_axis(rest_height, pose, axis=1)  # (B, T), m
     stable = np.take_along_axis(stable_quat, pose[..., None], axis=1)  # (B, T, 4)
     turn = quaternion.from_axis_angle(np.array([0.0, 0.0, 1.0]), yaw)  # (B, T, 4)

@@ -197,3 +197,15 @@ def test_same_seed_gives_the_same_placements() -> None:
     for field in dataclasses.fields(Placement):
         assert np.array_equal(getattr(first, field.name), getattr(again, field.name))
     assert not np.allclose(first.goal_pos, setup(3)[2].goal_pos)
+
+
+def test_orientations_are_drawn_by_their_weights() -> None:
+    """Padding repeats the first orientation with weight 0: drawn uniformly, objects with few
+    stable poses would rest on pose 0 far too often. Weighted, padding is never drawn."""
+    from hamnet.sim.placement import _categorical
+
+    rng = np.random.default_rng(0)
+    weight = np.tile([0.7, 0.3, 0.0, 0.0], (2000, 1))
+    drawn = _categorical(rng, weight, 4).ravel()
+    assert set(np.unique(drawn)) == {0, 1}
+    assert abs((drawn == 0).mean() - 0.7) < 0.02
