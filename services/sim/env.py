@@ -20,6 +20,7 @@ from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
+from hamnet.sim.robot_init import ArmKinematics
 from hamnet.sim.rewards import REWARD_NAMES, Potentials, potentials, reward_terms
 from hamnet.sim.scene import NUM_CUBOIDS, TABLE
 from hamnet.sim.termination import termination, workspace_bounds
@@ -89,6 +90,7 @@ class VectorEnv:
         self.library = draw.Library.of(sized, scale)
         self.world = build_world(sized)
         self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)
+        self.kinematics = ArmKinematics()
         self.num_envs = config.num_envs
         self.rng = np.random.default_rng(config.seed)
         self.schedule = curriculum_values(0, config.curriculum)
@@ -181,7 +183,7 @@ class VectorEnv:
         started = time.perf_counter()
         scene_config = scene_config_at(self.schedule, self.config.scene)
         drawn = draw.draw_episodes(
-            self.rng, self.physics, self.library, env_ids, self.config, scene_config,
+            self.rng, self.physics, self.kinematics, self.library, env_ids, self.config, scene_config,
             self.schedule.p_near_init,
         )  # fmt: skip
         self.object_index[env_ids] = drawn.object_index

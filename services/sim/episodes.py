@@ -10,6 +10,7 @@ stable poses and heights that placement and the tight ceiling need.
 from __future__ import annotations
 
 import dataclasses
+import logging
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -24,6 +25,12 @@ from hamnet.sim.placement import Placement, sample_placements
 from hamnet.sim.robot import Q_HOME
 from hamnet.sim.scene import SceneBatch, sample_scenes
 from hamnet.sim.scene_config import SceneConfig
+
+log = logging.getLogger(__name__)
+
+SCENES_PER_ROUND = 8
+"""Candidate scenes drawn at once for an environment whose placement is still pending:
+one batched draw instead of many small ones (a large object fits in few scenes)."""
 
 T = TypeVar("T", SceneBatch, Placement)
 
@@ -103,6 +110,7 @@ class Episodes:
 def draw_episodes(
     rng: np.random.Generator,
     physics: BatchPhysics,
+    kinematics: robot_init.ArmKinematics,
     library: Library,
     env_ids: np.ndarray,
     config: SimConfig,
@@ -119,7 +127,10 @@ def draw_episodes(
     physics.set_object(env_ids, entry, draws["mass"], draws["friction"], solref)
     near = rng.random(count) < p_near_init  # (K,)
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
-    q = _arm_starts(rng, physics, env_ids, near, placement.start_pos, placement.start_quat, radius, config)
+    q = _arm_starts(
+        rng, physics, kinematics, env_ids, near, placement.start_pos, placement.start_quat,
+        radius, config,
+    )  # fmt: skip
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
     robot_friction = np.full(count, 1.0)  # MuJoCo's default for the arm's geoms
     params = np.stack([
@@ -149,20 +160,26 @@ def _scenes_and_placements(
     height = library.top_height[entry].max(axis=1)  # (K,), tallest resting pose
     rows = np.arange(len(entry))  # environments still without a valid placement
     scenes = placement = None
-    for _ in range(config.placement.max_scene_draws):
-        drawn = entry[rows]
-        new_scenes = sample_scenes(rng, height[rows], scene_config)
+    per_round = SCENES_PER_ROUND
+    for _ in range(-(-config.placement.max_scene_draws // per_round)):
+        # `per_round` candidate scenes per pending environment in one batched draw.
+        tries = np.repeat(rows, per_round)  # (R * per_round,)
+        drawn = entry[tries]
+        new_scenes = sample_scenes(rng, height[tries], scene_config)
         new_placement = sample_placements(
             rng, new_scenes, library.stable_quat[drawn], library.planar_radius[drawn],
             library.rest_height[drawn], library.top_height[drawn], config.placement,
             pose_weight=library.probability[drawn],
         )  # fmt: skip
+        valid = new_placement.valid.reshape(len(rows), per_round)  # (R, per_round)
+        pick = np.arange(len(rows)) * per_round + valid.argmax(axis=1)  # first valid, else 0
+        new_scenes, new_placement = _take(new_scenes, pick), _take(new_placement, pick)
         if scenes is None:
             scenes, placement = new_scenes, new_placement
         else:
             scenes = _with_rows(scenes, rows, new_scenes)
             placement = _with_rows(placement, rows, new_placement)
-        rows = rows[~new_placement.valid]
+        rows = rows[~valid.any(axis=1)]
         if len(rows) == 0:
             return scenes, placement
     names = sorted({library.objects[int(i)].name for i in entry[rows]})
@@ -170,6 +187,12 @@ def _scenes_and_placements(
         f"no valid placement in {config.placement.max_scene_draws} scenes for {names}: "
         "lower objects.radius or raise placement.max_scene_draws"
     )
+
+
+def _take(batch: T, rows: np.ndarray) -> T:
+    """`batch` (a dataclass of (K, ...) arrays) restricted to `rows`."""
+    values = {field.name: getattr(batch, field.name)[rows] for field in dataclasses.fields(batch)}
+    return dataclasses.replace(batch, **values)
 
 
 def _with_rows(batch: T, rows: np.ndarray, new: T) -> T:
@@ -194,6 +217,7 @@ def _object_draws(rng: np.random.Generator, config: SimConfig, count: int) -> di
 def _arm_starts(
     rng: np.random.Generator,
     physics: BatchPhysics,
+    kinematics: robot_init.ArmKinematics,
     env_ids: np.ndarray,
     near: np.ndarray,
     object_pos: np.ndarray,
@@ -201,28 +225,33 @@ def _arm_starts(
     object_radius: np.ndarray,
     config: SimConfig,
 ) -> np.ndarray:
-    """(K, J) collision-free arm starts; home where every draw collided."""
+    """(K, J) collision-free arm starts: near or random draws, then the fallbacks."""
     init = config.robot_init
-    q = np.tile(Q_HOME, (len(env_ids), 1))
+    q = np.tile(robot_init.RETRACTED, (len(env_ids), 1))
     pending = np.ones(len(env_ids), dtype=bool)
-    for _ in range(init.rounds):
+    draws = [None] * init.rounds + [robot_init.RETRACTED, Q_HOME]
+    for fallback in draws:
         rows = np.flatnonzero(pending)
         if len(rows) == 0:
             break
-        ids = env_ids[rows]
-        candidate = robot_init.random_configurations(rng, len(rows), init.range_fraction)
-        physics.set_state(ids, candidate, object_pos[rows], object_quat[rows])
-        is_near = near[rows]
-        if is_near.any():
-            targets = robot_init.near_targets(rng, object_pos[rows][is_near], object_radius[rows][is_near], init.near_gap)
-            start = np.tile(Q_HOME, (int(is_near.sum()), 1))
-            candidate[is_near] = robot_init.solve_ik(physics, ids[is_near], start, targets, init)
-            reached = robot_init.paddle_distance(physics, ids[is_near], targets) <= init.ik_tolerance
-            physics.set_state(ids, candidate, object_pos[rows], object_quat[rows])
+        if fallback is None:
+            candidate = robot_init.random_configurations(rng, len(rows), init.range_fraction)
+            reached = np.ones(len(rows), dtype=bool)
+            is_near = np.flatnonzero(near[rows])
+            if len(is_near):
+                targets = robot_init.near_targets(
+                    rng, object_pos[rows[is_near]], object_radius[rows[is_near]], init
+                )
+                start = np.tile(Q_HOME, (len(is_near), 1))
+                candidate[is_near], distance = robot_init.solve_ik(kinematics, start, targets, init)
+                reached[is_near] = distance <= init.ik_tolerance
         else:
-            reached = np.ones(0, dtype=bool)
-        ok = ~robot_init.arm_in_contact(physics, ids)
-        ok[is_near] &= reached
+            candidate, reached = np.tile(fallback, (len(rows), 1)), np.ones(len(rows), dtype=bool)
+        ids = env_ids[rows]
+        physics.set_state(ids, candidate, object_pos[rows], object_quat[rows])
+        ok = reached & ~robot_init.arm_in_contact(physics, ids)
         q[rows[ok]] = candidate[ok]
         pending[rows[ok]] = False
+    if pending.any():
+        log.warning("%d arm start(s) in contact after every draw: retracted", int(pending.sum()))
     return q

@@ -3,7 +3,8 @@
 The curriculum moves from near starts (the paddle within reach of the object, so contact is
 found early) to random ones. Both are collision-free: a candidate whose arm touches the
 scene or the object is rejected and drawn again, up to a bounded number of rounds, and the
-home configuration is the fallback of an environment that never found one.
+retracted configuration (`RETRACTED`, then home) is the fallback of an environment that
+never found one.
 
 "near": damped-least-squares IK, batched over environments, puts the paddle's contact face
 at a point beside the object (at its height, a random horizontal direction, `near_gap`
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from hamnet.sim import robot
@@ -29,13 +31,16 @@ class RobotInitConfig:
     """Random starts and IK stay within this central fraction of each joint range."""
     near_gap: tuple[float, float] = (0.02, 0.08)
     """Distance from the object's planar radius to the paddle's face for near starts, m."""
+    near_lift: tuple[float, float] = (0.03, 0.08)
+    """Height of the paddle's face above the object's centre for near starts, m: at the
+    centre's height the paddle, which hangs below the flange, would dig into the surface."""
     ik_iterations: int = 40
     """Damped-least-squares iterations per near start."""
     ik_damping: float = 0.05
     """Damping of the least squares, m."""
     ik_tolerance: float = 0.03
     """A near start must bring the paddle within this distance of its target, m."""
-    rounds: int = 4
+    rounds: int = 8
     """Draws per environment before falling back to the home configuration."""
 
     def __post_init__(self) -> None:
@@ -43,6 +48,10 @@ class RobotInitConfig:
             raise ValueError("range_fraction must be in (0, 1]")
         if self.rounds < 1 or self.ik_iterations < 1:
             raise ValueError("rounds and ik_iterations must be >= 1")
+
+
+RETRACTED = np.array([0.0, -1.5, 0.0, -2.8, 0.0, 1.5, np.pi / 4])
+"""Arm folded up and back over its base, clear of any table: the fallback start."""
 
 
 def joint_bounds(fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -59,52 +68,67 @@ def random_configurations(rng: np.random.Generator, count: int, fraction: float)
 
 
 def near_targets(
-    rng: np.random.Generator, object_pos: np.ndarray, planar_radius: np.ndarray, gap: tuple[float, float]
+    rng: np.random.Generator, object_pos: np.ndarray, planar_radius: np.ndarray, config: RobotInitConfig
 ) -> np.ndarray:
-    """(K, 3) points beside each object: at its centre height, a random direction, m."""
-    angle = rng.uniform(0.0, 2.0 * np.pi, size=len(object_pos))  # (K,)
-    distance = planar_radius + rng.uniform(*gap, size=len(object_pos))  # (K,)
-    offset = np.stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)], axis=1) * distance[:, None]
+    """(K, 3) points beside and a little above each object, in a random direction, m."""
+    count = len(object_pos)
+    angle = rng.uniform(0.0, 2.0 * np.pi, size=count)  # (K,)
+    distance = planar_radius + rng.uniform(*config.near_gap, size=count)  # (K,)
+    lift = rng.uniform(*config.near_lift, size=count)  # (K,)
+    offset = np.stack([np.cos(angle) * distance, np.sin(angle) * distance, lift], axis=1)
     return object_pos + offset
 
 
-def solve_ik(
-    physics: BatchPhysics, env_ids: np.ndarray, q: np.ndarray, target: np.ndarray, config: RobotInitConfig
-) -> np.ndarray:
-    """Move the paddle of `env_ids` towards `target` (K, 3) from `q` (K, J); returns (K, J).
+class ArmKinematics:
+    """The arm alone (its own model, a scratch MjData): kinematics and the paddle's Jacobian
+    without the contacts and constraint solve a full forward pass of the world would run."""
 
-    Writes the arm's qpos of those environments (the caller resets them afterwards).
+    def __init__(self) -> None:
+        self.model = robot.load_mujoco()
+        self.data = mujoco.MjData(self.model)
+        self.site = self.model.site(robot.EE_SITE).id
+        self.qpos = robot.robot_qpos_index(self.model)
+        self.dof = robot.robot_dof_index(self.model)
+        self._jacp = np.zeros((3, self.model.nv))
+
+    def paddle(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Paddle face position (3,) and its (3, J) translational Jacobian at `q` (J,)."""
+        self.data.qpos[self.qpos] = q
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+        mujoco.mj_jacSite(self.model, self.data, self._jacp, None, self.site)
+        return self.data.site_xpos[self.site].copy(), self._jacp[:, self.dof]
+
+
+def solve_ik(
+    kinematics: ArmKinematics, q: np.ndarray, target: np.ndarray, config: RobotInitConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Damped least squares from `q` (K, J) towards paddle targets (K, 3).
+
+    Returns:
+        The configurations (K, J) and the remaining distance to each target (K,), m.
     """
-    world = physics.world
     low, high = joint_bounds(config.range_fraction)
-    body = world.model.site_bodyid[world.ee_site]
-    site_pos = physics.bind("site_xpos")
-    for _ in range(config.ik_iterations):
-        physics.qpos[np.ix_(env_ids, world.robot_qpos)] = q
-        physics.batch.forward(env_ids)
-        error = target - site_pos[env_ids, world.ee_site]  # (K, 3)
-        jacp, _ = physics.batch.jac(body, site_pos[env_ids, world.ee_site], env_ids)
-        jac = jacp[:, :, world.robot_dof]  # (K, 3, J)
-        gram = jac @ jac.transpose(0, 2, 1) + config.ik_damping**2 * np.eye(3)  # (K, 3, 3)
-        step = jac.transpose(0, 2, 1) @ np.linalg.solve(gram, error[:, :, None])  # (K, J, 1)
-        q = np.clip(q + step[:, :, 0], low, high)
-    physics.qpos[np.ix_(env_ids, world.robot_qpos)] = q
-    physics.batch.forward(env_ids)
-    return q
+    q = q.copy()
+    remaining = np.zeros(len(q))
+    for k in range(len(q)):
+        for _ in range(config.ik_iterations):
+            position, jac = kinematics.paddle(q[k])
+            error = target[k] - position  # (3,)
+            remaining[k] = np.linalg.norm(error)
+            if remaining[k] < config.ik_tolerance / 4:
+                break
+            gram = jac @ jac.T + config.ik_damping**2 * np.eye(3)
+            q[k] = np.clip(q[k] + jac.T @ np.linalg.solve(gram, error), low, high)
+        remaining[k] = np.linalg.norm(target[k] - kinematics.paddle(q[k])[0])
+    return q, remaining
 
 
 def arm_in_contact(physics: BatchPhysics, env_ids: np.ndarray) -> np.ndarray:
-    """(K,) whether the arm of each environment touches anything (state already forwarded)."""
-    robot_bodies = physics.world.robot_bodies
-    touching = np.zeros(len(env_ids), dtype=bool)
-    for k, env in enumerate(env_ids):
-        data = physics.batch.get_data(int(env))
-        bodies = physics.world.model.geom_bodyid[[data.contact.geom1, data.contact.geom2]]  # (2, C)
-        touching[k] = bool(np.isin(bodies, robot_bodies).any())
-    return touching
+    """(K,) whether the arm of each environment touches anything (state already forwarded).
 
-
-def paddle_distance(physics: BatchPhysics, env_ids: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """(K,) distance from the paddle's face to `target` (K, 3) in the current state, m."""
-    site_pos = physics.bind("site_xpos")[env_ids, physics.world.ee_site]  # (K, 3)
-    return np.linalg.norm(site_pos - target, axis=1)
+    A contact pushing on the arm shows as a constraint force on its joints; starts stay
+    inside the joint ranges, so no joint-limit force can be mistaken for one.
+    """
+    force = physics.bind("qfrc_constraint")[np.ix_(env_ids, physics.world.robot_dof)]  # (K, J)
+    return np.abs(force).max(axis=1) > 1e-6
