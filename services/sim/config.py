@@ -38,7 +38,8 @@ class SimConfig:
     object_folder: Path | None = None
     """Folder of meshes (OBJ/STL/GLB) to add to the library."""
     size_bins: int = 3
-    """Sizes per object across `objects.radius` (meshes are compiled once, so sizes are discrete)."""
+    """Sizes per object across `objects.radius` or `objects.scale` (meshes are compiled once,
+    so sizes are discrete)."""
     library: ObjectLibraryConfig = field(default_factory=ObjectLibraryConfig)
     objects: ObjectRandomization = field(default_factory=ObjectRandomization)
     scene: SceneConfig = field(default_factory=SceneConfig)

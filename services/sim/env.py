@@ -84,9 +84,7 @@ class VectorEnv:
         objects = ObjectSet.procedural(config.num_objects, config.seed, config.library)
         if config.object_folder is not None:
             objects = objects + ObjectSet.from_folder(config.object_folder, config.library)
-        radii = np.linspace(*config.objects.radius, config.size_bins) if config.objects.radius else None
-        sized = draw.sized_library(objects, radii) if radii is not None else objects
-        scale = np.array([a.radius for a in sized]) / np.repeat([a.radius for a in objects], len(radii) if radii is not None else 1)
+        sized, scale = draw.sized_library(objects, config.objects, config.size_bins)
         self.library = draw.Library.of(sized, scale)
         self.world = build_world(sized)
         self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)

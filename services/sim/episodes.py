@@ -19,6 +19,7 @@ import numpy as np
 from hamnet.sim import quaternion, robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
+from hamnet.sim.objects.randomization import ObjectRandomization
 from hamnet.sim.objects.spec import restitution_solref
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.placement import Placement, sample_placements
@@ -35,15 +36,25 @@ one batched draw instead of many small ones (a large object fits in few scenes).
 T = TypeVar("T", SceneBatch, Placement)
 
 
-def sized_library(objects: ObjectSet, radii: np.ndarray) -> ObjectSet:
-    """Every object scaled to every bounding radius in `radii`, named `<name>@<radius>`."""
-    return ObjectSet(
-        tuple(
-            dataclasses.replace(asset.scaled(radius / asset.radius), name=f"{asset.name}@{radius:.3f}")
-            for asset in objects
-            for radius in radii
-        )
-    )
+def sized_library(
+    objects: ObjectSet, sizes: ObjectRandomization, bins: int
+) -> tuple[ObjectSet, np.ndarray]:
+    """Every object at `bins` sizes spread over `sizes.radius` (bounding radius, m) or, when
+    that is None, over `sizes.scale`; entries are named `<name>@x<scale>`.
+
+    Returns:
+        The sized set and the scale of each entry relative to its object, (N * bins,).
+    """
+    entries, scales = [], []
+    for asset in objects:
+        if sizes.radius is not None:
+            factors = np.linspace(*sizes.radius, bins) / asset.radius  # (bins,)
+        else:
+            factors = np.linspace(*sizes.scale, bins)  # (bins,)
+        for factor in factors:
+            entries.append(dataclasses.replace(asset.scaled(factor), name=f"{asset.name}@x{factor:.3f}"))
+            scales.append(factor)
+    return ObjectSet(tuple(entries)), np.array(scales)
 
 
 @dataclass(frozen=True, eq=False)
