@@ -1,24 +1,12 @@
-"""`benchmarks/sim.py --quick` runs to the end and reports the figures its issue names.
-
-Only that it runs and what it reports are checked: timings belong to the benchmark, never to
-a test, on shared and noisy machines."""
+"""`benchmarks/sim.py --quick` runs to the end and reports the figures its issue names."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-from pathlib import Path
-
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "sim.py"
+from tests.benchmarks.quick import run_quick
 
 
 def test_quick_run_ends_with_one_json_line_of_figures() -> None:
-    result = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick"], capture_output=True, text=True, timeout=120
-    )
-    assert result.returncode == 0, result.stderr[-3000:]
-    figures = json.loads(result.stdout.strip().splitlines()[-1])
+    figures = run_quick("sim.py")
     assert figures["ratio_vs_raw"] > 0 and figures["thread_scaling"] > 0
     assert figures["env_steps_per_s_64"] > 0 and 0 <= figures["reset_share_64"] < 1
     rows = {(row["num_envs"], row["nthread"]): row for row in figures["results"]}

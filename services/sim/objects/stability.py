@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from hamnet.sim import quaternion
 from hamnet.sim.objects.asset import StablePoses
 from hamnet.sim.objects.config import StabilityConfig
 from hamnet.sim.objects.mesh import Mesh
@@ -35,43 +36,9 @@ class UnstableObjectError(ValueError):
     """No orientation of the object came to a stable rest."""
 
 
-def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
-    """(N, 4) wxyz unit quaternions to (N, 3, 3) rotation matrices."""
-    w, x, y, z = np.moveaxis(quat, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
-
-
-def axis_angle_quat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """(N, 4) wxyz quaternions of rotations by `angle` (N,) rad about unit `axis` (N, 3)."""
-    half = angle[:, None] / 2
-    return np.concatenate([np.cos(half), axis * np.sin(half)], axis=1)
-
-
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 4) Hamilton products a * b (apply b, then a), wxyz."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
-
-
 def down_directions(quat: np.ndarray) -> np.ndarray:
     """(N, 3) world down (-z) expressed in the frames of objects at orientations (N, 4)."""
-    return np.einsum("nij,i->nj", quat_to_matrix(quat), DOWN)  # R^T @ down
+    return np.einsum("nij,i->nj", quaternion.to_matrix(quat), DOWN)  # R^T @ down
 
 
 def tilt_quaternions(down: np.ndarray) -> np.ndarray:
@@ -81,7 +48,7 @@ def tilt_quaternions(down: np.ndarray) -> np.ndarray:
     cos = down @ DOWN
     # Upside down (down = +z): any horizontal axis does; take x.
     axis = np.where(sin[:, None] > 1e-9, axis / np.maximum(sin, 1e-12)[:, None], [1.0, 0.0, 0.0])
-    return axis_angle_quat(axis, np.arctan2(sin, cos))
+    return quaternion.from_axis_angle(axis, np.arctan2(sin, cos))
 
 
 def resting_geometry(points: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,7 +61,7 @@ def resting_geometry(points: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, 
         (K,) largest horizontal distance from the centre, m; (K,) centre height above the
         lowest point, m.
     """
-    world = np.einsum("kij,pj->kpi", quat_to_matrix(quat), points)  # (K, P, 3)
+    world = np.einsum("kij,pj->kpi", quaternion.to_matrix(quat), points)  # (K, P, 3)
     return np.linalg.norm(world[..., :2], axis=-1).max(axis=1), -world[..., 2].min(axis=1)
 
 
@@ -213,10 +180,10 @@ def survives_tilt(
     """
     heading = rng.uniform(0, 2 * np.pi) + np.arange(tilts) * 2 * np.pi / tilts  # (T,)
     axis = np.stack([np.cos(heading), np.sin(heading), np.zeros(tilts)], axis=1)  # (T, 3)
-    tilt = axis_angle_quat(axis, np.full(tilts, config.check_tilt))  # (T, 4)
+    tilt = quaternion.from_axis_angle(axis, np.full(tilts, config.check_tilt))  # (T, 4)
     frictions = np.asarray(config.check_frictions)  # (M,)
     k, t, m = len(down), tilts, len(frictions)
-    start = quat_multiply(  # (K*T*M, 4), order (K, T, M)
+    start = quaternion.multiply(  # (K*T*M, 4), order (K, T, M)
         np.tile(np.repeat(tilt, m, axis=0), (k, 1)),
         np.repeat(tilt_quaternions(down), t * m, axis=0),
     )

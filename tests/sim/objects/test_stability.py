@@ -10,11 +10,11 @@ from hamnet.sim.objects import ObjectAsset, ObjectSet, StabilityConfig, add_obje
 from hamnet.sim.objects.build import finish
 from hamnet.sim.objects.config import ObjectLibraryConfig
 from hamnet.sim.objects.mesh import box_mesh, unit_inertia
+from hamnet.sim import quaternion
 from hamnet.sim.objects.stability import (
     angle_between,
     down_directions,
     merge,
-    quat_to_matrix,
     survives_tilt,
     tilt_quaternions,
 )
@@ -68,7 +68,7 @@ def test_planar_radius_matches_the_simulated_rest(one_of_each: ObjectSet) -> Non
     for asset in one_of_each:
         final = release(asset, 0.6, 0.0125)  # (K, 7)
         world = np.einsum(
-            "kij,pj->kpi", quat_to_matrix(final[:, 3:]), asset.mesh.vertices
+            "kij,pj->kpi", quaternion.to_matrix(final[:, 3:]), asset.mesh.vertices
         )  # (K, P, 3)
         radius = np.linalg.norm(world[..., :2], axis=-1).max(axis=1)  # (K,)
         np.testing.assert_allclose(radius, asset.planar_radii, atol=5e-3, err_msg=asset.name)
