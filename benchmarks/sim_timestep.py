@@ -12,6 +12,7 @@ Consumes the project's FR3 model; produces four tables and one JSON line:
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 
@@ -98,12 +99,16 @@ def sweep(timestep: float, integrator: int) -> tuple[np.ndarray, float, float]:
     return data.qpos[7:10].copy(), peak, float(np.median(costs)) / 1e3
 
 
-def main() -> None:
+QUICK_TIMESTEPS = (0.0025, 0.01)
+"""`--quick`: the chosen timestep and one that fails."""
+
+
+def main(timesteps: tuple[float, ...], integrators: dict[str, int]) -> None:
     implicit = INTEGRATORS["implicitfast"]
     print("impedance step: worst error in the last 0.5 s (rad), kp=200")
     loop = {}
     for armature in (1.0, 0.1):
-        for timestep in TIMESTEPS:
+        for timestep in timesteps:
             row = {
                 f"rho={rho} {'80Hz' if hold > 1 else 'every step'}": step_error(
                     timestep, 200.0, rho, armature, hold
@@ -114,14 +119,14 @@ def main() -> None:
             loop[f"armature x{armature} dt={timestep * 1e3:g}ms"] = row
             print(f"  armature x{armature} dt={timestep * 1e3:g} ms", row)
     print("box drop after 1.5 s")
-    drops = {f"{t * 1e3:g}ms": box_drop(t, implicit) for t in TIMESTEPS}
+    drops = {f"{t * 1e3:g}ms": box_drop(t, implicit) for t in timesteps}
     for name, result in drops.items():
         print(f"  dt={name}", result)
     print("paddle sweep: box error vs 0.2 ms reference (mm), peak box speed (m/s), us/step")
     reference, _, _ = sweep(0.0002, implicit)
     sweeps = {}
-    for name, integrator in INTEGRATORS.items():
-        for timestep in TIMESTEPS:
+    for name, integrator in integrators.items():
+        for timestep in timesteps:
             final, peak, cost = sweep(timestep, integrator)
             key = f"{name} {timestep * 1e3:g}ms"
             sweeps[key] = {
@@ -134,4 +139,10 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="two timesteps, implicitfast only")
+    args = parser.parse_args()
+    if args.quick:
+        main(QUICK_TIMESTEPS, {"implicitfast": INTEGRATORS["implicitfast"]})
+    else:
+        main(TIMESTEPS, INTEGRATORS)
