@@ -1,0 +1,331 @@
+"""Stage 6: jerk-limited joint references with Ruckig, sampled for one policy period.
+
+Consumes one joint target per environment and policy period (already clipped into the joint
+range by stage 5); produces the reference the executor tracks until the next action: q_ref and
+dq_ref at the control rate (S samples per period: 8 at 80 Hz in sim, 100 at 1 kHz on the real
+FR3), within the FR3's dq_max, ddq_max and jerk_max scaled by a dynamics factor.
+
+Each period plans from the reference state where the previous period ended (position, velocity
+and acceleration, so nothing jumps at period boundaries) to the target at rest, with one Ruckig
+instance per environment, and samples that plan for one period only. A target not reached within
+the period is simply planned again next period from where the reference is. Sample k of a period
+is the plan at time (k + 1) * dt: the last sample is the state the next period starts from.
+
+Ruckig (community edition) ignores position limits, and a plan from a moving state to a nearby
+target may overshoot it. The generator keeps every plan it follows inside the joint range (the
+start position counts as inside): it checks the whole plan's position extrema and falls back,
+in order, to per-joint time-optimal plans (no synchronisation, so no joint slows down to wait
+for another) and to a time-optimal stop. Since every plan followed ends at rest inside the range,
+a stop from any point of it does too, so the fallback always finds an admissible plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+import ruckig
+
+from hamnet.sim.robot import FR3Limits
+
+J = 7
+"""Joints of the FR3."""
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    """Limits, clocks and margins of the jerk-limited reference."""
+
+    dynamics_factor: float = 0.5
+    """Fraction of the FR3's dq_max, ddq_max and jerk_max the reference may use, in (0, 1]."""
+    control_rate_hz: float = 80.0
+    """Samples per second of the reference (80 Hz: the sim's torque ticks; 1000: libfranka)."""
+    policy_period_s: float = 0.1
+    """Time covered by one call of `step`, s (10 Hz policy)."""
+    target_margin: float = 1e-6
+    """Targets are kept this far inside the joint range, rad, so Ruckig's end-point precision
+    (1e-8 rad) cannot put the reference outside it."""
+    limits: FR3Limits = field(default_factory=FR3Limits)
+    """The robot's limits (Franka's FR3 control-parameter table)."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.dynamics_factor <= 1.0:
+            raise ValueError(f"dynamics_factor must be in (0, 1], got {self.dynamics_factor}")
+        if self.control_rate_hz <= 0.0 or self.policy_period_s <= 0.0:
+            raise ValueError("control_rate_hz and policy_period_s must be positive")
+        samples = self.policy_period_s * self.control_rate_hz
+        if samples < 1.0 or abs(samples - round(samples)) > 1e-6:
+            raise ValueError(
+                f"policy_period_s * control_rate_hz must be a whole number of samples, got {samples}"
+            )
+        if not 0.0 <= self.target_margin < 0.01:
+            raise ValueError("target_margin must be in [0, 0.01) rad")
+
+    @property
+    def samples_per_period(self) -> int:
+        """S: reference samples per policy period."""
+        return round(self.policy_period_s * self.control_rate_hz)
+
+    @property
+    def control_period_s(self) -> float:
+        """dt: time between two reference samples, s."""
+        return self.policy_period_s / self.samples_per_period
+
+    @property
+    def dq_max(self) -> np.ndarray:
+        """Velocity limit of the reference, (J,), rad/s."""
+        return self.dynamics_factor * self.limits.dq_max
+
+    @property
+    def ddq_max(self) -> np.ndarray:
+        """Acceleration limit of the reference, (J,), rad/s^2."""
+        return self.dynamics_factor * self.limits.ddq_max
+
+    @property
+    def jerk_max(self) -> np.ndarray:
+        """Jerk limit of the reference, (J,), rad/s^3."""
+        return self.dynamics_factor * self.limits.jerk_max
+
+
+class Plan(IntEnum):
+    """What an environment's reference did during a period (the stage's reason code)."""
+
+    TARGET = 0
+    """Moved towards the target, joints synchronised (phase when possible, else time)."""
+    TARGET_UNSYNCHRONIZED = 1
+    """Moved towards the target, each joint time-optimal: the synchronised plan left the range."""
+    STOP = 2
+    """Braked to rest and held: `stop` was requested."""
+    STOP_INVALID_TARGET = 3
+    """Braked to rest and held: Ruckig refused the target (non-finite, or no plan found)."""
+    STOP_RANGE = 4
+    """Braked to rest and held: no plan to the target stayed inside the joint range."""
+    HOLD = 5
+    """Held position with zero velocity: even the stop could not be planned (never seen)."""
+
+
+@dataclass(frozen=True)
+class ReferenceState:
+    """Reference state of every environment at one instant."""
+
+    q: np.ndarray
+    """Positions, (B, J), rad."""
+    dq: np.ndarray
+    """Velocities, (B, J), rad/s."""
+    ddq: np.ndarray
+    """Accelerations, (B, J), rad/s^2."""
+
+
+@dataclass(frozen=True)
+class References:
+    """One policy period of references for every environment, and what was done."""
+
+    q_ref: np.ndarray
+    """Positions at t = dt, 2 dt, ..., S dt after the period start, (B, S, J), rad."""
+    dq_ref: np.ndarray
+    """Velocities at the same times, (B, S, J), rad/s."""
+    ddq_ref: np.ndarray
+    """Accelerations at the same times, (B, S, J), rad/s^2."""
+    plan: np.ndarray
+    """`Plan` code per environment, (B,), int8."""
+    result: np.ndarray
+    """Ruckig's `Result` for the target plan, (B,), int (0 working, 1 finished, < 0 errors;
+    -100 also for a non-finite target); 0 for environments that were told to stop."""
+    reached: np.ndarray
+    """The reference is at its target (or at rest after a stop) by the period's end, (B,)."""
+
+    @property
+    def end_state(self) -> ReferenceState:
+        """State at the end of the period, where the next period starts, (B, J) each."""
+        return ReferenceState(self.q_ref[:, -1], self.dq_ref[:, -1], self.ddq_ref[:, -1])
+
+
+class TrajectoryGenerator:
+    """Batched jerk-limited reference generator: one Ruckig instance per environment.
+
+    Holds each environment's reference state between calls; `step` advances all of them by one
+    policy period. Environments told to `stop` brake to rest and hold until `resume` or `reset`.
+    """
+
+    def __init__(self, q: np.ndarray, config: TrajectoryConfig | None = None) -> None:
+        """Start every environment at rest.
+
+        Args:
+            q: start positions, (B, J), rad (measured, so not clipped).
+            config: limits and clocks; the defaults when None.
+        """
+        self.config = config if config is not None else TrajectoryConfig()
+        q = _finite_positions(q)  # (B, J)
+        self.num_envs = q.shape[0]
+        cfg = self.config
+        self._q_min = np.asarray(cfg.limits.q_min, dtype=np.float64)  # (J,)
+        self._q_max = np.asarray(cfg.limits.q_max, dtype=np.float64)  # (J,)
+        self._times = [cfg.control_period_s * (k + 1) for k in range(cfg.samples_per_period)]
+        self._times[-1] = cfg.policy_period_s  # the period's end exactly
+        self._ruckig = [ruckig.Ruckig(J) for _ in range(self.num_envs)]
+        self._inputs = [_input_parameter(cfg) for _ in range(self.num_envs)]
+        self._trajectories = [ruckig.Trajectory(J) for _ in range(self.num_envs)]
+        self._q = q.copy()  # (B, J), rad
+        self._dq = np.zeros_like(q)  # (B, J), rad/s
+        self._ddq = np.zeros_like(q)  # (B, J), rad/s^2
+        self._stopping = np.zeros(self.num_envs, dtype=bool)  # (B,)
+
+    @property
+    def state(self) -> ReferenceState:
+        """Where the next period starts, (B, J) each (copies)."""
+        return ReferenceState(self._q.copy(), self._dq.copy(), self._ddq.copy())
+
+    @property
+    def stopping(self) -> np.ndarray:
+        """Environments braking to rest and holding, (B,) bool (a copy)."""
+        return self._stopping.copy()
+
+    def stop(self, env_ids: np.ndarray) -> None:
+        """Brake these environments to rest (time-optimal per joint) and hold, from the next
+        `step` on, ignoring their targets until `resume` or `reset` (watchdog, e-stop).
+
+        Args:
+            env_ids: environment indices, (N,) int, or a (B,) bool mask.
+        """
+        self._stopping[env_ids] = True
+
+    def resume(self, env_ids: np.ndarray) -> None:
+        """Follow targets again from wherever the stop has brought these environments."""
+        self._stopping[env_ids] = False
+
+    def reset(self, env_ids: np.ndarray, q: np.ndarray) -> None:
+        """Re-anchor environments at measured positions with zero velocity (episode start).
+
+        Args:
+            env_ids: environment indices, (N,) int, or a (B,) bool mask selecting N.
+            q: measured positions, (N, J), rad; not clipped (the reference must start where
+                the robot is); plans from outside the range head straight back inside.
+        """
+        q = _finite_positions(q)  # (N, J)
+        self._q[env_ids] = q
+        self._dq[env_ids] = 0.0
+        self._ddq[env_ids] = 0.0
+        self._stopping[env_ids] = False
+
+    def step(self, q_target: np.ndarray) -> References:
+        """Plan from the current reference state to each target and sample one policy period.
+
+        Args:
+            q_target: joint targets, (B, J), rad, reached at rest; clipped into the joint range
+                (less `target_margin`) as a last guard. Ignored for stopping environments;
+                a non-finite row makes that environment brake and hold for this period.
+        Returns:
+            the references (B, S, J) with the plan and Ruckig result per environment; the
+            generator's state moves to their last sample.
+        """
+        q_target = np.asarray(q_target, dtype=np.float64)
+        if q_target.shape != (self.num_envs, J):
+            raise ValueError(f"q_target must be ({self.num_envs}, {J}), got {q_target.shape}")
+        target = self._clip_target(q_target)  # (B, J), rad (NaN stays NaN)
+        S = self.config.samples_per_period
+        samples = np.empty((self.num_envs, S, 3, J))  # (B, S, [q, dq, ddq], J)
+        plan = np.empty(self.num_envs, dtype=np.int8)  # (B,)
+        result = np.zeros(self.num_envs, dtype=np.int64)  # (B,)
+        reached = np.empty(self.num_envs, dtype=bool)  # (B,)
+        for i in range(self.num_envs):
+            plan[i], result[i], samples[i], reached[i] = self._step_env(i, target[i])
+        self._q, self._dq, self._ddq = (samples[:, -1, k].copy() for k in range(3))
+        return References(
+            q_ref=samples[:, :, 0], dq_ref=samples[:, :, 1], ddq_ref=samples[:, :, 2],
+            plan=plan, result=result, reached=reached,
+        )  # fmt: skip
+
+    def _clip_target(self, q_target: np.ndarray) -> np.ndarray:
+        """Targets inside the joint range less the margin, (B, J), rad; NaN passes through."""
+        margin = self.config.target_margin
+        return np.clip(q_target, self._q_min + margin, self._q_max - margin)
+
+    def _step_env(self, i: int, target: np.ndarray) -> tuple[Plan, int, np.ndarray, bool]:
+        """One environment's period: choose an admissible plan and sample it.
+
+        Returns:
+            plan code, Ruckig result of the target plan, samples (S, 3, J), reached flag.
+        """
+        inp, trajectory = self._inputs[i], self._trajectories[i]
+        inp.current_position = self._q[i].tolist()
+        inp.current_velocity = self._dq[i].tolist()
+        inp.current_acceleration = self._ddq[i].tolist()
+        result = 0
+        if not self._stopping[i]:
+            result = self._plan_target(i, target, ruckig.Synchronization.Phase)
+            if result < 0:
+                return self._brake(i, Plan.STOP_INVALID_TARGET, result)
+            if self._in_range(i):
+                return Plan.TARGET, result, *self._sample(trajectory)
+            result = self._plan_target(i, target, ruckig.Synchronization.No)
+            if result >= 0 and self._in_range(i):
+                return Plan.TARGET_UNSYNCHRONIZED, result, *self._sample(trajectory)
+            return self._brake(i, Plan.STOP_RANGE, result)
+        return self._brake(i, Plan.STOP, result)
+
+    def _plan_target(self, i: int, target: np.ndarray, synchronization) -> int:
+        """Ruckig's plan to `target` at rest into the env's trajectory; its Result as int."""
+        inp = self._inputs[i]
+        if not np.all(np.isfinite(target)):
+            return int(ruckig.Result.ErrorInvalidInput)
+        inp.control_interface = ruckig.ControlInterface.Position
+        inp.synchronization = synchronization
+        inp.target_position = target.tolist()
+        return _calculate(self._ruckig[i], inp, self._trajectories[i])
+
+    def _brake(self, i: int, plan: Plan, result: int) -> tuple[Plan, int, np.ndarray, bool]:
+        """Time-optimal stop per joint (velocity interface to rest), sampled; hold if refused."""
+        inp, trajectory = self._inputs[i], self._trajectories[i]
+        inp.control_interface = ruckig.ControlInterface.Velocity
+        inp.synchronization = ruckig.Synchronization.No
+        if _calculate(self._ruckig[i], inp, trajectory) >= 0:
+            return plan, result, *self._sample(trajectory)
+        hold = np.zeros((len(self._times), 3, J))  # (S, 3, J)
+        hold[:, 0] = self._q[i]
+        return Plan.HOLD, result, hold, True
+
+    def _in_range(self, i: int) -> bool:
+        """Whether the env's whole planned trajectory stays inside the joint range (widened to
+        include the start, for references re-anchored outside it)."""
+        extrema = self._trajectories[i].position_extrema  # J Bounds
+        low = np.array([bound.min for bound in extrema])  # (J,), rad
+        high = np.array([bound.max for bound in extrema])  # (J,), rad
+        q = self._q[i]
+        return bool(
+            np.all(low >= np.minimum(self._q_min, q)) and np.all(high <= np.maximum(self._q_max, q))
+        )
+
+    def _sample(self, trajectory: ruckig.Trajectory) -> tuple[np.ndarray, bool]:
+        """The plan at the period's sample times, (S, 3, J), and whether it ends in the period."""
+        samples = np.array([trajectory.at_time(t) for t in self._times])  # (S, 3, J)
+        return samples, trajectory.duration <= self._times[-1]
+
+
+def _input_parameter(config: TrajectoryConfig) -> ruckig.InputParameter:
+    """Ruckig input with the scaled limits and a target at rest."""
+    inp = ruckig.InputParameter(J)
+    inp.max_velocity = config.dq_max.tolist()
+    inp.max_acceleration = config.ddq_max.tolist()
+    inp.max_jerk = config.jerk_max.tolist()
+    inp.target_velocity = [0.0] * J
+    inp.target_acceleration = [0.0] * J
+    return inp
+
+
+def _calculate(
+    generator: ruckig.Ruckig, inp: ruckig.InputParameter, trajectory: ruckig.Trajectory
+) -> int:
+    """Ruckig's offline calculation; its Result as int, exceptions as ErrorInvalidInput."""
+    try:
+        return int(generator.calculate(inp, trajectory))
+    except ruckig.RuckigError:
+        return int(ruckig.Result.ErrorInvalidInput)
+
+
+def _finite_positions(q: np.ndarray) -> np.ndarray:
+    """q as float64 (N, J), or ValueError when it is not finite or not (N, J)."""
+    q = np.array(q, dtype=np.float64)  # (N, J)
+    if q.ndim != 2 or q.shape[1] != J or not np.all(np.isfinite(q)):
+        raise ValueError(f"positions must be finite and (N, {J}), got shape {q.shape}")
+    return q
