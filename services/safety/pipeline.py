@@ -1,0 +1,330 @@
+"""The safety core: raw policy action (B, 21) and robot state to a safe joint command.
+
+`filter_action` is a pure function of (config, state, action, q, dq, step) returning a
+`FilterResult` and the next `SafetyState`; `SafetyCore` holds that state, the Pinocchio model
+and running statistics for the shell and the trainer. Stages, in order:
+
+    1 nonfinite_guard -> 2 action_magnitude -> 3 cartesian_clip -> 4 residual_smoothing
+    -> 5 joint_limits -> [6 trajectory, outside this core] -> 7 torque_preclip
+
+Seam for stage 6: `filter` returns the joint target q_target (B, J) and gains already
+pre-clipped against that target. Trajectory generation (Ruckig) then turns q_target into
+reference samples q_ref (B, S, J); `recheck_torque` re-applies stage 7 to those samples, since
+a reference may overshoot the target. A rejected environment (reason != 0) holds its last
+safe target with its last safe gains, still pre-clipped against the current state.
+Legend: B environments, J = 7 joints, S control samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.safety import stages
+from hamnet.safety.cartesian import cartesian_clip, ee_jacobians
+from hamnet.safety.config import SafetyConfig
+from hamnet.safety.schedule import NUM_JOINTS, ScheduleValues, per_joint, schedule_values
+from hamnet.safety.stats import StageReport, StageStats, StatsAccumulator, stage_report, summarize
+from hamnet.sim.robot import FR3, Q_HOME, load_pinocchio
+
+Jacobians = Callable[[np.ndarray], np.ndarray]
+"""q (N, J) -> end-effector Jacobians (N, R, J) at those configurations."""
+
+
+@dataclass(frozen=True)
+class SafetyState:
+    """What the core remembers per environment between calls."""
+
+    q_target: np.ndarray
+    """(B, J) last safe joint target, rad: what a rejected action holds."""
+    kp: np.ndarray
+    """(B, J) stiffness that came with it (before torque pre-clipping), N m/rad."""
+    rho: np.ndarray
+    """(B, J) damping ratio that came with it."""
+    dq_smoothed: np.ndarray
+    """(B, J) dq_bar_{t-1}, the EMA memory, rad; zero at an episode's start."""
+    has_target: np.ndarray
+    """(B,) bool, q_target is set (from a reset or an accepted action)."""
+
+    @property
+    def num_envs(self) -> int:
+        """B."""
+        return self.has_target.shape[0]
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """What the core did with one batch of actions: the safe command and why it differs."""
+
+    q_target: np.ndarray
+    """(B, J) safe joint target, rad, inside the joint bounds (input of stage 6)."""
+    kp: np.ndarray
+    """(B, J) stiffness after torque pre-clipping, N m/rad."""
+    kd: np.ndarray
+    """(B, J) damping rho*sqrt(kp), N m s/rad."""
+    rho: np.ndarray
+    """(B, J) damping ratio (the pre-clip keeps it)."""
+    tau_limit: np.ndarray
+    """(B, J) torque bound for the executor's hard clip, N m."""
+    dq: np.ndarray
+    """(B, J) residual after stages 2-4, rad; zero where rejected."""
+    rejected: np.ndarray
+    """(B,) bool, the action was rejected and the environment holds its last safe target."""
+    reason: np.ndarray
+    """(B,) int8 `stages.Rejection` code, 0 where accepted."""
+    reports: tuple[StageReport, ...]
+    """Per stage, per environment: applied, clipped and excess."""
+    schedule: ScheduleValues
+    """xi and eps_x used for this step."""
+
+    @property
+    def stats(self) -> tuple[StageStats, ...]:
+        """Per-stage summary of this call."""
+        return tuple(summarize(report) for report in self.reports)
+
+    def reasons(self) -> list[str]:
+        """Rejection name per environment ("ACCEPTED" where accepted)."""
+        return [stages.Rejection(code).name for code in self.reason]
+
+
+def target_bounds(config: SafetyConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi), each (J,): the joint band targets stay in (the full range if stage 5 is off)."""
+    fraction = config.joint_limits.central_fraction if config.joint_limits.enabled else 1.0
+    return stages.joint_target_bounds(fraction)
+
+
+def tau_limit(config: SafetyConfig) -> np.ndarray:
+    """(J,) torque bound of stage 7 and the executor: (1 - margin)*tau_max, N m."""
+    return (1.0 - config.torque_preclip.margin) * FR3.tau_max
+
+
+def initial_state(num_envs: int, config: SafetyConfig) -> SafetyState:
+    """No targets yet, hold gains, empty EMA memory."""
+    shape = (num_envs, NUM_JOINTS)
+    return SafetyState(
+        q_target=np.zeros(shape),
+        kp=np.full(shape, config.nonfinite_guard.hold_kp),
+        rho=np.full(shape, config.nonfinite_guard.hold_rho),
+        dq_smoothed=np.zeros(shape),
+        has_target=np.zeros(num_envs, dtype=bool),
+    )
+
+
+def start_episodes(
+    state: SafetyState, start: np.ndarray, q: np.ndarray, config: SafetyConfig
+) -> SafetyState:
+    """New episodes in envs `start` (B,) bool: hold q (clipped into the bounds, or the home pose
+    if q is non-finite) with hold gains, and clear the EMA memory."""
+    lo, hi = target_bounds(config)
+    hold = np.where(np.isfinite(q).all(axis=1)[:, None], q, Q_HOME)  # (B, J)
+    column = start[:, None]
+    return SafetyState(
+        q_target=np.where(column, np.clip(hold, lo, hi), state.q_target),
+        kp=np.where(column, config.nonfinite_guard.hold_kp, state.kp),
+        rho=np.where(column, config.nonfinite_guard.hold_rho, state.rho),
+        dq_smoothed=np.where(column, 0.0, state.dq_smoothed),
+        has_target=state.has_target | start,
+    )
+
+
+def _check_state(name: str, array: np.ndarray, num_envs: int) -> np.ndarray:
+    array = np.asarray(array, dtype=np.float64)
+    if array.shape != (num_envs, NUM_JOINTS):
+        raise ValueError(f"{name} must be ({num_envs}, {NUM_JOINTS}), got {array.shape}")
+    return array
+
+
+def _scatter(values: np.ndarray, mask: np.ndarray, fill: np.ndarray) -> np.ndarray:
+    """`fill` with the rows where `mask` holds replaced by `values` (one row per True)."""
+    out = fill.copy()
+    out[mask] = values
+    return out
+
+
+def filter_action(
+    config: SafetyConfig,
+    state: SafetyState,
+    action: object,
+    q: np.ndarray,
+    dq: np.ndarray,
+    step: int,
+    jacobians: Jacobians,
+    episode_start: np.ndarray | None = None,
+) -> tuple[FilterResult, SafetyState]:
+    """Stages 1-5 and 7 for one batch.
+
+    Args:
+        config: the stages' settings.
+        state: per-env memory from the previous call (`initial_state` at first).
+        action: raw policy action, expected (B, 21); anything else is rejected, not raised.
+        q, dq: (B, J) measured joint positions (rad) and velocities (rad/s); rows with NaN/Inf
+            are rejected (reason STATE); a wrong shape raises ValueError (a caller's bug).
+        step: global step published by the trainer (drives xi and eps_x).
+        jacobians: q (N, J) -> (N, R, J) end-effector Jacobians (`cartesian.ee_jacobians`).
+        episode_start: (B,) bool, envs starting an episode with this action (EMA cleared, hold
+            target reset to q), or None.
+    Returns:
+        The FilterResult and the next SafetyState.
+    """
+    b = state.num_envs
+    q, dq = _check_state("q", q, b), _check_state("dq", dq, b)  # (B, J)
+    never_set = ~state.has_target
+    start = never_set if episode_start is None else never_set | np.asarray(episode_start, bool)
+    state = start_episodes(state, start, q, config)
+    lo, hi = target_bounds(config)
+
+    # Stage 1. Non-finite state rows are computed on the held target at rest, then replaced.
+    state_ok = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # (B,)
+    q_now = np.where(state_ok[:, None], q, state.q_target)  # (B, J)
+    dq_now = np.where(state_ok[:, None], dq, 0.0)
+    if config.nonfinite_guard.enabled:
+        raw, reason = stages.nonfinite_guard(action, b)  # (B, 21), (B,)
+        reason[~state_ok] = stages.Rejection.STATE
+        guard_excess = (reason != 0).astype(np.float64)
+    else:
+        raw, reason = _checked_action(action, b), np.zeros(b, dtype=np.int8)
+        guard_excess = np.zeros(b)
+    accepted = reason == stages.Rejection.ACCEPTED  # (B,)
+    guard_on = np.full(b, config.nonfinite_guard.enabled)
+    reports = [stage_report("nonfinite_guard", guard_on, guard_excess)]
+
+    # Stage 2: physical ranges and the annealed bound xi.
+    values = schedule_values(step, config.action_magnitude, config.cartesian_clip)
+    magnitude = config.action_magnitude
+    xi = per_joint(values.xi_large, values.xi_small, magnitude.num_large_joints)  # (J,)
+    dq_step, kp, rho, excess = stages.action_magnitude(raw, xi, magnitude)  # (B, J) x3
+    reports.append(stage_report("action_magnitude", accepted & magnitude.enabled, excess))
+
+    # Stage 3: Jacobians only for accepted envs (rejected ones keep their hold).
+    cartesian = config.cartesian_clip
+    excess = np.zeros(b)
+    if cartesian.enabled and accepted.any():
+        clamped, clipped_excess = cartesian_clip(
+            dq_step[accepted], jacobians(q_now[accepted]), values.eps_x,
+            cartesian.damping, cartesian.iterations,
+        )  # fmt: skip
+        dq_step = _scatter(clamped, accepted, dq_step)
+        excess = _scatter(clipped_excess, accepted, excess)
+    reports.append(stage_report("cartesian_clip", accepted & cartesian.enabled, excess))
+
+    # Stage 4: EMA of the residual, memory kept per env.
+    smoothing = config.residual_smoothing
+    alpha = smoothing.alpha if smoothing.enabled else 1.0
+    dq_bar, excess = stages.residual_smoothing(dq_step, state.dq_smoothed, alpha)  # (B, J)
+    reports.append(stage_report("residual_smoothing", accepted & smoothing.enabled, excess))
+
+    # Stage 5: target inside the central band; rejected envs hold their last safe target.
+    wanted = q_now + dq_bar  # (B, J)
+    if config.joint_limits.enabled:
+        q_target, excess = stages.joint_limits(wanted, lo, hi)
+    else:
+        q_target, excess = wanted, np.zeros(b)
+    reports.append(stage_report("joint_limits", accepted & config.joint_limits.enabled, excess))
+    column = accepted[:, None]
+    q_target = np.where(column, q_target, state.q_target)  # (B, J)
+    kp, rho = np.where(column, kp, state.kp), np.where(column, rho, state.rho)
+
+    # Stage 7 against the target (recheck_torque repeats it against stage 6's samples).
+    limit = np.tile(tau_limit(config), (b, 1))  # (B, J)
+    if config.torque_preclip.enabled:
+        kp_safe, kd_safe, excess = stages.torque_preclip(q_target, q_now, dq_now, kp, rho, limit)
+    else:
+        kp_safe, kd_safe, excess = kp, stages.damping_gain(kp, rho), np.zeros(b)
+    torque_on = np.full(b, config.torque_preclip.enabled)
+    reports.append(stage_report("torque_preclip", torque_on, excess))
+
+    result = FilterResult(
+        q_target=q_target, kp=kp_safe, kd=kd_safe, rho=rho, tau_limit=limit,
+        dq=np.where(column, dq_bar, 0.0), rejected=~accepted, reason=reason,
+        reports=tuple(reports), schedule=values,
+    )  # fmt: skip
+    next_state = dataclasses.replace(
+        state, q_target=q_target, kp=kp, rho=rho,
+        dq_smoothed=np.where(column, dq_bar, state.dq_smoothed),
+    )  # fmt: skip
+    return result, next_state
+
+
+def _checked_action(action: object, num_envs: int) -> np.ndarray:
+    """With the guard off: the action as (B, 21) float64, or ValueError."""
+    array = np.asarray(action, dtype=np.float64)
+    if array.shape != (num_envs, stages.ACTION_DIM):
+        raise ValueError(f"action must be ({num_envs}, {stages.ACTION_DIM}), got {array.shape}")
+    return array
+
+
+def recheck_torque(
+    config: SafetyConfig, result: FilterResult, q_ref: np.ndarray, q: np.ndarray, dq: np.ndarray
+) -> FilterResult:
+    """Stage 7 again, against stage 6's reference samples q_ref (B, S, J): gains only go down.
+
+    Non-finite state rows are checked at rest on the target, as in `filter_action`. The
+    result's torque_preclip report then covers both passes (excess: the larger one).
+    """
+    if not config.torque_preclip.enabled:
+        return result
+    state_ok = (np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1))[:, None]  # (B, 1)
+    q_now, dq_now = np.where(state_ok, q, result.q_target), np.where(state_ok, dq, 0.0)
+    kp, kd, excess = stages.torque_preclip(
+        q_ref, q_now, dq_now, result.kp, result.rho, result.tau_limit
+    )
+    reports = tuple(
+        stage_report(r.stage, r.applied, np.maximum(r.excess, excess))
+        if r.stage == "torque_preclip"
+        else r
+        for r in result.reports
+    )
+    return dataclasses.replace(result, kp=kp, kd=kd, reports=reports)
+
+
+class SafetyCore:
+    """Stateful wrapper for the shell and the trainer: per-env memory, Pinocchio model, stats."""
+
+    def __init__(self, num_envs: int, config: SafetyConfig | None = None) -> None:
+        self.config = config if config is not None else SafetyConfig()
+        self.state = initial_state(num_envs, self.config)
+        self.stats = StatsAccumulator()
+        """Running per-stage statistics; the shell publishes `summary()` and resets them."""
+        self._model, self._data = load_pinocchio()
+
+    def jacobians(self, q: np.ndarray) -> np.ndarray:
+        """(N, R, J) end-effector Jacobians at q (N, J), rows per the config."""
+        return ee_jacobians(self._model, self._data, q, self.config.cartesian_clip.rows)
+
+    def reset(self, q: np.ndarray, env_ids: np.ndarray | None = None) -> None:
+        """Start episodes in `env_ids` (all if None) at joint positions q (B, J)."""
+        start = np.zeros(self.state.num_envs, dtype=bool)
+        start[slice(None) if env_ids is None else np.asarray(env_ids)] = True
+        q = _check_state("q", q, self.state.num_envs)
+        self.state = start_episodes(self.state, start, q, self.config)
+
+    def filter(
+        self,
+        action: object,
+        q: np.ndarray,
+        dq: np.ndarray,
+        step: int,
+        episode_start: np.ndarray | None = None,
+        record: bool = True,
+    ) -> FilterResult:
+        """Stages 1-5 and 7 (see `filter_action`); updates the memory, and the statistics
+        unless `record` is False (a caller that runs `recheck_torque` records afterwards)."""
+        result, self.state = filter_action(
+            self.config, self.state, action, q, dq, step, self.jacobians, episode_start
+        )
+        if record:
+            self.record(result)
+        return result
+
+    def recheck_torque(
+        self, result: FilterResult, q_ref: np.ndarray, q: np.ndarray, dq: np.ndarray
+    ) -> FilterResult:
+        """Stage 7 against stage 6's samples q_ref (B, S, J) (see `recheck_torque`)."""
+        return recheck_torque(self.config, result, q_ref, q, dq)
+
+    def record(self, result: FilterResult) -> None:
+        """Add a result's per-stage reports to the running statistics."""
+        self.stats.add(result.reports)
