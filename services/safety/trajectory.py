@@ -13,10 +13,11 @@ is the plan at time (k + 1) * dt: the last sample is the state the next period s
 
 Ruckig (community edition) ignores position limits, and a plan from a moving state to a nearby
 target may overshoot it. The generator keeps every plan it follows inside the joint range (the
-start position counts as inside): it checks the whole plan's position extrema and falls back,
-in order, to per-joint time-optimal plans (no synchronisation, so no joint slows down to wait
-for another) and to a time-optimal stop. Since every plan followed ends at rest inside the range,
-a stop from any point of it does too, so the fallback always finds an admissible plan.
+start position counts as inside): it checks the whole plan's position extrema and otherwise
+brakes (per joint time-optimal stop to rest) for this period. Every plan followed ends at rest
+inside the range, and a time-optimal stop from any point of it stops no later, so the stop is
+inside too. (In 200k random moving states with clipped targets whose stop stayed inside, the
+synchronised plan never left the range: the guard is a proof obligation, not a common path.)
 """
 
 from __future__ import annotations
@@ -93,15 +94,13 @@ class Plan(IntEnum):
 
     TARGET = 0
     """Moved towards the target, joints synchronised (phase when possible, else time)."""
-    TARGET_UNSYNCHRONIZED = 1
-    """Moved towards the target, each joint time-optimal: the synchronised plan left the range."""
-    STOP = 2
+    STOP = 1
     """Braked to rest and held: `stop` was requested."""
-    STOP_INVALID_TARGET = 3
+    STOP_INVALID_TARGET = 2
     """Braked to rest and held: Ruckig refused the target (non-finite, or no plan found)."""
-    STOP_RANGE = 4
-    """Braked to rest and held: no plan to the target stayed inside the joint range."""
-    HOLD = 5
+    STOP_RANGE = 3
+    """Braked towards rest: the plan to the target left the joint range."""
+    HOLD = 4
     """Held position with zero velocity: even the stop could not be planned (never seen)."""
 
 
@@ -130,8 +129,8 @@ class References:
     plan: np.ndarray
     """`Plan` code per environment, (B,), int8."""
     result: np.ndarray
-    """Ruckig's `Result` for the target plan, (B,), int (0 working, 1 finished, < 0 errors;
-    -100 also for a non-finite target); 0 for environments that were told to stop."""
+    """Ruckig's `Result` for the target plan, (B,), int: 0 (Working) when a plan was found,
+    < 0 for Ruckig's errors (-100 also for a non-finite target); 0 for stopping environments."""
     reached: np.ndarray
     """The reference is at its target (or at rest after a stop) by the period's end, (B,)."""
 
@@ -156,7 +155,7 @@ class TrajectoryGenerator:
             config: limits and clocks; the defaults when None.
         """
         self.config = config if config is not None else TrajectoryConfig()
-        q = _finite_positions(q)  # (B, J)
+        q = _joint_rows(q)  # (B, J)
         self.num_envs = q.shape[0]
         cfg = self.config
         self._q_min = np.asarray(cfg.limits.q_min, dtype=np.float64)  # (J,)
@@ -194,18 +193,26 @@ class TrajectoryGenerator:
         """Follow targets again from wherever the stop has brought these environments."""
         self._stopping[env_ids] = False
 
-    def reset(self, env_ids: np.ndarray, q: np.ndarray) -> None:
-        """Re-anchor environments at measured positions with zero velocity (episode start).
+    def reset(
+        self,
+        env_ids: np.ndarray,
+        q: np.ndarray,
+        dq: np.ndarray | None = None,
+        ddq: np.ndarray | None = None,
+    ) -> None:
+        """Re-anchor environments at a measured state, at rest by default (episode start).
 
         Args:
             env_ids: environment indices, (N,) int, or a (B,) bool mask selecting N.
             q: measured positions, (N, J), rad; not clipped (the reference must start where
                 the robot is); plans from outside the range head straight back inside.
+            dq, ddq: measured velocities (rad/s) and accelerations (rad/s^2), (N, J), within
+                the scaled limits; zero when None.
         """
-        q = _finite_positions(q)  # (N, J)
+        q = _joint_rows(q)  # (N, J)
         self._q[env_ids] = q
-        self._dq[env_ids] = 0.0
-        self._ddq[env_ids] = 0.0
+        self._dq[env_ids] = 0.0 if dq is None else _joint_rows(dq)
+        self._ddq[env_ids] = 0.0 if ddq is None else _joint_rows(ddq)
         self._stopping[env_ids] = False
 
     def step(self, q_target: np.ndarray) -> References:
@@ -258,9 +265,6 @@ class TrajectoryGenerator:
                 return self._brake(i, Plan.STOP_INVALID_TARGET, result)
             if self._in_range(i):
                 return Plan.TARGET, result, *self._sample(trajectory)
-            result = self._plan_target(i, target, ruckig.Synchronization.No)
-            if result >= 0 and self._in_range(i):
-                return Plan.TARGET_UNSYNCHRONIZED, result, *self._sample(trajectory)
             return self._brake(i, Plan.STOP_RANGE, result)
         return self._brake(i, Plan.STOP, result)
 
@@ -299,6 +303,10 @@ class TrajectoryGenerator:
     def _sample(self, trajectory: ruckig.Trajectory) -> tuple[np.ndarray, bool]:
         """The plan at the period's sample times, (S, 3, J), and whether it ends in the period."""
         samples = np.array([trajectory.at_time(t) for t in self._times])  # (S, 3, J)
+        # After the plan's end Ruckig extrapolates rounding residue (|dq| ~ 1e-16); a reference
+        # at rest is exactly at rest, or the next plan from it may fail (a Ruckig error
+        # was seen for a zero-length move with such velocities).
+        samples[np.asarray(self._times) >= trajectory.duration, 1:] = 0.0
         return samples, trajectory.duration <= self._times[-1]
 
 
@@ -323,9 +331,9 @@ def _calculate(
         return int(ruckig.Result.ErrorInvalidInput)
 
 
-def _finite_positions(q: np.ndarray) -> np.ndarray:
-    """q as float64 (N, J), or ValueError when it is not finite or not (N, J)."""
+def _joint_rows(q: np.ndarray) -> np.ndarray:
+    """Joint values as float64 (N, J), or ValueError when not finite or not (N, J)."""
     q = np.array(q, dtype=np.float64)  # (N, J)
     if q.ndim != 2 or q.shape[1] != J or not np.all(np.isfinite(q)):
-        raise ValueError(f"positions must be finite and (N, {J}), got shape {q.shape}")
+        raise ValueError(f"joint values must be finite and (N, {J}), got shape {q.shape}")
     return q
