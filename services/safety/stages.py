@@ -174,16 +174,32 @@ def damping_gain(kp: np.ndarray, rho: np.ndarray) -> np.ndarray:
 
 def reference_error(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Largest |q_ref - q| over the period: (B, J) from q_ref (B, J) or samples (B, S, J)."""
-    if q_ref.ndim == 3:
-        return np.abs(q_ref - q[:, None, :]).max(axis=1)  # (B, J)
-    return np.abs(q_ref - q)
+    with np.errstate(over="ignore"):  # opposite huge values: inf, handled by the callers
+        if q_ref.ndim == 3:
+            return np.abs(q_ref - q[:, None, :]).max(axis=1)  # (B, J)
+        return np.abs(q_ref - q)
+
+
+def impedance_terms(
+    q_ref: np.ndarray, q: np.ndarray, dq: np.ndarray, kp: np.ndarray, kd: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spring and damper torque bounds kp*|q_ref - q| and kd*|qdot|, each (B, J), N m.
+
+    A zero gain gives zero torque even against an infinite error (not 0*inf = NaN); huge
+    finite values may overflow to inf, which the caller treats as "over any limit"."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        spring = np.where(kp > 0.0, kp * reference_error(q_ref, q), 0.0)
+        damper = np.where(kd > 0.0, kd * np.abs(dq), 0.0)
+    return spring, damper
 
 
 def predicted_torque(
     q_ref: np.ndarray, q: np.ndarray, dq: np.ndarray, kp: np.ndarray, kd: np.ndarray
 ) -> np.ndarray:
     """Bound on the impedance torque: kp*|q_ref - q| + kd*|qdot|, (B, J), N m."""
-    return kp * reference_error(q_ref, q) + kd * np.abs(dq)
+    spring, damper = impedance_terms(q_ref, q, dq, kp, kd)
+    with np.errstate(over="ignore"):
+        return spring + damper
 
 
 def torque_preclip(
@@ -210,13 +226,13 @@ def torque_preclip(
         torque above tau_limit before the reduction, N m.
     """
     kd = damping_gain(kp, rho)  # (B, J)
-    error, speed = reference_error(q_ref, q), np.abs(dq)  # (B, J)
-    torque = kp * error + kd * speed  # (B, J), N m
-    over = torque > tau_limit  # (B, J)
-    # Huge speeds overflow to inf and give w = 0; rows not over the limit may divide 0 by 0.
+    spring, damper = impedance_terms(q_ref, q, dq, kp, kd)  # (B, J), N m
+    # An infinite term gives w = 0; joints under the limit may divide 0 by 0 in the branch
+    # np.where discards.
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        damping_torque = kd * speed
-        root = np.sqrt(damping_torque**2 + 4.0 * kp * error * tau_limit)
+        torque = spring + damper
+        over = torque > tau_limit  # (B, J)
+        root = np.sqrt(damper**2 + 4.0 * spring * tau_limit)
         # The shave keeps the reduced torque under the limit despite rounding.
-        w = np.where(over, 2.0 * tau_limit / (damping_torque + root) * (1.0 - 1e-9), 1.0)
+        w = np.where(over, 2.0 * tau_limit / (damper + root) * (1.0 - 1e-9), 1.0)
     return kp * w**2, kd * w, np.maximum(torque - tau_limit, 0.0).max(axis=1)
