@@ -185,7 +185,8 @@ class JointLimitsConfig:
 @dataclass(frozen=True)
 class TorquePreclipConfig:
     """Stage 7: reduce kp (and kd with rho kept) where kp*|q_ref - q| + kd*|qdot| would exceed
-    (1 - margin)*tau_max; that limit is also the executor's hard clip, tau_limit."""
+    (1 - margin)*tau_max; that limit is also the executor's hard clip, tau_limit. Reduced
+    gains may fall below kp_min: the torque bound wins over the action range."""
 
     enabled: bool = True
     """Off: gains pass unchanged; tau_limit is still output for the executor's hard clip."""

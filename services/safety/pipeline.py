@@ -137,13 +137,6 @@ def _check_state(name: str, array: np.ndarray, num_envs: int) -> np.ndarray:
     return array
 
 
-def _scatter(values: np.ndarray, mask: np.ndarray, fill: np.ndarray) -> np.ndarray:
-    """`fill` with the rows where `mask` holds replaced by `values` (one row per True)."""
-    out = fill.copy()
-    out[mask] = values
-    return out
-
-
 def filter_action(
     config: SafetyConfig,
     state: SafetyState,
@@ -171,25 +164,18 @@ def filter_action(
     """
     b = state.num_envs
     q, dq = _check_state("q", q, b), _check_state("dq", dq, b)  # (B, J)
-    never_set = ~state.has_target
-    start = never_set if episode_start is None else never_set | np.asarray(episode_start, bool)
+    start = ~state.has_target
+    if episode_start is not None:
+        start = start | np.asarray(episode_start, dtype=bool)
     state = start_episodes(state, start, q, config)
-    lo, hi = target_bounds(config)
 
-    # Stage 1. Non-finite state rows are computed on the held target at rest, then replaced.
+    # Stage 1. Rows with a non-finite state are computed at rest on the held target.
     state_ok = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # (B,)
     q_now = np.where(state_ok[:, None], q, state.q_target)  # (B, J)
     dq_now = np.where(state_ok[:, None], dq, 0.0)
-    if config.nonfinite_guard.enabled:
-        raw, reason = stages.nonfinite_guard(action, b)  # (B, 21), (B,)
-        reason[~state_ok] = stages.Rejection.STATE
-        guard_excess = (reason != 0).astype(np.float64)
-    else:
-        raw, reason = _checked_action(action, b), np.zeros(b, dtype=np.int8)
-        guard_excess = np.zeros(b)
+    raw, reason, report = _run_guard(config, action, state_ok)  # (B, 21), (B,)
     accepted = reason == stages.Rejection.ACCEPTED  # (B,)
-    guard_on = np.full(b, config.nonfinite_guard.enabled)
-    reports = [stage_report("nonfinite_guard", guard_on, guard_excess)]
+    reports = [report]
 
     # Stage 2: physical ranges and the annealed bound xi.
     values = schedule_values(step, config.action_magnitude, config.cartesian_clip)
@@ -198,17 +184,9 @@ def filter_action(
     dq_step, kp, rho, excess = stages.action_magnitude(raw, xi, magnitude)  # (B, J) x3
     reports.append(stage_report("action_magnitude", accepted & magnitude.enabled, excess))
 
-    # Stage 3: Jacobians only for accepted envs (rejected ones keep their hold).
-    cartesian = config.cartesian_clip
-    excess = np.zeros(b)
-    if cartesian.enabled and accepted.any():
-        clamped, clipped_excess = cartesian_clip(
-            dq_step[accepted], jacobians(q_now[accepted]), values.eps_x,
-            cartesian.damping, cartesian.iterations,
-        )  # fmt: skip
-        dq_step = _scatter(clamped, accepted, dq_step)
-        excess = _scatter(clipped_excess, accepted, excess)
-    reports.append(stage_report("cartesian_clip", accepted & cartesian.enabled, excess))
+    # Stage 3.
+    dq_step, report = _run_cartesian(config, dq_step, q_now, accepted, values.eps_x, jacobians)
+    reports.append(report)
 
     # Stage 4: EMA of the residual, memory kept per env.
     smoothing = config.residual_smoothing
@@ -216,25 +194,18 @@ def filter_action(
     dq_bar, excess = stages.residual_smoothing(dq_step, state.dq_smoothed, alpha)  # (B, J)
     reports.append(stage_report("residual_smoothing", accepted & smoothing.enabled, excess))
 
-    # Stage 5: target inside the central band; rejected envs hold their last safe target.
-    wanted = q_now + dq_bar  # (B, J)
+    # Stage 5: target inside the band; rejected envs hold their last safe target and gains.
+    q_target, excess = q_now + dq_bar, np.zeros(b)  # (B, J)
     if config.joint_limits.enabled:
-        q_target, excess = stages.joint_limits(wanted, lo, hi)
-    else:
-        q_target, excess = wanted, np.zeros(b)
+        q_target, excess = stages.joint_limits(q_target, *target_bounds(config))
     reports.append(stage_report("joint_limits", accepted & config.joint_limits.enabled, excess))
     column = accepted[:, None]
     q_target = np.where(column, q_target, state.q_target)  # (B, J)
     kp, rho = np.where(column, kp, state.kp), np.where(column, rho, state.rho)
 
     # Stage 7 against the target (recheck_torque repeats it against stage 6's samples).
-    limit = np.tile(tau_limit(config), (b, 1))  # (B, J)
-    if config.torque_preclip.enabled:
-        kp_safe, kd_safe, excess = stages.torque_preclip(q_target, q_now, dq_now, kp, rho, limit)
-    else:
-        kp_safe, kd_safe, excess = kp, stages.damping_gain(kp, rho), np.zeros(b)
-    torque_on = np.full(b, config.torque_preclip.enabled)
-    reports.append(stage_report("torque_preclip", torque_on, excess))
+    kp_safe, kd_safe, limit, report = _run_torque(config, q_target, q_now, dq_now, kp, rho)
+    reports.append(report)
 
     result = FilterResult(
         q_target=q_target, kp=kp_safe, kd=kd_safe, rho=rho, tau_limit=limit,
@@ -248,12 +219,59 @@ def filter_action(
     return result, next_state
 
 
-def _checked_action(action: object, num_envs: int) -> np.ndarray:
-    """With the guard off: the action as (B, 21) float64, or ValueError."""
-    array = np.asarray(action, dtype=np.float64)
-    if array.shape != (num_envs, stages.ACTION_DIM):
-        raise ValueError(f"action must be ({num_envs}, {stages.ACTION_DIM}), got {array.shape}")
-    return array
+def _run_guard(
+    config: SafetyConfig, action: object, state_ok: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, StageReport]:
+    """Stage 1: cleaned action (B, 21), reason (B,) (STATE where the state is non-finite)."""
+    b = state_ok.shape[0]
+    if not config.nonfinite_guard.enabled:
+        array = np.asarray(action, dtype=np.float64)
+        if array.shape != (b, stages.ACTION_DIM):
+            raise ValueError(f"action must be ({b}, {stages.ACTION_DIM}), got {array.shape}")
+        reason = np.zeros(b, dtype=np.int8)
+        return array, reason, stage_report("nonfinite_guard", np.zeros(b, bool), np.zeros(b))
+    raw, reason = stages.nonfinite_guard(action, b)
+    reason[~state_ok] = stages.Rejection.STATE
+    rejected = (reason != stages.Rejection.ACCEPTED).astype(np.float64)  # 1 per rejection
+    return raw, reason, stage_report("nonfinite_guard", np.ones(b, bool), rejected)
+
+
+def _run_cartesian(
+    config: SafetyConfig,
+    dq: np.ndarray,
+    q: np.ndarray,
+    accepted: np.ndarray,
+    eps_x: float,
+    jacobians: Jacobians,
+) -> tuple[np.ndarray, StageReport]:
+    """Stage 3 on the accepted envs only (Jacobians cost a Pinocchio call each)."""
+    cartesian = config.cartesian_clip
+    applied = accepted & cartesian.enabled  # (B,)
+    excess = np.zeros(dq.shape[0])
+    if applied.any():
+        dq = dq.copy()
+        dq[applied], excess[applied] = cartesian_clip(
+            dq[applied], jacobians(q[applied]), eps_x, cartesian.damping, cartesian.iterations
+        )
+    return dq, stage_report("cartesian_clip", applied, excess)
+
+
+def _run_torque(
+    config: SafetyConfig,
+    q_target: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray,
+    kp: np.ndarray,
+    rho: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, StageReport]:
+    """Stage 7 for every env (holds included): kp, kd, tau_limit (B, J) and the report."""
+    b = q.shape[0]
+    limit = np.tile(tau_limit(config), (b, 1))  # (B, J)
+    if not config.torque_preclip.enabled:
+        off = stage_report("torque_preclip", np.zeros(b, bool), np.zeros(b))
+        return kp, stages.damping_gain(kp, rho), limit, off
+    kp, kd, excess = stages.torque_preclip(q_target, q, dq, kp, rho, limit)
+    return kp, kd, limit, stage_report("torque_preclip", np.ones(b, bool), excess)
 
 
 def recheck_torque(

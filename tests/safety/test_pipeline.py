@@ -22,7 +22,6 @@ from hamnet.safety.pipeline import (
     SafetyCore,
     filter_action,
     initial_state,
-    recheck_torque,
     target_bounds,
 )
 from hamnet.safety.stages import Rejection
