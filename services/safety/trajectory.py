@@ -58,7 +58,7 @@ class TrajectoryConfig:
         samples = self.policy_period_s * self.control_rate_hz
         if samples < 1.0 or abs(samples - round(samples)) > 1e-6:
             raise ValueError(
-                f"policy_period_s * control_rate_hz must be a whole number of samples, got {samples}"
+                f"policy_period_s * control_rate_hz must be a whole number, got {samples}"
             )
         if not 0.0 <= self.target_margin < 0.01:
             raise ValueError("target_margin must be in [0, 0.01) rad")
@@ -162,6 +162,7 @@ class TrajectoryGenerator:
         self._q_max = np.asarray(cfg.limits.q_max, dtype=np.float64)  # (J,)
         self._times = [cfg.control_period_s * (k + 1) for k in range(cfg.samples_per_period)]
         self._times[-1] = cfg.policy_period_s  # the period's end exactly
+        self._times_array = np.array(self._times)  # (S,), s
         self._ruckig = [ruckig.Ruckig(J) for _ in range(self.num_envs)]
         self._inputs = [_input_parameter(cfg) for _ in range(self.num_envs)]
         self._trajectories = [ruckig.Trajectory(J) for _ in range(self.num_envs)]
@@ -230,13 +231,22 @@ class TrajectoryGenerator:
         if q_target.shape != (self.num_envs, J):
             raise ValueError(f"q_target must be ({self.num_envs}, {J}), got {q_target.shape}")
         target = self._clip_target(q_target)  # (B, J), rad (NaN stays NaN)
-        S = self.config.samples_per_period
-        samples = np.empty((self.num_envs, S, 3, J))  # (B, S, [q, dq, ddq], J)
-        plan = np.empty(self.num_envs, dtype=np.int8)  # (B,)
+        plan = np.where(self._stopping, Plan.STOP, Plan.TARGET).astype(np.int8)  # (B,)
         result = np.zeros(self.num_envs, dtype=np.int64)  # (B,)
-        reached = np.empty(self.num_envs, dtype=bool)  # (B,)
+        for i in np.flatnonzero(plan == Plan.TARGET):
+            result[i] = self._plan_target(i, target[i])
+        plan[result < 0] = Plan.STOP_INVALID_TARGET
+        planned = np.flatnonzero(plan == Plan.TARGET)  # (N,)
+        plan[planned[~self._in_range(planned)]] = Plan.STOP_RANGE
+        samples = np.empty((self.num_envs, len(self._times), 3, J))  # (B, S, [q, dq, ddq], J)
+        reached = np.ones(self.num_envs, dtype=bool)  # (B,)
         for i in range(self.num_envs):
-            plan[i], result[i], samples[i], reached[i] = self._step_env(i, target[i])
+            if plan[i] != Plan.TARGET and not self._plan_stop(i):
+                plan[i] = Plan.HOLD
+                samples[i] = 0.0
+                samples[i, :, 0] = self._q[i]
+                continue
+            samples[i], reached[i] = self._sample(self._trajectories[i])
         self._q, self._dq, self._ddq = (samples[:, -1, k].copy() for k in range(3))
         return References(
             q_ref=samples[:, :, 0], dq_ref=samples[:, :, 1], ddq_ref=samples[:, :, 2],
@@ -248,57 +258,40 @@ class TrajectoryGenerator:
         margin = self.config.target_margin
         return np.clip(q_target, self._q_min + margin, self._q_max - margin)
 
-    def _step_env(self, i: int, target: np.ndarray) -> tuple[Plan, int, np.ndarray, bool]:
-        """One environment's period: choose an admissible plan and sample it.
-
-        Returns:
-            plan code, Ruckig result of the target plan, samples (S, 3, J), reached flag.
-        """
-        inp, trajectory = self._inputs[i], self._trajectories[i]
+    def _set_current(self, i: int) -> ruckig.InputParameter:
+        """The env's Ruckig input, starting from its reference state."""
+        inp = self._inputs[i]
         inp.current_position = self._q[i].tolist()
         inp.current_velocity = self._dq[i].tolist()
         inp.current_acceleration = self._ddq[i].tolist()
-        result = 0
-        if not self._stopping[i]:
-            result = self._plan_target(i, target, ruckig.Synchronization.Phase)
-            if result < 0:
-                return self._brake(i, Plan.STOP_INVALID_TARGET, result)
-            if self._in_range(i):
-                return Plan.TARGET, result, *self._sample(trajectory)
-            return self._brake(i, Plan.STOP_RANGE, result)
-        return self._brake(i, Plan.STOP, result)
+        return inp
 
-    def _plan_target(self, i: int, target: np.ndarray, synchronization) -> int:
-        """Ruckig's plan to `target` at rest into the env's trajectory; its Result as int."""
-        inp = self._inputs[i]
+    def _plan_target(self, i: int, target: np.ndarray) -> int:
+        """Ruckig's plan to `target` at rest, joints phase-synchronised (a straight line in
+        joint space where possible, else time-synchronised); its Result as int."""
         if not np.all(np.isfinite(target)):
             return int(ruckig.Result.ErrorInvalidInput)
+        inp = self._set_current(i)
         inp.control_interface = ruckig.ControlInterface.Position
-        inp.synchronization = synchronization
+        inp.synchronization = ruckig.Synchronization.Phase
         inp.target_position = target.tolist()
         return _calculate(self._ruckig[i], inp, self._trajectories[i])
 
-    def _brake(self, i: int, plan: Plan, result: int) -> tuple[Plan, int, np.ndarray, bool]:
-        """Time-optimal stop per joint (velocity interface to rest), sampled; hold if refused."""
-        inp, trajectory = self._inputs[i], self._trajectories[i]
+    def _plan_stop(self, i: int) -> bool:
+        """Ruckig's time-optimal stop of each joint (velocity interface to rest, joints not
+        synchronised, so none brakes later than it can); whether a plan was found."""
+        inp = self._set_current(i)
         inp.control_interface = ruckig.ControlInterface.Velocity
         inp.synchronization = ruckig.Synchronization.No
-        if _calculate(self._ruckig[i], inp, trajectory) >= 0:
-            return plan, result, *self._sample(trajectory)
-        hold = np.zeros((len(self._times), 3, J))  # (S, 3, J)
-        hold[:, 0] = self._q[i]
-        return Plan.HOLD, result, hold, True
+        return _calculate(self._ruckig[i], inp, self._trajectories[i]) >= 0
 
-    def _in_range(self, i: int) -> bool:
-        """Whether the env's whole planned trajectory stays inside the joint range (widened to
-        include the start, for references re-anchored outside it)."""
-        extrema = self._trajectories[i].position_extrema  # J Bounds
-        low = np.array([bound.min for bound in extrema])  # (J,), rad
-        high = np.array([bound.max for bound in extrema])  # (J,), rad
-        q = self._q[i]
-        return bool(
-            np.all(low >= np.minimum(self._q_min, q)) and np.all(high <= np.maximum(self._q_max, q))
-        )
+    def _in_range(self, env_ids: np.ndarray) -> np.ndarray:
+        """Whether each env's whole planned trajectory stays inside the joint range (widened
+        to include its start, for references re-anchored outside it), (N,) bool."""
+        low, high = position_extrema([self._trajectories[i] for i in env_ids])  # (N, J) each
+        q = self._q[env_ids]  # (N, J), rad
+        low_ok = np.all(low >= np.minimum(self._q_min, q), axis=1)  # (N,)
+        return low_ok & np.all(high <= np.maximum(self._q_max, q), axis=1)
 
     def _sample(self, trajectory: ruckig.Trajectory) -> tuple[np.ndarray, bool]:
         """The plan at the period's sample times, (S, 3, J), and whether it ends in the period."""
@@ -306,8 +299,62 @@ class TrajectoryGenerator:
         # After the plan's end Ruckig extrapolates rounding residue (|dq| ~ 1e-16); a reference
         # at rest is exactly at rest, or the next plan from it may fail (a Ruckig error
         # was seen for a zero-length move with such velocities).
-        samples[np.asarray(self._times) >= trajectory.duration, 1:] = 0.0
+        samples[self._times_array >= trajectory.duration, 1:] = 0.0
         return samples, trajectory.duration <= self._times[-1]
+
+
+def position_extrema(trajectories: list[ruckig.Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest position of each joint over whole Ruckig plans, from their profiles.
+
+    Ruckig's own `Trajectory.position_extrema` is not used: in ruckig 0.19.4 it misses interior
+    extrema (wrong for about half of random one-joint plans from moving states). Each joint's
+    plan is two brake phases then seven phases of constant jerk, then rest; a phase's extremum
+    is at one of its ends or where its velocity v + a t + j t^2 / 2 crosses zero.
+
+    Args:
+        trajectories: N plans without intermediate waypoints (one section each).
+    Returns:
+        low and high, (N, J) each, rad.
+    """
+    duration, p, v, a, j = _phases(trajectories)  # (N, J, 9) each
+    disc = np.sqrt(np.maximum(a * a - 2.0 * j * v, 0.0))  # (N, J, 9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        roots = np.stack([(-a - disc) / j, (-a + disc) / j, -v / a], axis=-1)  # (N, J, 9, 3), s
+    roots[..., :2][j == 0.0] = np.nan  # the quadratic's roots hold only with jerk,
+    roots[..., 2][j != 0.0] = np.nan  # -v/a only without
+    inside = (roots > 0.0) & (roots < duration[..., None])  # (N, J, 9, 3)
+    t = np.where(inside, roots, 0.0)  # (N, J, 9, 3), s
+    p_t = p[..., None] + (v[..., None] + (a[..., None] / 2 + j[..., None] * t / 6) * t) * t
+    p_end = p + (v + (a / 2 + j * duration / 6) * duration) * duration  # (N, J, 9), rad
+    candidates = np.concatenate([p[..., None], p_end[..., None], p_t], axis=-1)  # (N, J, 9, 5)
+    # Phases that do not occur (zero duration; Ruckig leaves an unused brake at zeros) must
+    # not count: they take the value of the main profile's start, a point of the plan.
+    candidates = np.where(duration[..., None] > 0.0, candidates, p[..., 2:3, None])
+    return candidates.min(axis=(2, 3)), candidates.max(axis=(2, 3))
+
+
+def _phases(trajectories: list[ruckig.Trajectory]) -> tuple[np.ndarray, ...]:
+    """Duration, start position, velocity, acceleration and jerk of each joint's nine phases
+    (two brake, seven main), (N, J, 9) each; an unused brake is all zeros."""
+    flat: list[float] = []  # per profile: t (7), p (8), v (8), a (8), j (7)
+    brakes = []  # (row, [t, p, v, a, j] of 2 each), only where a brake is planned
+    for trajectory in trajectories:
+        for profile in trajectory.profiles[0]:
+            if profile.brake.duration > 0.0:
+                brake = profile.brake
+                brakes.append((len(flat) // 38, [brake.t, brake.p, brake.v, brake.a, brake.j]))
+            flat += profile.t
+            flat += profile.p
+            flat += profile.v
+            flat += profile.a
+            flat += profile.j
+    main = np.array(flat, dtype=np.float64).reshape(-1, 38)  # (N * J, 38)
+    phases = np.zeros((5, main.shape[0], 9))  # ([t, p, v, a, j], N * J, 9)
+    for k, begin in enumerate((0, 7, 15, 23, 31)):
+        phases[k, :, 2:] = main[:, begin : begin + 7]
+    for row, values in brakes:
+        phases[:, row, :2] = values
+    return tuple(phases[k].reshape(-1, J, 9) for k in range(5))  # (N, J, 9) each
 
 
 def _input_parameter(config: TrajectoryConfig) -> ruckig.InputParameter:
