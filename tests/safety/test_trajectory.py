@@ -37,10 +37,11 @@ B = 4
 J = 7
 Q_MIN, Q_MAX = np.asarray(FR3.q_min), np.asarray(FR3.q_max)
 
-SCENARIOS = ("uniform", "limits", "alternate", "hold", "behind", "ahead", "nan", "stop")
+SCENARIOS = ("uniform", "limits", "alternate", "hold", "behind", "ahead", "beyond", "nan", "stop")
 """Target patterns for one period: random in range, each joint at a limit, far targets that
 alternate every period, the current position (stop while moving), just behind and just ahead of
-the motion (overshoot towards limits), a non-finite target, and a watchdog stop."""
+the motion (overshoot towards limits), beyond the range (the caller should have clipped), a
+non-finite target, and a watchdog stop."""
 
 
 def scenario_targets(
@@ -61,6 +62,8 @@ def scenario_targets(
         return state.q - 0.3 * direction * rng.random((B, J))
     if scenario == "ahead":
         return state.q + 0.05 * direction * rng.random((B, J))
+    if scenario == "beyond":
+        return np.where(rng.random((B, J)) < 0.5, Q_MIN - 1.0, Q_MAX + 1.0)
     if scenario == "nan":
         uniform[rng.integers(B), rng.integers(J)] = np.nan
     if scenario == "stop":
@@ -86,23 +89,25 @@ def concatenated(start_q: np.ndarray, references: list[References]) -> np.ndarra
 
 def assert_within_limits(q: np.ndarray, dq_ref: np.ndarray, config: TrajectoryConfig) -> None:
     """Finite, inside the joint range, and velocity, acceleration and jerk of q by backward
-    differences within the scaled limits.
+    differences within the FR3's limits times the dynamics factor (computed here, not taken
+    from the config's own properties).
 
     Args:
         q: resting history then samples, (B, 3 + T, J), rad.
         dq_ref: sampled velocities, (B, T, J), rad/s.
     """
-    dt = config.control_period_s
+    dt = 1.0 / config.control_rate_hz
+    factor = config.dynamics_factor
     assert np.all(np.isfinite(q)) and np.all(np.isfinite(dq_ref))
     assert np.all(q >= Q_MIN) and np.all(q <= Q_MAX)
     velocity = np.diff(q, axis=1) / dt  # (B, 2 + T, J)
     acceleration = np.diff(velocity, axis=1) / dt  # (B, 1 + T, J)
     jerk = np.diff(acceleration, axis=1) / dt  # (B, T, J)
     for name, value, limit in (
-        ("velocity", velocity, config.dq_max),
-        ("sampled velocity", dq_ref, config.dq_max),
-        ("acceleration", acceleration, config.ddq_max),
-        ("jerk", jerk, config.jerk_max),
+        ("velocity", velocity, factor * FR3.dq_max),
+        ("sampled velocity", dq_ref, factor * FR3.dq_max),
+        ("acceleration", acceleration, factor * FR3.ddq_max),
+        ("jerk", jerk, factor * FR3.jerk_max),
     ):
         worst = np.max(np.abs(value) / limit)
         assert worst <= 1.0 + FD_RTOL, f"{name} at {worst:.6f} of its limit"
@@ -236,6 +241,22 @@ def test_fixed_far_target_is_reached_in_time_and_held(seed: int, dynamics_factor
     held = generator.step(target)
     assert np.all(held.q_ref == ref.end_state.q[:, None])
     assert np.all(held.dq_ref == 0.0) and np.all(held.ddq_ref == 0.0)
+
+
+@pytest.mark.parametrize("beyond", [0.0, 1.0])
+def test_targets_at_or_beyond_the_limits_are_reached_at_the_limits(beyond: float) -> None:
+    """Targets on the limits (or past them: clipped as a last guard) are followed with plain
+    target plans, never a spurious range stop, and end just inside the range."""
+    config = TrajectoryConfig(dynamics_factor=1.0)
+    generator = TrajectoryGenerator(np.tile(Q_HOME, (2, 1)), config)
+    target = np.stack([Q_MIN - beyond, Q_MAX + beyond])  # (2, J)
+    for _ in range(40):
+        ref = generator.step(target)
+        assert np.all(ref.plan == Plan.TARGET)
+    assert np.all(ref.reached)
+    end = ref.end_state.q  # (2, J)
+    assert np.all(end >= Q_MIN) and np.all(end <= Q_MAX)
+    np.testing.assert_allclose(end, np.stack([Q_MIN, Q_MAX]), rtol=0, atol=2e-6)
 
 
 def test_stop_brakes_to_rest_and_holds_until_resume() -> None:
