@@ -318,7 +318,7 @@ def position_extrema(trajectories: list[ruckig.Trajectory]) -> tuple[np.ndarray,
     """
     duration, p, v, a, j = _phases(trajectories)  # (N, J, 9) each
     disc = np.sqrt(np.maximum(a * a - 2.0 * j * v, 0.0))  # (N, J, 9)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         roots = np.stack([(-a - disc) / j, (-a + disc) / j, -v / a], axis=-1)  # (N, J, 9, 3), s
     roots[..., :2][j == 0.0] = np.nan  # the quadratic's roots hold only with jerk,
     roots[..., 2][j != 0.0] = np.nan  # -v/a only without
