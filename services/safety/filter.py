@@ -1,0 +1,109 @@
+"""`SafetyFilter`: the whole pipeline, from a raw policy action to the references a robot
+executes for one policy period.
+
+Stages 1-5 and 7 (`pipeline.SafetyCore`) give a safe joint target and gains; stage 6
+(`trajectory.TrajectoryGenerator`) turns the target into jerk-limited references sampled at
+the executor's rate, continuous across periods; stage 7 runs again against those samples
+(gains only go down). `brake` is the watchdog's and the e-stop's path: the references stop
+smoothly and hold, with the last safe gains, whatever the policy does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hamnet.safety.config import SafetyConfig
+from hamnet.safety.pipeline import FilterResult, SafetyCore, tau_limit
+from hamnet.safety.stages import torque_preclip
+from hamnet.safety.trajectory import References, TrajectoryConfig, TrajectoryGenerator
+
+
+@dataclass(frozen=True)
+class SafeOutput:
+    """One policy period of safe commands (the SafeCommand message)."""
+
+    q_ref: np.ndarray
+    """(B, S, J) joint references, rad."""
+    dq_ref: np.ndarray
+    """(B, S, J) joint velocity references, rad/s."""
+    kp: np.ndarray
+    """(B, J) N m/rad."""
+    kd: np.ndarray
+    """(B, J) N m s/rad."""
+    tau_limit: np.ndarray
+    """(B, J) executor's hard torque clip, N m."""
+    stopping: np.ndarray
+    """(B,) bool: braking or holding (watchdog, e-stop), not following the policy."""
+    references: References
+    """What stage 6 planned (plan codes, Ruckig results)."""
+    filtered: FilterResult | None = field(default=None)
+    """What stages 1-5 and 7 did; None on the braking path."""
+
+
+class SafetyFilter:
+    """Per-environment memory of both halves of the pipeline."""
+
+    def __init__(
+        self,
+        q: np.ndarray,
+        config: SafetyConfig | None = None,
+        trajectory: TrajectoryConfig | None = None,
+    ) -> None:
+        """Start at measured joint positions q (B, J), at rest."""
+        self.config = config if config is not None else SafetyConfig()
+        self.core = SafetyCore(len(q), self.config)
+        self.core.reset(q)
+        self.trajectory = TrajectoryGenerator(q, trajectory)
+        self.tau_limit = np.tile(tau_limit(self.config), (len(q), 1))  # (B, J)
+
+    @property
+    def num_envs(self) -> int:
+        """B."""
+        return len(self.tau_limit)
+
+    @property
+    def samples_per_period(self) -> int:
+        """S: references per policy period."""
+        return self.trajectory.config.samples_per_period
+
+    def start_episodes(self, env_ids: np.ndarray, q: np.ndarray) -> None:
+        """New episodes in `env_ids` (K,) starting at rest at q (K, J): memory cleared."""
+        full = self.core.state.q_target.copy()  # (B, J)
+        full[env_ids] = q
+        self.core.reset(full, env_ids)
+        self.trajectory.reset(env_ids, q)
+        self.trajectory.resume(env_ids)
+
+    def command(self, action: object, q: np.ndarray, dq: np.ndarray, step: int) -> SafeOutput:
+        """Filter a raw action (B, 21) at the measured state q, dq (B, J) and global `step`."""
+        filtered = self.core.filter(action, q, dq, step, record=False)
+        references = self.trajectory.step(filtered.q_target)
+        filtered = self.core.recheck_torque(filtered, references.q_ref, q, dq)
+        self.core.record(filtered)
+        return SafeOutput(
+            references.q_ref, references.dq_ref, filtered.kp, filtered.kd, filtered.tau_limit,
+            self.trajectory.stopping.copy(), references, filtered,
+        )  # fmt: skip
+
+    def stop(self, env_ids: np.ndarray) -> None:
+        """Brake `env_ids` from the next period on and hold until `resume` (watchdog, e-stop)."""
+        self.trajectory.stop(env_ids)
+
+    def resume(self, env_ids: np.ndarray, q: np.ndarray) -> None:
+        """Follow the policy again in `env_ids` (K,), from rest at q (K, J)."""
+        self.start_episodes(env_ids, q)
+
+    def brake(self, q: np.ndarray, dq: np.ndarray) -> SafeOutput:
+        """One period without a policy action: stopping environments brake and hold, the
+        others keep tracking their last safe target; gains are the last safe ones."""
+        state = self.core.state
+        references = self.trajectory.step(state.q_target)
+        finite = (np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1))[:, None]  # (B, 1)
+        q_now, dq_now = np.where(finite, q, state.q_target), np.where(finite, dq, 0.0)
+        kp, kd, _ = torque_preclip(references.q_ref, q_now, dq_now, state.kp, state.rho, self.tau_limit)
+        return SafeOutput(
+            references.q_ref, references.dq_ref, kp, kd, self.tau_limit.copy(),
+            self.trajectory.stopping.copy(), references,
+        )  # fmt: skip
