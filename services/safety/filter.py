@@ -92,8 +92,14 @@ class SafetyFilter:
         self.trajectory.stop(env_ids)
 
     def resume(self, env_ids: np.ndarray, q: np.ndarray) -> None:
-        """Follow the policy again in `env_ids` (K,), from rest at q (K, J)."""
-        self.start_episodes(env_ids, q)
+        """Follow the policy again in `env_ids` (K,), holding the measured q (K, J) until the
+        next action (EMA cleared). The references go on from where the brake has brought them,
+        at rest or not: re-anchoring them at rest would jump the commanded velocity of a robot
+        still braking (a late action after the watchdog fired), which is a reflex on the FR3."""
+        full = self.core.state.q_target.copy()  # (B, J)
+        full[env_ids] = q
+        self.core.reset(full, env_ids)
+        self.trajectory.resume(env_ids)
 
     def brake(self, q: np.ndarray, dq: np.ndarray) -> SafeOutput:
         """One period without a policy action: stopping environments brake and hold, the

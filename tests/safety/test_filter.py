@@ -228,6 +228,26 @@ def test_watchdog_brakes_to_rest_within_a_bounded_time_and_resumes() -> None:
     assert not loop.fr3.in_reflex.any()
 
 
+def test_resume_while_still_braking_continues_without_a_reflex() -> None:
+    """Regression: `resume` re-anchored the references at rest at the measured q, so a robot
+    resumed mid-brake (an action arriving one period after the watchdog fired) had its commanded
+    velocity jump to 0: velocity and acceleration discontinuity reflexes. The references must
+    run on from the brake's state; the fake FR3 checks every tick."""
+    rng = np.random.default_rng(3)
+    loop = Loop(np.tile(Q_HOME, (B, 1)))
+    for action in policy_actions(rng, "extremes", 6, 0.0):
+        loop.command(action)
+    loop.filter.stop(np.arange(B))
+    loop.brake()
+    # Still moving: a velocity step of ddq_max*dt = 0.01 rad/s is already a reflex.
+    assert np.sum(np.abs(loop.dq).max(axis=1) > 0.05) >= 2
+    loop.filter.resume(np.arange(B), loop.q)
+    for action in policy_actions(rng, "normal", 10, 0.0):
+        out = loop.command(action)
+        assert not out.stopping.any() and not out.filtered.rejected.any()
+    assert not loop.fr3.in_reflex.any()
+
+
 def test_policy_actions_while_stopped_are_ignored() -> None:
     """`command` during a stop (a late action before the e-stop is reset) still brakes and holds:
     the action's target never reaches the references."""
