@@ -32,7 +32,7 @@ COMMANDS: tuple[Command, ...] = (
     Command("bridge", "real FR3 in place of the sim (same contract)", None, None),
     Command("perception", "point clouds and UniCORN tokens", None, 6),
     Command("policy", "HAMnet and baseline inference with hot-reloaded weights", None, 5),
-    Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", None, 4),
+    Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", "hamnet.safety.cli", 4),
     Command("trainer", "PPO and DAgger from streamed rollouts", None, None),
     Command("monitor", "live Rerun view of the whole stack", None, 7),
     Command("record", "record topics to MCAP", None, 7),

@@ -26,13 +26,15 @@ class Topic:
     path: str
     """Key after `hamnet/<ns>/`, with placeholders: `sim/<w>/state`."""
     message: type[Message] | None
-    """Protobuf message class carried on the key; None for liveliness tokens."""
+    """Protobuf message class carried on the key; None for liveliness tokens and queryables."""
     publisher: str
     """Who publishes it."""
     when: str
     """When it is published."""
     finite: bool = True
     """Whether every floating-point tensor must be finite (receivers drop it otherwise)."""
+    queryable: bool = False
+    """Served by a Zenoh queryable (asked with `get`, answered in JSON text), not published."""
 
     @property
     def template(self) -> str:
@@ -52,8 +54,11 @@ class Topic:
 
     @property
     def type_name(self) -> str:
-        """Fully qualified protobuf type, e.g. `hamnet.RobotState`, or `liveliness`."""
-        return self.message.DESCRIPTOR.full_name if self.message else "liveliness"
+        """Fully qualified protobuf type, e.g. `hamnet.RobotState`, `queryable` or
+        `liveliness`."""
+        if self.message is not None:
+            return self.message.DESCRIPTOR.full_name
+        return "queryable" if self.queryable else "liveliness"
 
     def key(self, namespace: str, **fields: str) -> str:
         """Concrete key of this topic: `topic.key("default", w="0")`."""
@@ -82,6 +87,7 @@ TOPICS: tuple[Topic, ...] = (
     Topic("policy/<w>/action", policy_pb2.PolicyAction, "policy", "every policy step", finite=False),
     Topic("safety/<w>/command", safety_pb2.SafeCommand, "safety", "every policy step"),
     Topic("safety/<w>/event", safety_pb2.SafetyEvent, "safety", "when a stage clips, rejects or stops"),
+    Topic("safety/<w>/estop", None, "safety", "queryable: stop, reset, status", queryable=True),
     Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, "trainer", "after each update"),
     Topic("trainer/schedule", trainer_pb2.Schedule, "trainer", "after each update"),
     Topic("trainer/metrics", trainer_pb2.Metrics, "trainer", "after each update"),
@@ -98,7 +104,7 @@ safety service, not the transport, rejects it, so that the rejection becomes a s
 event."""
 
 MESSAGE_TOPICS: tuple[Topic, ...] = tuple(t for t in TOPICS if t.message is not None)
-"""The topics that carry protobuf messages (all but liveliness tokens)."""
+"""The topics that carry protobuf messages (all but liveliness tokens and queryables)."""
 
 
 def topic(path: str) -> Topic:

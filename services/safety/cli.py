@@ -1,0 +1,42 @@
+"""`hamnet safety`: the safety filter between policy and robot over Zenoh, with the watchdog
+and the e-stop queryable (see `hamnet.safety.shell` for the topics and the timing).
+
+Stages are configured under `--safety.<stage>.<field>` (e.g.
+`--safety.cartesian-clip.eps-x 0.1`), the reference under `--trajectory.<field>` (80 Hz
+samples for the sim, `--trajectory.control-rate-hz 1000` for libfranka).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Annotated
+
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
+from hamnet.safety.config import SafetyConfig
+from hamnet.safety.shell import SafetyShell, ShellConfig
+from hamnet.safety.trajectory import TrajectoryConfig
+
+
+@dataclass(frozen=True)
+class SafetyServiceConfig:
+    """One safety worker: the filter's stages, its reference, the watchdog and reports."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+    """Stages 1-5 and 7 of the filter."""
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    """Stage 6: jerk-limited references at the executor's control rate."""
+    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+
+
+CONFIG = SafetyServiceConfig
+"""The config `hamnet safety` parses (the launcher validates stack files against it)."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet safety` with command-line arguments `argv`; returns the exit status."""
+    config, identity = parse_service(CONFIG, argv, "safety", __doc__)
+    with Service(identity, config.common.transport) as service:
+        return SafetyShell(service, config.loop, config.safety, config.trajectory).run()

@@ -1,0 +1,540 @@
+"""The safety service's Zenoh shell: answers every robot state with a safe command, built
+from the policy's action for that state, or a smooth stop when there is none.
+
+Consumes `sim/<w>/state` (RobotState k), `policy/<w>/action` (PolicyAction k: the action
+for state k; non-finite values pass the transport so that the core rejects them) and
+`trainer/schedule` (Schedule: its `global_step` drives the xi and eps_x annealing).
+Produces `safety/<w>/command` (SafeCommand k, `header.step` = k, as the sim's lock-step
+requires) and `safety/<w>/event` (SafetyEvent: rejections, rate-limited clip events,
+watchdog and e-stop events, and per-stage statistics every `stats_period_s` with kind
+SAFETY_EVENT_KIND_UNSPECIFIED). Serves the queryable `safety/<w>/estop`: `stop` latches a
+stop, `reset` releases it, `status` reports; each answer is a JSON object.
+
+State k waits for action k up to `watchdog_s`. Without it the watchdog brakes every
+environment (one WATCHDOG_STOP event) and every later state is answered at once with the
+brake, until an action arrives again (any step: the policy is alive), when the filter
+resumes from the measured joint positions and the next state waits for its action again.
+While the e-stop is latched, actions are ignored and every state gets the brake.
+One mode per message: STOP when every environment is stopping, else TRACK.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.proto.common_pb2 import DType, Header
+from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.proto.safety_pb2 import (
+    CommandMode,
+    SafeCommand,
+    SafetyEvent,
+    SafetyEventKind,
+    StageStats as StageStatsMessage,
+)
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.proto.trainer_pb2 import Schedule
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.safety.config import SafetyConfig
+from hamnet.safety.filter import SafeOutput, SafetyFilter
+from hamnet.safety.pipeline import FilterResult
+from hamnet.safety.stages import Rejection
+from hamnet.safety.stats import StageStats, StatsAccumulator, empty_stats, merge, summarize
+from hamnet.safety.trajectory import TrajectoryConfig
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+ACTION = contract.topic("policy/<w>/action")
+SCHEDULE = contract.topic("trainer/schedule")
+COMMAND = contract.topic("safety/<w>/command")
+EVENT = contract.topic("safety/<w>/event")
+ESTOP = contract.topic("safety/<w>/estop")
+
+J = 7
+"""Joints of the FR3."""
+ACTION_WIDTH = 21
+"""Raw action components: dq, kp and rho for each joint."""
+
+CLIP_KINDS = {
+    "action_magnitude": SafetyEventKind.CLIPPED_MAGNITUDE,
+    "cartesian_clip": SafetyEventKind.CLIPPED_CARTESIAN,
+    "joint_limits": SafetyEventKind.CLIPPED_JOINT_LIMIT,
+    "torque_preclip": SafetyEventKind.CLIPPED_TORQUE,
+}
+"""Stages whose clipping becomes an event (the EMA smooths every step: statistics only)."""
+
+REJECTIONS = {
+    Rejection.NONFINITE: (SafetyEventKind.REJECTED_NONFINITE, "the action holds NaN or Inf"),
+    Rejection.SHAPE: (SafetyEventKind.REJECTED_SHAPE, f"the action is not (B, {ACTION_WIDTH})"),
+    Rejection.STATE: (SafetyEventKind.REJECTED_NONFINITE, "the robot state holds NaN or Inf"),
+}
+"""Event kind and reason of each rejection code of stage 1."""
+
+
+# --- decode / encode: pure functions, tested without a session -------------------------
+
+
+@dataclass(frozen=True)
+class StateIn:
+    """What the filter needs of RobotState k."""
+
+    step: int
+    """k, `header.step`."""
+    q: np.ndarray
+    """(B, J) measured joint positions, rad."""
+    dq: np.ndarray
+    """(B, J) measured joint velocities, rad/s."""
+    episode_ids: np.ndarray
+    """(B,) int64."""
+    episode_step: np.ndarray
+    """(B,) policy steps since each episode started (0: it starts in this state)."""
+
+
+def _floats(message, name: str, shape: tuple[int | None, ...], finite: bool) -> np.ndarray:
+    """Field `name` as a float64 array of `shape` (float32 or float64 on the wire)."""
+    owner = type(message).__name__
+    if not message.HasField(name):
+        raise PayloadError("missing", f"{owner}.{name} is not set")
+    tensor = getattr(message, name)
+    dtype = np.float64 if tensor.dtype == DType.FLOAT64 else np.float32
+    try:
+        return from_tensor(tensor, dtype, shape, finite=finite).astype(np.float64)
+    except PayloadError as error:
+        raise PayloadError(error.reason, f"{owner}.{name}: {error.detail}") from None
+
+
+def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
+    """RobotState k as arrays; `num_envs` None accepts any batch size.
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (batch or joint count), `nonfinite`.
+    """
+    q = _floats(message, "q", (num_envs, J), finite=True)  # (B, J)
+    b = len(q)
+    dq = _floats(message, "dq", (b, J), finite=True)  # (B, J)
+    for name in ("episode_ids", "episode_step"):
+        if not message.HasField(name):
+            raise PayloadError("missing", f"RobotState.{name} is not set")
+    episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
+    episode_step = from_tensor(message.episode_step, np.int32, (b,))
+    return StateIn(message.header.step, q, dq, episode_ids.copy(), episode_step.copy())
+
+
+def decode_action(message: PolicyAction) -> tuple[int, np.ndarray]:
+    """(step, raw action) of a PolicyAction. NaN, Inf and any shape pass: stage 1 of the
+    core rejects them and the rejection becomes a safety event.
+
+    Raises:
+        PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
+    """
+    if not message.HasField("action"):
+        raise PayloadError("missing", "PolicyAction.action is not set")
+    action = from_tensor(message.action, np.float32, None, finite=False)  # (B, 21) expected
+    return message.header.step, action
+
+
+def decode_schedule(message: Schedule) -> int:
+    """The trainer's global step, which the annealing of xi and eps_x follows."""
+    return int(message.global_step)
+
+
+def command_mode(stopping: np.ndarray) -> CommandMode.ValueType:
+    """STOP when every environment is braking or holding (watchdog, e-stop), else TRACK."""
+    return CommandMode.STOP if stopping.all() else CommandMode.TRACK
+
+
+def encode_command(
+    output: SafeOutput, step: int, episode_ids: np.ndarray, control_dt: float
+) -> SafeCommand:
+    """SafeCommand k: references (B, S, J) and gains (B, J) in float64, control_dt in s."""
+    message = SafeCommand(
+        header=Header(step=step), mode=command_mode(output.stopping), control_dt=control_dt
+    )
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
+    for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):  # (B, S, J) x2, (B, J) x3
+        to_tensor(np.asarray(getattr(output, name), dtype=np.float64), getattr(message, name))
+    return message
+
+
+def encode_event(
+    kind: SafetyEventKind.ValueType,
+    step: int,
+    env_ids: np.ndarray | None = None,
+    stage: str = "",
+    reason: str = "",
+    stats: tuple[StageStats, ...] = (),
+) -> SafetyEvent:
+    """One SafetyEvent at state step `step`, about environments `env_ids` (K,)."""
+    message = SafetyEvent(header=Header(step=step), kind=kind, stage=stage, reason=reason)
+    if env_ids is not None:
+        to_tensor(np.asarray(env_ids, dtype=np.int32), message.env_ids)  # (K,)
+    message.stages.extend(
+        StageStatsMessage(stage=s.stage, commands=s.commands, clipped=s.clipped,
+                          mean_excess=s.mean_excess, max_excess=s.max_excess)
+        for s in stats
+    )  # fmt: skip
+    return message
+
+
+def rejection_events(filtered: FilterResult, step: int) -> list[SafetyEvent]:
+    """One event per rejection reason present in a filter call."""
+    events = []
+    for code, (kind, reason) in REJECTIONS.items():
+        env_ids = np.flatnonzero(filtered.reason == code)  # (K,)
+        if len(env_ids):
+            events.append(encode_event(kind, step, env_ids, "nonfinite_guard", reason))
+    return events
+
+
+def episode_starts(state: StateIn, previous_ids: np.ndarray | None) -> np.ndarray:
+    """(K,) environments whose episode starts in this state: step 0 or a new episode id."""
+    new = state.episode_step == 0  # (B,)
+    if previous_ids is not None:
+        new |= state.episode_ids != previous_ids
+    return np.flatnonzero(new)
+
+
+# --- the e-stop ----------------------------------------------------------------------------
+
+
+class EStop:
+    """The latch behind the e-stop queryable. Zenoh threads call `request`; the service
+    thread applies the queued requests to the filter (`take`), so the filter is only ever
+    touched by one thread. The latch itself takes effect at once: actions are ignored from
+    the moment `stop` is answered."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._requests: deque[str] = deque()
+        self.latched = False
+        """A stop is latched: actions are ignored, every state gets the brake."""
+        self.status: dict[str, object] = {}
+        """What the service thread last reported (step, watchdog), for `status` answers."""
+
+    def request(self, command: str) -> tuple[bool, str]:
+        """Handle `stop`, `reset` or `status`; returns (ok, JSON answer or error text)."""
+        command = command.strip().lower()
+        if command not in ("stop", "reset", "status"):
+            return False, f"unknown e-stop command {command!r}: use stop, reset or status"
+        with self._lock:
+            if command != "status":
+                self.latched = command == "stop"
+                self._requests.append(command)
+            answer = {"latched": self.latched, **self.status}
+        return True, json.dumps(answer)
+
+    def take(self) -> list[str]:
+        """Requests not applied yet, oldest first."""
+        with self._lock:
+            requests = list(self._requests)
+            self._requests.clear()
+        return requests
+
+
+def _on_query(estop: EStop, query) -> None:
+    """Zenoh callback of the queryable: the command is the payload, else the parameters
+    (`hamnet/<ns>/safety/<w>/estop?stop`)."""
+    payload = query.payload
+    text = payload.to_string() if payload is not None else str(query.parameters)
+    ok, answer = estop.request(text)
+    if ok:
+        query.reply(query.key_expr, answer)
+    else:
+        query.reply_err(answer)
+
+
+# --- the loop ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ShellConfig:
+    """Batch size, watchdog and reporting of the shell."""
+
+    num_envs: int = 0
+    """B, environments per state; 0 takes it from the first state."""
+    watchdog_s: float = 0.3
+    """Longest wait for the action of a state, s; then every environment brakes to rest."""
+    clip_event_period_s: float = 1.0
+    """At most one clip event per stage this often, s (it counts what happened since)."""
+    stats_period_s: float = 5.0
+    """Seconds between per-stage statistics events."""
+    report_period_s: float = 10.0
+    """Seconds between rate lines in the log."""
+
+    def __post_init__(self) -> None:
+        if self.num_envs < 0:
+            raise ValueError(f"num_envs must be >= 0, got {self.num_envs}")
+        if not self.watchdog_s > 0.0:
+            raise ValueError(f"watchdog_s must be > 0, got {self.watchdog_s}")
+
+
+class SafetyShell:
+    """One safety worker on the network: the filter, the pending state, watchdog and e-stop."""
+
+    def __init__(
+        self,
+        service: Service,
+        config: ShellConfig | None = None,
+        safety: SafetyConfig | None = None,
+        trajectory: TrajectoryConfig | None = None,
+    ) -> None:
+        self.service, self.config = service, config if config is not None else ShellConfig()
+        self.safety = safety if safety is not None else SafetyConfig()
+        self.trajectory = trajectory if trajectory is not None else TrajectoryConfig()
+        ns, w = service.namespace, service.identity.worker
+        self.num_envs: int | None = self.config.num_envs or None
+        inbox = service.inbox
+        inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state_payload)
+        inbox.subscribe("action", ACTION.key(ns, w=w), decoder=_decode_action_payload)
+        inbox.subscribe("schedule", SCHEDULE.key(ns), decoder=_decode_schedule_payload)
+        self.command = service.publisher(COMMAND.key(ns, w=w))
+        self.event = service.publisher(EVENT.key(ns, w=w))
+        self.estop_key = ESTOP.key(ns, w=w)
+        self.estop = EStop()
+        self.filter: SafetyFilter | None = None
+        self.global_step = 0
+        self.latest: StateIn | None = None
+        """The newest state received."""
+        self.pending: StateIn | None = None
+        """A state waiting for its action, with `deadline` (time.monotonic())."""
+        self.deadline = 0.0
+        self.received_at = 0.0
+        """When the pending state arrived (time.monotonic())."""
+        self.action: tuple[int, np.ndarray] | None = None
+        """The newest action (step, raw (B, 21)) not used yet."""
+        self.stopped_by: str | None = None
+        """None (following the policy), "watchdog" or "estop"."""
+        self.answered: tuple[int, SafeCommand] | None = None
+        """The last command sent, republished when the sim sends its state again."""
+        self.stats = StatsAccumulator()
+        self.clips: dict[str, tuple[StageStats, np.ndarray]] = {}
+        """Per clip stage: stats and (B,) clipped environments since its last event."""
+        self.last_clip_event: dict[str, float] = {}
+        self.counts: dict[str, int] = dict.fromkeys(
+            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog"), 0
+        )
+        self.latencies: list[float] = []
+        """State received -> command published, s, since the last rate line."""
+        now = time.monotonic()
+        self._last_stats = self._last_report = now
+
+    @property
+    def control_dt(self) -> float:
+        """Duration of one reference sample, s."""
+        return self.trajectory.control_period_s
+
+    def run(self) -> int:
+        """Answer states until stopped; returns the exit status."""
+        queryable = self.service.session.declare_queryable(
+            self.estop_key, lambda query: _on_query(self.estop, query)
+        )
+        log.info("watchdog %.2f s, %d samples of %.4f s per policy period, e-stop on %s",
+                 self.config.watchdog_s, self.trajectory.samples_per_period, self.control_dt,
+                 self.estop_key)  # fmt: skip
+        try:
+            while self.service.running:
+                self._apply_estop()
+                timeout = 0.05
+                if self.pending is not None and self.stopped_by is None:
+                    timeout = min(timeout, max(self.deadline - time.monotonic(), 0.0))
+                received = self.service.receive(timeout=timeout)
+                if received is not None:
+                    self._handle(received.name, received.value, received.received_ns)
+                self._check_watchdog()
+                self._periodic()
+        finally:
+            queryable.undeclare()
+        return 0
+
+    def _handle(self, name: str, value, received_ns: int) -> None:
+        if name == "schedule":
+            self.global_step = value
+        elif name == "action":
+            self._on_action(*value)
+        else:
+            self._on_state(value, received_ns)
+
+    # --- inputs ---------------------------------------------------------------------------
+
+    def _on_state(self, state: StateIn, received_ns: int) -> None:
+        if self.answered is not None and self.answered[0] == state.step and self.pending is None:
+            self.command.put(self.answered[1])  # the sim sent it again: same answer
+            return
+        if self.filter is None:
+            self.num_envs = len(state.q)
+            self.filter = SafetyFilter(state.q, self.safety, self.trajectory)
+            log.info("%d environments, first state %d", self.num_envs, state.step)
+            if self.stopped_by is not None:  # e-stop latched before the first state
+                self.filter.stop(np.arange(self.num_envs))
+        else:
+            self._start_episodes(state)
+        if self.pending is not None:
+            self.counts["superseded"] += 1
+        self.latest, self.pending = state, state
+        now = time.monotonic()
+        received = received_ns / 1e9 if received_ns else now
+        self.received_at = min(received, now)
+        self.deadline = self.received_at + self.config.watchdog_s
+        self._answer()
+
+    def _start_episodes(self, state: StateIn) -> None:
+        previous = self.latest.episode_ids if self.latest is not None else None
+        env_ids = episode_starts(state, previous)  # (K,)
+        if len(env_ids):
+            self.filter.start_episodes(env_ids, state.q[env_ids])
+            if self.stopped_by is not None:  # a new episode does not lift a stop
+                self.filter.stop(env_ids)
+
+    def _on_action(self, step: int, action: np.ndarray) -> None:
+        if self.estop.latched:
+            self.counts["ignored"] += 1
+            return
+        if self.latest is not None and step < self.latest.step:
+            self.counts["stale"] += 1
+        if self.stopped_by == "watchdog" and self.latest is not None:
+            self._resume("actions arrive again")
+        self.action = (step, action)
+        self._answer()
+
+    def _apply_estop(self) -> None:
+        for request in self.estop.take():
+            step = self.latest.step if self.latest is not None else 0
+            if request == "stop":
+                log.warning("e-stop latched at step %d: braking every environment", step)
+                self.stopped_by = "estop"
+                if self.filter is not None:
+                    self.filter.stop(np.arange(self.num_envs))
+                self._event(SafetyEventKind.ESTOP_LATCHED, step, "e-stop", "stop requested")
+            elif request == "reset" and self.stopped_by == "estop":
+                self._resume("e-stop reset")
+                self._event(SafetyEventKind.ESTOP_RESET, step, "e-stop", "reset requested")
+        self.estop.status = {"step": self.latest.step if self.latest is not None else None,
+                             "stopped_by": self.stopped_by}  # fmt: skip
+        self._answer()
+
+    def _resume(self, why: str) -> None:
+        """Follow the policy again, from rest at the latest measured joint positions."""
+        log.info("%s at step %d: resuming from the measured joint positions", why,
+                 self.latest.step if self.latest is not None else 0)  # fmt: skip
+        self.stopped_by = None
+        if self.filter is not None:
+            self.filter.resume(np.arange(self.num_envs), self.latest.q)
+        if self.pending is not None:  # its wait starts now
+            self.deadline = time.monotonic() + self.config.watchdog_s
+
+    # --- outputs --------------------------------------------------------------------------
+
+    def _answer(self) -> None:
+        """Answer the pending state if its action is here, or brake if stopped."""
+        state = self.pending
+        if state is None:
+            return
+        if self.stopped_by is not None:
+            self._publish(self.filter.brake(state.q, state.dq), state)
+            return
+        if self.action is None or self.action[0] != state.step:
+            return
+        _, action = self.action
+        self.action = None
+        output = self.filter.command(action, state.q, state.dq, self.global_step)
+        self._publish(output, state)
+        self._account(output.filtered, state.step)
+
+    def _check_watchdog(self) -> None:
+        if self.pending is None or self.stopped_by is not None:
+            return
+        if time.monotonic() < self.deadline:
+            return
+        step = self.pending.step
+        log.warning("no action for state %d within %.2f s: braking every environment", step,
+                    self.config.watchdog_s)  # fmt: skip
+        self.stopped_by = "watchdog"
+        self.counts["watchdog"] += 1
+        self.filter.stop(np.arange(self.num_envs))
+        reason = f"no action within {self.config.watchdog_s} s of state {step}"
+        self._event(SafetyEventKind.WATCHDOG_STOP, step, "watchdog", reason)
+        self._answer()
+
+    def _publish(self, output: SafeOutput, state: StateIn) -> None:
+        message = encode_command(output, state.step, state.episode_ids, self.control_dt)
+        self.command.put(message)
+        self.answered, self.pending = (state.step, message), None
+        self.counts["braked" if output.filtered is None else "tracked"] += 1
+        self.latencies.append(time.monotonic() - self.received_at)
+
+    def _event(self, kind, step: int, stage: str, reason: str, env_ids=None, stats=()) -> None:
+        if env_ids is None:
+            env_ids = np.arange(self.num_envs or 0)
+        self.event.put(encode_event(kind, step, env_ids, stage, reason, tuple(stats)))
+
+    def _account(self, filtered: FilterResult, step: int) -> None:
+        """Statistics, rejection events and (rate-limited) clip events of one command."""
+        self.stats.add(filtered.reports)
+        for event in rejection_events(filtered, step):
+            self.event.put(event)
+        self.counts["rejected"] += int(filtered.rejected.sum())
+        now = time.monotonic()
+        for report in filtered.reports:
+            if report.stage not in CLIP_KINDS:
+                continue
+            stats, envs = self.clips.get(report.stage, (empty_stats(report.stage), None))
+            stats = merge(stats, summarize(report))
+            envs = report.clipped if envs is None else envs | report.clipped  # (B,)
+            self.clips[report.stage] = (stats, envs)
+            due = now - self.last_clip_event.get(report.stage, -np.inf) >= self.config.clip_event_period_s
+            if stats.clipped and due:
+                reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
+                          f"largest excess {stats.max_excess:.4g}")  # fmt: skip
+                self._event(CLIP_KINDS[report.stage], step, report.stage, reason,
+                            np.flatnonzero(envs), (stats,))  # fmt: skip
+                self.last_clip_event[report.stage] = now
+                del self.clips[report.stage]
+
+    def _periodic(self) -> None:
+        """Statistics event and rate line when due."""
+        now = time.monotonic()
+        step = self.latest.step if self.latest is not None else 0
+        if now - self._last_stats >= self.config.stats_period_s:
+            summary = self.stats.summary()
+            if any(s.commands for s in summary):
+                reason = f"statistics over {now - self._last_stats:.1f} s"
+                self._event(SafetyEventKind.SAFETY_EVENT_KIND_UNSPECIFIED, step, "", reason,
+                            stats=summary)  # fmt: skip
+            self.stats.reset()
+            self._last_stats = now
+        elapsed = now - self._last_report
+        if elapsed >= self.config.report_period_s:
+            c = self.counts
+            latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
+            log.info(
+                "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
+                "%d rejected, %d stale and %d ignored actions, %d superseded states, "
+                "%d watchdog stops, stopped by %s, global step %d",
+                (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
+                c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
+                self.stopped_by or "nothing", self.global_step,
+            )  # fmt: skip
+            self.counts = dict.fromkeys(self.counts, 0)
+            self.latencies.clear()
+            self._last_report = now
+
+    def _decode_state_payload(self, key: str, payload: bytes) -> StateIn:
+        return decode_state(parse(RobotState, payload), self.num_envs)
+
+
+def _decode_action_payload(key: str, payload: bytes) -> tuple[int, np.ndarray]:
+    return decode_action(parse(PolicyAction, payload))
+
+
+def _decode_schedule_payload(key: str, payload: bytes) -> int:
+    return decode_schedule(parse(Schedule, payload))
