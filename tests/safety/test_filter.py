@@ -173,8 +173,8 @@ def test_soak_ten_thousand_ticks_per_robot() -> None:
     10k ticks per robot, no reflex."""
     rng = np.random.default_rng(2026)
     loop = Loop(np.tile(Q_HOME, (B, 1)))
-    kinds = ["normal", "extremes", "huge", "normal"]
-    actions = np.concatenate([policy_actions(rng, k, n, 0.1) for k, n in zip(kinds, [20, 20, 15, 15])])
+    kinds = [("normal", 20), ("extremes", 20), ("huge", 15), ("normal", 15)]
+    actions = np.concatenate([policy_actions(rng, kind, n, 0.1) for kind, n in kinds])
     for period, action in enumerate(actions):  # (70, B, 21)
         loop.command(action if period % 17 else action[:, :20])  # a wrong shape now and then
         if period % 20 == 19:  # the watchdog fires for half the robots
@@ -215,9 +215,10 @@ def test_watchdog_brakes_to_rest_within_a_bounded_time_and_resumes() -> None:
     at_rest = [np.all(out.dq_ref[stopped, -1] == 0.0) for out in outputs]
     first = at_rest.index(True)
     assert first < limit and all(at_rest[first:])
+    rest = outputs[first].q_ref[stopped, -1:]  # (3, 1, J)
     for out in outputs[first + 1 :]:
         np.testing.assert_array_equal(out.dq_ref[stopped], 0.0)
-        np.testing.assert_array_equal(out.q_ref[stopped], outputs[first].q_ref[stopped, -1:].repeat(100, 1))
+        np.testing.assert_array_equal(out.q_ref[stopped], np.broadcast_to(rest, (3, 100, J)))
     held = loop.filter.core.state.q_target[~stopped]  # not stopped: heads to its last target
     np.testing.assert_allclose(outputs[-1].q_ref[~stopped, -1], held, atol=1e-9)
     ids = np.flatnonzero(stopped)
