@@ -249,6 +249,27 @@ def test_resume_while_still_braking_continues_without_a_reflex() -> None:
     assert not loop.fr3.in_reflex.any()
 
 
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_watchdog_at_random_times_never_triggers_a_reflex(seed: int) -> None:
+    """Stops, resumes (at rest or mid-brake) and periods without an action (brake) at random
+    times among adversarial actions, 60 periods: every period safe, no reflex."""
+    rng = np.random.default_rng(seed)
+    loop = Loop(random_start(rng))
+    for period in range(60):
+        if rng.random() < 0.15:
+            loop.filter.stop(rng.random(B) < 0.5)
+        if rng.random() < 0.15:
+            ids = np.flatnonzero(rng.random(B) < 0.5)
+            loop.filter.resume(ids, loop.q[ids])
+        if rng.random() < 0.2:
+            loop.brake()
+        else:
+            kind = ("normal", "extremes", "huge")[period % 3]
+            loop.command(policy_actions(rng, kind, 1, 0.1)[0])
+    assert np.all(loop.fr3.ticks == 6000)
+
+
 def test_policy_actions_while_stopped_are_ignored() -> None:
     """`command` during a stop (a late action before the e-stop is reset) still brakes and holds:
     the action's target never reaches the references."""
