@@ -14,7 +14,9 @@ State k waits for action k up to `watchdog_s`. Without it the watchdog brakes ev
 environment (one WATCHDOG_STOP event) and every later state is answered at once with the
 brake, until an action arrives again (any step: the policy is alive), when the filter
 resumes from the measured joint positions and the next state waits for its action again.
-While the e-stop is latched, actions are ignored and every state gets the brake.
+While the e-stop is latched, actions are ignored and every state gets the brake. Braking
+commands are paced at about the policy period (`BRAKE_PACE`), so a lock-step sim stays near
+real time while no policy drives it.
 One mode per message: STOP when every environment is stopping, else TRACK.
 """
 
@@ -79,6 +81,11 @@ REJECTIONS = {
     Rejection.STATE: (SafetyEventKind.REJECTED_NONFINITE, "the robot state holds NaN or Inf"),
 }
 """Event kind and reason of each rejection code of stage 1."""
+
+BRAKE_PACE = 0.9
+"""While stopped, states are answered at once but at most one per this share of the policy
+period: a lock-step sim would otherwise run flat out while the arm is held, and a real-time
+executor sends one state per period anyway (the 10% absorbs its jitter)."""
 
 
 # --- decode / encode: pure functions, tested without a session -------------------------
@@ -310,6 +317,10 @@ class SafetyShell:
         self.deadline = 0.0
         self.received_at = 0.0
         """When the pending state arrived (time.monotonic())."""
+        self.brake_at = 0.0
+        """While stopped: when the pending state gets its brake (paced, see BRAKE_PACE)."""
+        self.last_command_at = -np.inf
+        """When the last command was published (time.monotonic())."""
         self.action: tuple[int, np.ndarray] | None = None
         """The newest action (step, raw (B, 21)) not used yet."""
         self.stopped_by: str | None = None
@@ -329,6 +340,11 @@ class SafetyShell:
         self._last_stats = self._last_report = now
 
     @property
+    def period(self) -> float:
+        """The policy period, s."""
+        return self.trajectory.policy_period_s
+
+    @property
     def control_dt(self) -> float:
         """Duration of one reference sample, s."""
         return self.trajectory.control_period_s
@@ -344,13 +360,13 @@ class SafetyShell:
         try:
             while self.service.running:
                 self._apply_estop()
-                timeout = 0.05
-                if self.pending is not None and self.stopped_by is None:
-                    timeout = min(timeout, max(self.deadline - time.monotonic(), 0.0))
+                due = self._due()
+                timeout = 0.05 if due is None else min(0.05, max(due - time.monotonic(), 0.0))
                 received = self.service.receive(timeout=timeout)
                 if received is not None:
                     self._handle(received.name, received.value, received.received_ns)
                 self._check_watchdog()
+                self._answer()
                 self._periodic()
         finally:
             queryable.undeclare()
@@ -366,9 +382,19 @@ class SafetyShell:
 
     # --- inputs ---------------------------------------------------------------------------
 
+    def _due(self) -> float | None:
+        """When the pending state must be acted on (time.monotonic()): the watchdog's
+        deadline, or the next brake while stopped; None without a pending state."""
+        if self.pending is None:
+            return None
+        return self.deadline if self.stopped_by is None else self.brake_at
+
     def _on_state(self, state: StateIn, received_ns: int) -> None:
+        # The sim sends a state again while it waits for its command.
+        if self.pending is not None and self.pending.step == state.step:
+            return  # still waiting: the first arrival's deadline holds
         if self.answered is not None and self.answered[0] == state.step and self.pending is None:
-            self.command.put(self.answered[1])  # the sim sent it again: same answer
+            self.command.put(self.answered[1])  # answered already: the same answer again
             return
         if self.filter is None:
             self.num_envs = len(state.q)
@@ -385,6 +411,7 @@ class SafetyShell:
         received = received_ns / 1e9 if received_ns else now
         self.received_at = min(received, now)
         self.deadline = self.received_at + self.config.watchdog_s
+        self.brake_at = max(self.received_at, self.last_command_at + BRAKE_PACE * self.period)
         self._answer()
 
     def _start_episodes(self, state: StateIn) -> None:
@@ -440,7 +467,8 @@ class SafetyShell:
         if state is None:
             return
         if self.stopped_by is not None:
-            self._publish(self.filter.brake(state.q, state.dq), state)
+            if time.monotonic() >= self.brake_at:
+                self._publish(self.filter.brake(state.q, state.dq), state)
             return
         if self.action is None or self.action[0] != state.step:
             return
@@ -463,12 +491,14 @@ class SafetyShell:
         self.filter.stop(np.arange(self.num_envs))
         reason = f"no action within {self.config.watchdog_s} s of state {step}"
         self._event(SafetyEventKind.WATCHDOG_STOP, step, "watchdog", reason)
+        self.brake_at = time.monotonic()  # this state waited long enough
         self._answer()
 
     def _publish(self, output: SafeOutput, state: StateIn) -> None:
         message = encode_command(output, state.step, state.episode_ids, self.control_dt)
         self.command.put(message)
         self.answered, self.pending = (state.step, message), None
+        self.last_command_at = time.monotonic()
         self.counts["braked" if output.filtered is None else "tracked"] += 1
         self.latencies.append(time.monotonic() - self.received_at)
 
