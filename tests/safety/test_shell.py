@@ -360,3 +360,30 @@ def test_statistics_event_carries_every_stage() -> None:
     assert sum(s.commands for e in stats for s in e.stages if s.stage == "nonfinite_guard") == 8
     clipped = [e for e in events if e.kind == SafetyEventKind.CLIPPED_MAGNITUDE]
     assert len(clipped) == 1  # rate-limited: one per clip_event_period_s
+
+
+def test_state_sent_again_while_waiting_keeps_its_watchdog_deadline() -> None:
+    """The lock-step sim sends its state again every `resend_s` while it waits; when each
+    copy restarted the wait, resends faster than the watchdog kept it from ever firing (a
+    dead policy stalled the sim instead of braking it). A copy of an answered state gets
+    the same command again, not a second filter call."""
+    last_copy = [time.monotonic()]
+    give_up = time.monotonic() + 2.0
+
+    def script(published):
+        if len(of(published, "command")) >= 2 or time.monotonic() > give_up:
+            return "end"
+        if time.monotonic() - last_copy[0] >= 0.05:  # a copy of state 0 every 50 ms
+            last_copy[0] = time.monotonic()
+            return "state", encode(robot_state(0))
+        return None
+
+    service = ScriptedService(script)
+    started = time.monotonic()
+    SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.2)).run()
+    commands = of(service.published, "command")
+    assert time.monotonic() - started < 1.0
+    assert [c.header.step for c in commands] == [0, 0] and commands[0] == commands[1]
+    assert commands[0].mode == CommandMode.STOP
+    kinds = [e.kind for e in of(service.published, "event")]
+    assert kinds == [SafetyEventKind.WATCHDOG_STOP]
