@@ -10,7 +10,9 @@ watchdog and e-stop events, and per-stage statistics every `stats_period_s` with
 SAFETY_EVENT_KIND_UNSPECIFIED). Serves the queryable `safety/<w>/estop`: `stop` latches a
 stop, `reset` releases it, `status` reports; each answer is a JSON object.
 
-State k waits for action k up to `watchdog_s`. Without it the watchdog brakes every
+State k waits for action k (an action is used only for the state it answers) up to
+`watchdog_s` after the oldest state still unanswered (a real-time executor sends newer
+states meanwhile; each replaces the one waiting). Without it the watchdog brakes every
 environment (one WATCHDOG_STOP event) and every later state is answered at once with the
 brake, until an action arrives again (any step: the policy is alive), when the filter
 resumes from the measured joint positions and the next state waits for its action again.
@@ -404,13 +406,13 @@ class SafetyShell:
                 self.filter.stop(np.arange(self.num_envs))
         else:
             self._start_episodes(state)
-        if self.pending is not None:
-            self.counts["superseded"] += 1
-        self.latest, self.pending = state, state
         now = time.monotonic()
-        received = received_ns / 1e9 if received_ns else now
-        self.received_at = min(received, now)
-        self.deadline = self.received_at + self.config.watchdog_s
+        received = min(received_ns / 1e9 if received_ns else now, now)
+        if self.pending is None:
+            self.deadline = received + self.config.watchdog_s
+        else:  # a real-time executor moved on: the wait runs from the oldest unanswered state
+            self.counts["superseded"] += 1
+        self.latest, self.pending, self.received_at = state, state, received
         self.brake_at = max(self.received_at, self.last_command_at + BRAKE_PACE * self.period)
         self._answer()
 

@@ -387,3 +387,29 @@ def test_state_sent_again_while_waiting_keeps_its_watchdog_deadline() -> None:
     assert commands[0].mode == CommandMode.STOP
     kinds = [e.kind for e in of(service.published, "event")]
     assert kinds == [SafetyEventKind.WATCHDOG_STOP]
+
+
+def test_watchdog_fires_under_a_free_running_executor() -> None:
+    """A real-time executor sends state k+1 a period after state k whether or not k was
+    answered. When each new state restarted the wait, a watchdog longer than the period
+    never fired and no command was ever sent (seen in the demo stack)."""
+    sent = [time.monotonic()]
+    step = [0]
+    give_up = time.monotonic() + 2.0
+
+    def script(published):
+        if len(of(published, "command")) >= 3 or time.monotonic() > give_up:
+            return "end"
+        if time.monotonic() - sent[0] >= 0.1:  # one state per 100 ms policy period
+            sent[0] = time.monotonic()
+            step[0] += 1
+            return "state", encode(robot_state(step[0]))
+        return None
+
+    service = ScriptedService(script)
+    SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.25)).run()
+    commands = of(service.published, "command")
+    assert len(commands) == 3 and all(c.mode == CommandMode.STOP for c in commands)
+    watchdog = [e for e in of(service.published, "event")
+                if e.kind == SafetyEventKind.WATCHDOG_STOP]  # fmt: skip
+    assert len(watchdog) == 1 and watchdog[0].header.step in (3, 4)
