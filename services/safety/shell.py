@@ -52,7 +52,14 @@ from hamnet.safety.config import SafetyConfig
 from hamnet.safety.filter import SafeOutput, SafetyFilter
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.stages import Rejection
-from hamnet.safety.stats import StageStats, StatsAccumulator, empty_stats, merge, summarize
+from hamnet.safety.stats import (
+    StageReport,
+    StageStats,
+    StatsAccumulator,
+    empty_stats,
+    merge,
+    summarize,
+)
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
@@ -515,22 +522,25 @@ class SafetyShell:
         for event in rejection_events(filtered, step):
             self.event.put(event)
         self.counts["rejected"] += int(filtered.rejected.sum())
-        now = time.monotonic()
         for report in filtered.reports:
-            if report.stage not in CLIP_KINDS:
-                continue
-            stats, envs = self.clips.get(report.stage, (empty_stats(report.stage), None))
-            stats = merge(stats, summarize(report))
-            envs = report.clipped if envs is None else envs | report.clipped  # (B,)
-            self.clips[report.stage] = (stats, envs)
-            due = now - self.last_clip_event.get(report.stage, -np.inf) >= self.config.clip_event_period_s
-            if stats.clipped and due:
-                reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
-                          f"largest excess {stats.max_excess:.4g}")  # fmt: skip
-                self._event(CLIP_KINDS[report.stage], step, report.stage, reason,
-                            np.flatnonzero(envs), (stats,))  # fmt: skip
-                self.last_clip_event[report.stage] = now
-                del self.clips[report.stage]
+            if report.stage in CLIP_KINDS:
+                self._clip_event(report, step)
+
+    def _clip_event(self, report: StageReport, step: int) -> None:
+        """Count one clip stage's report; publish its event when it clipped and one is due."""
+        stage = report.stage
+        stats, envs = self.clips.get(stage, (empty_stats(stage), report.clipped))
+        stats, envs = merge(stats, summarize(report)), envs | report.clipped  # (B,)
+        self.clips[stage] = (stats, envs)
+        now = time.monotonic()
+        last = self.last_clip_event.get(stage, -np.inf)
+        if not stats.clipped or now - last < self.config.clip_event_period_s:
+            return
+        reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
+                  f"largest excess {stats.max_excess:.4g}")  # fmt: skip
+        self._event(CLIP_KINDS[stage], step, stage, reason, np.flatnonzero(envs), (stats,))
+        self.last_clip_event[stage] = now
+        del self.clips[stage]
 
     def _periodic(self) -> None:
         """Statistics event and rate line when due."""
