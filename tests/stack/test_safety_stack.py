@@ -97,6 +97,9 @@ def test_policy_to_sim_through_safety_with_nan_estop_and_watchdog(spawn, transpo
             if step == 26:
                 estop_steps["reset"] = step
                 assert estop(session, estop_key, "reset")["latched"] is False
+                assert estop(session, estop_key, "status")["latched"] is False
+                replies = list(session.get(f"{estop_key}?halt", timeout=2.0))
+                assert len(replies) == 1 and replies[0].err is not None
             if step >= 40:  # the policy dies: no more actions
                 phase, dead_since, dead_at = "dead", step, time.monotonic()
                 continue
