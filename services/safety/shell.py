@@ -24,11 +24,8 @@ One mode per message: STOP when every environment is stopping, else TRACK.
 
 from __future__ import annotations
 
-import json
 import logging
-import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +46,7 @@ from hamnet.runtime.codec import parse
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.safety.config import SafetyConfig
+from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.filter import SafeOutput, SafetyFilter
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.stages import Rejection
@@ -223,52 +221,6 @@ def episode_starts(state: StateIn, previous_ids: np.ndarray | None) -> np.ndarra
 # --- the e-stop ----------------------------------------------------------------------------
 
 
-class EStop:
-    """The latch behind the e-stop queryable. Zenoh threads call `request`; the service
-    thread applies the queued requests to the filter (`take`), so the filter is only ever
-    touched by one thread. The latch itself takes effect at once: actions are ignored from
-    the moment `stop` is answered."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._requests: deque[str] = deque()
-        self.latched = False
-        """A stop is latched: actions are ignored, every state gets the brake."""
-        self.status: dict[str, object] = {}
-        """What the service thread last reported (step, watchdog), for `status` answers."""
-
-    def request(self, command: str) -> tuple[bool, str]:
-        """Handle `stop`, `reset` or `status`; returns (ok, JSON answer or error text)."""
-        command = command.strip().lower()
-        if command not in ("stop", "reset", "status"):
-            return False, f"unknown e-stop command {command!r}: use stop, reset or status"
-        with self._lock:
-            if command != "status":
-                self.latched = command == "stop"
-                self._requests.append(command)
-            answer = {"latched": self.latched, **self.status}
-        return True, json.dumps(answer)
-
-    def take(self) -> list[str]:
-        """Requests not applied yet, oldest first."""
-        with self._lock:
-            requests = list(self._requests)
-            self._requests.clear()
-        return requests
-
-
-def _on_query(estop: EStop, query) -> None:
-    """Zenoh callback of the queryable: the command is the payload, else the parameters
-    (`hamnet/<ns>/safety/<w>/estop?stop`)."""
-    payload = query.payload
-    text = payload.to_string() if payload is not None else str(query.parameters)
-    ok, answer = estop.request(text)
-    if ok:
-        query.reply(query.key_expr, answer)
-    else:
-        query.reply_err(answer)
-
-
 # --- the loop ------------------------------------------------------------------------------
 
 
@@ -361,7 +313,7 @@ class SafetyShell:
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
         queryable = self.service.session.declare_queryable(
-            self.estop_key, lambda query: _on_query(self.estop, query)
+            self.estop_key, lambda query: on_query(self.estop, query)
         )
         log.info("watchdog %.2f s, %d samples of %.4f s per policy period, e-stop on %s",
                  self.config.watchdog_s, self.trajectory.samples_per_period, self.control_dt,
