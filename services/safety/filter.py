@@ -20,6 +20,10 @@ from hamnet.safety.stages import torque_preclip
 from hamnet.safety.trajectory import References, TrajectoryConfig, TrajectoryGenerator
 
 
+BRAKE_MIN_DAMPING_RATIO = 1.0
+"""Damping ratio the braking path uses at least."""
+
+
 @dataclass(frozen=True)
 class SafeOutput:
     """One policy period of safe commands (the SafeCommand message)."""
@@ -108,7 +112,10 @@ class SafetyFilter:
         references = self.trajectory.step(state.q_target)
         finite = (np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1))[:, None]  # (B, 1)
         q_now, dq_now = np.where(finite, q, state.q_target), np.where(finite, dq, 0.0)
-        kp, kd, _ = torque_preclip(references.q_ref, q_now, dq_now, state.kp, state.rho, self.tau_limit)
+        # At least critical damping while braking: the policy's rho can be as low as 0.3,
+        # which would leave the arm drifting about its held reference.
+        rho = np.maximum(state.rho, BRAKE_MIN_DAMPING_RATIO)
+        kp, kd, _ = torque_preclip(references.q_ref, q_now, dq_now, state.kp, rho, self.tau_limit)
         return SafeOutput(
             references.q_ref, references.dq_ref, kp, kd, self.tau_limit.copy(),
             self.trajectory.stopping.copy(), references,
