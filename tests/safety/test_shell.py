@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -19,9 +18,7 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime.codec import decode, encode, parse
-from hamnet.runtime.pubsub import DropCounter, Received
-from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.codec import encode, parse
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.shell import (
@@ -39,6 +36,8 @@ from hamnet.safety.shell import (
 from hamnet.safety.stats import StageStats
 from hamnet.sim.robot import Q_HOME
 from hamnet.sim.shell import decode_command
+from hamnet.runtime.service import ServiceIdentity
+from tests.scripted import ScriptedService, wire
 
 B, S, J = 2, 8, 7
 CONTROL_DT = 0.1 / S
@@ -61,10 +60,6 @@ def policy_action(step: int, action: np.ndarray) -> PolicyAction:
     to_tensor(np.asarray(action, np.float32), message.action)  # (B, 21)
     return message
 
-
-def wire(message, finite: bool = True):
-    """Through the wire format, checked the way a generic receiver checks it."""
-    return decode(type(message), encode(message), finite)
 
 
 # --- decode / encode ---------------------------------------------------------------------
@@ -175,63 +170,9 @@ def test_estop_latch_answers_in_json_and_queues_requests() -> None:
 # --- the loop, fed a script instead of a network -------------------------------------------
 
 
-class CapturingPublisher:
-    """Keeps what is put, through the wire format, under the topic's last key segment."""
-
-    def __init__(self, key: str, published: list[tuple[str, object]]) -> None:
-        self.topic, self.published = key.rsplit("/", 1)[1], published
-
-    def put(self, message) -> None:
-        self.published.append((self.topic, wire(message)))
-
-
-class _Queryable:
-    def undeclare(self) -> None:
-        pass
-
-
-class _Session:
-    def declare_queryable(self, key: str, handler) -> _Queryable:
-        return _Queryable()
-
-
-@dataclass
-class ScriptedService:
-    """Stands in for `Service`: `receive` asks `script` for the next (name, payload) given
-    what was published so far, decodes it with the shell's decoder (counting a PayloadError
-    as the inbox does), and otherwise waits out the timeout as a quiet network would. The
-    script ends the run by returning "end"."""
-
-    script: Callable[[list[tuple[str, object]]], tuple[str, bytes] | str | None]
-    namespace: str = "t"
-    identity: ServiceIdentity = field(default_factory=lambda: ServiceIdentity("safety", "0"))
-    published: list[tuple[str, object]] = field(default_factory=list)
-    drops: DropCounter = field(default_factory=DropCounter)
-    session: _Session = field(default_factory=_Session)
-    running: bool = True
-
-    def __post_init__(self) -> None:
-        self.inbox, self.decoders = self, {}
-
-    def subscribe(self, name: str, key: str, decoder) -> None:
-        self.decoders[name] = (key, decoder)
-
-    def publisher(self, key: str) -> CapturingPublisher:
-        return CapturingPublisher(key, self.published)
-
-    def receive(self, timeout: float = 0.1) -> Received | None:
-        while (item := self.script(self.published)) is not None:
-            if item == "end":
-                self.running = False
-                return None
-            name, payload = item
-            key, decoder = self.decoders[name]
-            try:
-                return Received(name, key, decoder(key, payload), 0)
-            except PayloadError as error:
-                self.drops.drop(key, error.reason, error.detail)
-        time.sleep(timeout)
-        return None
+def scripted(script) -> ScriptedService:
+    """The safety service on a scripted network that stays quiet when the script has nothing."""
+    return ScriptedService(script, ServiceIdentity("safety", "0"), idle=True)
 
 
 def of(published, topic: str) -> list:
@@ -276,7 +217,7 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
 
     hooks = {1: lambda: [("action", b"\xff not a message"),
                          ("schedule", encode(Schedule(global_step=4096)))]}  # fmt: skip
-    service = ScriptedService(sim_script(act, last=5, hooks=hooks))
+    service = scripted(sim_script(act, last=5, hooks=hooks))
     shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
     assert shell.run() == 0
     commands = of(service.published, "command")
@@ -307,7 +248,7 @@ def test_watchdog_brakes_without_actions_and_resumes_when_they_return() -> None:
         late.append(time.monotonic())
         return [("action", encode(policy_action(5, np.zeros((B, 21), np.float32))))]
 
-    service = ScriptedService(sim_script(act, last=7, hooks={6: late_action}))
+    service = scripted(sim_script(act, last=7, hooks={6: late_action}))
     shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.2))
     started = time.monotonic()
     shell.run()
@@ -334,7 +275,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
 
     hooks = {2: request("stop"), 5: request("reset")}
     act = lambda step: np.zeros((B, 21), np.float32)  # noqa: E731
-    service = ScriptedService(sim_script(act, last=6, hooks=hooks))
+    service = scripted(sim_script(act, last=6, hooks=hooks))
     shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
     holder.append(shell)
     shell.run()
@@ -351,7 +292,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
 
 def test_statistics_event_carries_every_stage() -> None:
     act = lambda step: np.full((B, 21), 5.0, np.float32)  # noqa: E731  saturating actions
-    service = ScriptedService(sim_script(act, last=3))
+    service = scripted(sim_script(act, last=3))
     config = ShellConfig(num_envs=B, watchdog_s=5.0, stats_period_s=0.0)
     SafetyShell(service, config).run()
     events: list[SafetyEvent] = of(service.published, "event")
@@ -378,7 +319,7 @@ def test_state_sent_again_while_waiting_keeps_its_watchdog_deadline() -> None:
             return "state", encode(robot_state(0))
         return None
 
-    service = ScriptedService(script)
+    service = scripted(script)
     started = time.monotonic()
     SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.2)).run()
     commands = of(service.published, "command")
@@ -406,7 +347,7 @@ def test_watchdog_fires_under_a_free_running_executor() -> None:
             return "state", encode(robot_state(step[0]))
         return None
 
-    service = ScriptedService(script)
+    service = scripted(script)
     SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.25)).run()
     commands = of(service.published, "command")
     assert len(commands) == 3 and all(c.mode == CommandMode.STOP for c in commands)

@@ -7,18 +7,15 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
-from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime.codec import decode, encode
-from hamnet.runtime.pubsub import DropCounter, Received
-from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
@@ -34,6 +31,7 @@ from hamnet.sim.shell import (
     encode_state,
     encode_transition,
 )
+from tests.scripted import ScriptedService, wire
 
 B, S, J = 4, 8, 7
 CONTROL_DT = 0.1 / S
@@ -62,10 +60,6 @@ def safe_command(command: Command, step: int, **overrides: np.ndarray) -> SafeCo
 
 equal, close = np.testing.assert_array_equal, np.testing.assert_allclose
 
-
-def wire(message):
-    """Through the wire format, checked the way a generic receiver checks it."""
-    return decode(type(message), encode(message))
 
 
 def test_state_round_trips_with_its_privileged_block() -> None:
@@ -184,55 +178,6 @@ def test_schedule_keeps_the_sim_values_and_rejects_non_probabilities() -> None:
 
 
 # --- the loop, fed a script instead of a network -----------------------------------------
-
-
-class CapturingPublisher:
-    """Keeps what is put, through the wire format, under the topic's last key segment."""
-
-    def __init__(self, key: str, published: list[tuple[str, object]]) -> None:
-        self.topic, self.published = key.rsplit("/", 1)[1], published
-
-    def put(self, message) -> None:
-        self.published.append((self.topic, wire(message)))
-
-
-@dataclass
-class ScriptedService:
-    """Stands in for `Service`: `receive` asks `script` for the next (name, payload) given
-    what was published so far and decodes it with the shell's own decoder (counting a
-    PayloadError as the inbox does). When the script has nothing, it stops the loop, or,
-    with `idle`, waits out the timeout as a quiet network would."""
-
-    script: Callable[[list[tuple[str, object]]], tuple[str, bytes] | None]
-    idle: bool = False
-    namespace: str = "t"
-    identity: ServiceIdentity = field(default_factory=lambda: ServiceIdentity("sim", "0"))
-    published: list[tuple[str, object]] = field(default_factory=list)
-    drops: DropCounter = field(default_factory=DropCounter)
-    running: bool = True
-
-    def __post_init__(self) -> None:
-        self.inbox, self.decoders = self, {}
-
-    def subscribe(self, name: str, key: str, decoder) -> None:
-        self.decoders[name] = (key, decoder)
-
-    def publisher(self, key: str) -> CapturingPublisher:
-        return CapturingPublisher(key, self.published)
-
-    def receive(self, timeout: float = 0.1) -> Received | None:
-        while (item := self.script(self.published)) is not None:
-            name, payload = item
-            key, decoder = self.decoders[name]
-            try:
-                return Received(name, key, decoder(key, payload), 0)
-            except PayloadError as error:
-                self.drops.drop(key, error.reason, error.detail)
-        if self.idle:
-            time.sleep(timeout)
-        else:
-            self.running = False
-        return None
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor, to_tensor
-from hamnet.runtime.transport import TransportConfig, open_session
+from hamnet.runtime.transport import open_session
 from tests.conftest import transport_args
 
 B, J = 2, 7

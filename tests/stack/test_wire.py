@@ -10,7 +10,6 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from google.protobuf.message import Message
 
 from hamnet.proto.health_pb2 import Health
 from hamnet.runtime import contract, keys
@@ -18,7 +17,6 @@ from hamnet.runtime.codec import decode, encode, iter_tensors
 from hamnet.runtime.pubsub import DropCounter, Inbox
 from hamnet.runtime.tensor import PayloadError, to_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.tools.echo import decode_by_contract, reflect_key
 from tests.conftest import transport_args
 from tests.messages import random_message
 
