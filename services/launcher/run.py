@@ -20,7 +20,7 @@ from hamnet.launcher.output import Output, use_colour
 from hamnet.launcher.stack import Stack
 from hamnet.launcher.summary import Report, output_files, process_report
 from hamnet.launcher.supervisor import Outcome, Process, Supervisor
-from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness, in_namespace
+from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness
 from hamnet.proto.health_pb2 import Health
 from hamnet.runtime.cli import CommonConfig
 from hamnet.runtime.service import Service, ServiceIdentity
@@ -69,7 +69,7 @@ def run(
     with Service(ServiceIdentity("up", common.worker), transport) as service:
         liveliness = Liveliness(service.session, stack.namespace)
         health = HealthBoard()
-        service.inbox.subscribe("health", in_namespace(HEALTH, stack.namespace), Health)
+        service.inbox.subscribe("health", HEALTH.pattern_in(stack.namespace), Health)
         try:
             ending = _supervise(stack, service, supervisor, liveliness, health, duration_s)
         finally:

@@ -23,12 +23,6 @@ ALIVE = contract.topic("alive/<service>/<w>")
 HEALTH = contract.topic("health/<service>/<w>")
 
 
-def in_namespace(topic: contract.Topic, namespace: str) -> str:
-    """Key expression of every key of `topic` in one namespace: `hamnet/demo/alive/*/*`."""
-    root, _, path = topic.pattern.split("/", 2)
-    return f"{root}/{keys.check_segment('namespace', namespace)}/{path}"
-
-
 class Liveliness:
     """Liveliness tokens of one namespace, as a subscriber with history sees them."""
 
@@ -37,7 +31,7 @@ class Liveliness:
         self._announced: dict[tuple[str, str], list[float]] = {}
         self._withdrawn: dict[tuple[str, str], list[float]] = {}
         self._subscriber = session.liveliness().declare_subscriber(
-            in_namespace(ALIVE, namespace), self._on_sample, history=True
+            ALIVE.pattern_in(namespace), self._on_sample, history=True
         )
 
     def _on_sample(self, sample: zenoh.Sample) -> None:

@@ -43,9 +43,14 @@ class Topic:
 
     @property
     def pattern(self) -> str:
-        """Key expression matching this topic in `namespace` ('*' for any)."""
-        path = _PLACEHOLDER.sub("*", self.path)
-        return f"{keys.ROOT}/*/{path}"
+        """Key expression matching this topic in any namespace."""
+        return self.pattern_in("*")
+
+    def pattern_in(self, namespace: str) -> str:
+        """Key expression matching every key of this topic in `namespace` ('*' for any)."""
+        if namespace != "*":
+            keys.check_segment("namespace", namespace)
+        return f"{keys.ROOT}/{namespace}/{_PLACEHOLDER.sub('*', self.path)}"
 
     @property
     def placeholders(self) -> tuple[str, ...]:
