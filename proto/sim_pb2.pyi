@@ -40,7 +40,7 @@ class RobotState(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_step: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., q: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., dq: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., tau: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., ee_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., privileged: _Optional[_Union[PrivilegedState, _Mapping]] = ...) -> None: ...
 
 class Scene(_message.Message):
-    __slots__ = ("header", "env_ids", "episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active", "object_ids", "object_scale", "start_pose", "goal_pose", "env_code")
+    __slots__ = ("header", "env_ids", "episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active", "object_ids", "object_scale", "start_pose", "goal_pose", "env_code", "object_points")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     ENV_IDS_FIELD_NUMBER: _ClassVar[int]
     EPISODE_IDS_FIELD_NUMBER: _ClassVar[int]
@@ -53,6 +53,7 @@ class Scene(_message.Message):
     START_POSE_FIELD_NUMBER: _ClassVar[int]
     GOAL_POSE_FIELD_NUMBER: _ClassVar[int]
     ENV_CODE_FIELD_NUMBER: _ClassVar[int]
+    OBJECT_POINTS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     env_ids: _common_pb2.Tensor
     episode_ids: _common_pb2.Tensor
@@ -65,7 +66,8 @@ class Scene(_message.Message):
     start_pose: _common_pb2.Tensor
     goal_pose: _common_pb2.Tensor
     env_code: _common_pb2.Tensor
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., env_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_pos: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_quat: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_half_size: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_active: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_ids: _Optional[_Iterable[str]] = ..., object_scale: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., start_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., env_code: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
+    object_points: _common_pb2.Tensor
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., env_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_pos: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_quat: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_half_size: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., cuboid_active: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_ids: _Optional[_Iterable[str]] = ..., object_scale: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., start_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., env_code: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_points: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
 
 class Transition(_message.Message):
     __slots__ = ("header", "episode_ids", "reward_names", "reward_terms", "terminated", "truncated", "success")

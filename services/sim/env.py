@@ -26,6 +26,9 @@ from hamnet.sim.scene import NUM_CUBOIDS, TABLE
 from hamnet.sim.termination import termination, workspace_bounds
 from hamnet.sim.world import build_world
 
+OBJECT_POINTS = 512
+"""Surface points per object sent with each scene: the paper's object cloud size."""
+
 
 @dataclass(frozen=True)
 class Command:
@@ -86,6 +89,11 @@ class VectorEnv:
             objects = objects + ObjectSet.from_folder(config.object_folder, config.library)
         sized, scale = draw.sized_library(objects, config.objects, config.size_bins)
         self.library = draw.Library.of(sized, scale)
+        points_rng = np.random.default_rng(config.seed)
+        self.object_points = np.stack(
+            [asset.sample_surface(OBJECT_POINTS, points_rng) for asset in sized]
+        ).astype(np.float32)
+        """(N, P, 3) surface samples of each library entry in its own frame (the object cloud)."""
         self.world = build_world(sized)
         self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)
         self.kinematics = ArmKinematics()

@@ -74,6 +74,7 @@ def encode_scene(
     obs: Observation,
     scene_arrays: Mapping[str, np.ndarray],
     object_ids: Sequence[str],
+    object_points: np.ndarray,
     env_ids: np.ndarray,
     step: int,
 ) -> Scene:
@@ -84,6 +85,7 @@ def encode_scene(
         scene_arrays: `VectorEnv.scene_arrays`: centre (B, C, 3), quat (B, C, 4),
             half_extent (B, C, 3), active (B, C), env_code (B, 25).
         object_ids: (B,) library name of each environment's object.
+        object_points: (B, P, 3) surface samples of each environment's object, own frame.
         env_ids: (K,) environments to describe.
         step: the step of the state these episodes start in.
     """
@@ -99,6 +101,7 @@ def encode_scene(
     to_tensor(obs.object_pose[env_ids].astype(np.float32), message.start_pose)  # (K, 7)
     to_tensor(obs.goal_pose[env_ids].astype(np.float32), message.goal_pose)  # (K, 7)
     to_tensor(scene_arrays["env_code"][env_ids].astype(np.float32), message.env_code)  # (K, 25)
+    to_tensor(object_points[env_ids].astype(np.float32), message.object_points)  # (K, P, 3)
     return message
 
 
@@ -305,8 +308,10 @@ class SimShell:
 
     def _publish_scene(self, env_ids: np.ndarray) -> None:
         object_ids = [self.names[i] for i in self.env.object_index]  # (B,)
-        arrays = self.env.scene_arrays
-        self.scene.put(encode_scene(self.observation, arrays, object_ids, env_ids, self.step))
+        points = self.env.object_points[self.env.object_index]  # (B, P, 3)
+        self.scene.put(encode_scene(
+            self.observation, self.env.scene_arrays, object_ids, points, env_ids, self.step
+        ))  # fmt: skip
 
     def _stale(self, step: int) -> None:
         self.stale += 1

@@ -10,7 +10,7 @@ import pytest
 from hamnet.sim import robot
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues
-from hamnet.sim.env import Command, VectorEnv
+from hamnet.sim.env import OBJECT_POINTS, Command, VectorEnv
 from hamnet.sim.placement import PlacementConfig
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.task_config import TaskConfig
@@ -171,3 +171,14 @@ def test_near_starts_put_the_paddle_beside_the_object_without_touching_anything(
         arm_contacts = np.isin(bodies, near.world.robot_bodies).any(axis=0).sum()
         assert arm_contacts == 0 or (observation.q[env_index] == robot.Q_HOME.astype(np.float32)).all()
     assert ncon.shape == (B,)
+
+
+def test_object_points_cover_each_sized_object_surface(env: VectorEnv) -> None:
+    points = env.object_points  # (N, P, 3)
+    assert points.shape == (len(env.library.objects), OBJECT_POINTS, 3)
+    for asset, cloud in zip(env.library.objects, points, strict=True):
+        low, high = asset.bbox
+        assert (cloud >= low - 1e-5).all() and (cloud <= high + 1e-5).all(), asset.name
+        # Uniform on the surface: the cloud spans the object's box on every axis.
+        np.testing.assert_allclose(cloud.min(0), low, atol=0.25 * (high - low).max())
+        np.testing.assert_allclose(cloud.max(0), high, atol=0.25 * (high - low).max())

@@ -85,7 +85,8 @@ def test_scene_describes_only_the_reset_environments() -> None:
     }  # fmt: skip
     names = ["box@0.050", "mug@0.100", "cylinder@0.075", "box@0.100"]
     ids = np.array([3, 1])
-    message = wire(encode_scene(obs, arrays, names, ids, step=5))
+    points = rng.standard_normal((B, 512, 3)).astype(np.float32)
+    message = wire(encode_scene(obs, arrays, names, points, ids, step=5))
     assert message.header.step == 5
     assert list(message.object_ids) == ["box@0.100", "mug@0.100"]
     equal(from_tensor(message.env_ids, np.int32, (2,)), ids)
@@ -97,6 +98,7 @@ def test_scene_describes_only_the_reset_environments() -> None:
     equal(from_tensor(message.object_scale, np.float32, (2,)), obs.physics_params[ids, 5])
     equal(from_tensor(message.start_pose, np.float32, (2, 7)), obs.object_pose[ids])
     equal(from_tensor(message.goal_pose, np.float32, (2, 7)), obs.goal_pose[ids])
+    equal(from_tensor(message.object_points, np.float32, (2, 512, 3)), points[ids])
 
 
 def test_transition_round_trips_with_named_reward_terms() -> None:

@@ -1,0 +1,2 @@
+"""Recording and replay: any set of topics to MCAP with protobuf schemas, and back onto Zenoh.
+"""
