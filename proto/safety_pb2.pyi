@@ -27,6 +27,7 @@ class SafetyEventKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     WATCHDOG_STOP: _ClassVar[SafetyEventKind]
     ESTOP_LATCHED: _ClassVar[SafetyEventKind]
     ESTOP_RESET: _ClassVar[SafetyEventKind]
+    REJECTED_EPISODE: _ClassVar[SafetyEventKind]
 COMMAND_MODE_UNSPECIFIED: CommandMode
 TRACK: CommandMode
 HOLD: CommandMode
@@ -41,6 +42,7 @@ CLIPPED_TORQUE: SafetyEventKind
 WATCHDOG_STOP: SafetyEventKind
 ESTOP_LATCHED: SafetyEventKind
 ESTOP_RESET: SafetyEventKind
+REJECTED_EPISODE: SafetyEventKind
 
 class SafeCommand(_message.Message):
     __slots__ = ("header", "episode_ids", "mode", "q_ref", "dq_ref", "kp", "kd", "tau_limit", "control_dt")

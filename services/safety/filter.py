@@ -80,9 +80,17 @@ class SafetyFilter:
         self.trajectory.reset(env_ids, q)
         self.trajectory.resume(env_ids)
 
-    def command(self, action: object, q: np.ndarray, dq: np.ndarray, step: int) -> SafeOutput:
-        """Filter a raw action (B, 21) at the measured state q, dq (B, J) and global `step`."""
-        filtered = self.core.filter(action, q, dq, step, record=False)
+    def command(
+        self,
+        action: object,
+        q: np.ndarray,
+        dq: np.ndarray,
+        step: int,
+        stale: np.ndarray | None = None,
+    ) -> SafeOutput:
+        """Filter a raw action (B, 21) at the measured state q, dq (B, J) and global `step`;
+        rows where `stale` (B,) is set were computed for another episode and are rejected."""
+        filtered = self.core.filter(action, q, dq, step, record=False, stale=stale)
         references = self.trajectory.step(filtered.q_target)
         filtered = self.core.recheck_torque(filtered, references.q_ref, q, dq)
         self.core.record(filtered)

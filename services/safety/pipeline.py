@@ -146,6 +146,7 @@ def filter_action(
     step: int,
     jacobians: Jacobians,
     episode_start: np.ndarray | None = None,
+    stale: np.ndarray | None = None,
 ) -> tuple[FilterResult, SafetyState]:
     """Stages 1-5 and 7 for one batch.
 
@@ -159,6 +160,8 @@ def filter_action(
         jacobians: q (N, J) -> (N, R, J) end-effector Jacobians (`cartesian.ee_jacobians`).
         episode_start: (B,) bool, envs starting an episode with this action (EMA cleared, hold
             target reset to q), or None.
+        stale: (B,) bool, envs whose action was computed for another episode (rejected,
+            reason EPISODE), or None.
     Returns:
         The FilterResult and the next SafetyState.
     """
@@ -173,7 +176,7 @@ def filter_action(
     state_ok = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # (B,)
     q_now = np.where(state_ok[:, None], q, state.q_target)  # (B, J)
     dq_now = np.where(state_ok[:, None], dq, 0.0)
-    raw, reason, report = _run_guard(config, action, state_ok)  # (B, 21), (B,)
+    raw, reason, report = _run_guard(config, action, state_ok, stale)  # (B, 21), (B,)
     accepted = reason == stages.Rejection.ACCEPTED  # (B,)
     reports = [report]
 
@@ -220,9 +223,10 @@ def filter_action(
 
 
 def _run_guard(
-    config: SafetyConfig, action: object, state_ok: np.ndarray
+    config: SafetyConfig, action: object, state_ok: np.ndarray, stale: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray, StageReport]:
-    """Stage 1: cleaned action (B, 21), reason (B,) (STATE where the state is non-finite)."""
+    """Stage 1: cleaned action (B, 21), reason (B,) (STATE where the state is non-finite,
+    EPISODE where the action belongs to another episode)."""
     b = state_ok.shape[0]
     if not config.nonfinite_guard.enabled:
         array = np.asarray(action, dtype=np.float64)
@@ -231,6 +235,10 @@ def _run_guard(
         reason = np.zeros(b, dtype=np.int8)
         return array, reason, stage_report("nonfinite_guard", np.zeros(b, bool), np.zeros(b))
     raw, reason = stages.nonfinite_guard(action, b)
+    if stale is not None:
+        stale = np.asarray(stale, dtype=bool) & (reason == stages.Rejection.ACCEPTED)  # (B,)
+        reason[stale] = stages.Rejection.EPISODE
+        raw[stale] = 0.0
     reason[~state_ok] = stages.Rejection.STATE
     rejected = (reason != stages.Rejection.ACCEPTED).astype(np.float64)  # 1 per rejection
     return raw, reason, stage_report("nonfinite_guard", np.ones(b, bool), rejected)
@@ -327,11 +335,12 @@ class SafetyCore:
         step: int,
         episode_start: np.ndarray | None = None,
         record: bool = True,
+        stale: np.ndarray | None = None,
     ) -> FilterResult:
         """Stages 1-5 and 7 (see `filter_action`); updates the memory, and the statistics
         unless `record` is False (a caller that runs `recheck_torque` records afterwards)."""
         result, self.state = filter_action(
-            self.config, self.state, action, q, dq, step, self.jacobians, episode_start
+            self.config, self.state, action, q, dq, step, self.jacobians, episode_start, stale
         )
         if record:
             self.record(result)

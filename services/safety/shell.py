@@ -86,6 +86,8 @@ REJECTIONS = {
     Rejection.NONFINITE: (SafetyEventKind.REJECTED_NONFINITE, "the action holds NaN or Inf"),
     Rejection.SHAPE: (SafetyEventKind.REJECTED_SHAPE, f"the action is not (B, {ACTION_WIDTH})"),
     Rejection.STATE: (SafetyEventKind.REJECTED_NONFINITE, "the robot state holds NaN or Inf"),
+    Rejection.EPISODE: (SafetyEventKind.REJECTED_EPISODE, "the action was computed for an "
+                        "episode that has ended (the environment was reset)"),
 }
 """Event kind and reason of each rejection code of stage 1."""
 
@@ -144,9 +146,27 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
     return StateIn(message.header.step, q, dq, episode_ids.copy(), episode_step.copy())
 
 
-def decode_action(message: PolicyAction) -> tuple[int, np.ndarray]:
-    """(step, raw action) of a PolicyAction. NaN, Inf and any shape pass: stage 1 of the
-    core rejects them and the rejection becomes a safety event.
+@dataclass(frozen=True)
+class ActionIn:
+    """What the filter needs of PolicyAction k."""
+
+    step: int
+    """k: the state step the action was computed for."""
+    action: np.ndarray
+    """Raw action, (B, 21) expected; NaN, Inf and any shape pass (stage 1 rejects them)."""
+    episode_ids: np.ndarray | None
+    """(N,) int64 episodes the action was computed for; None when the policy sent none."""
+
+    def stale(self, state: StateIn) -> np.ndarray | None:
+        """(B,) rows computed for another episode than the state's, or None (unchecked)."""
+        if self.episode_ids is None or self.episode_ids.shape != state.episode_ids.shape:
+            return None  # a wrong batch is rejected whole by stage 1 (shape)
+        return self.episode_ids != state.episode_ids
+
+
+def decode_action(message: PolicyAction) -> ActionIn:
+    """The step, raw action and episode ids of a PolicyAction. NaN, Inf and any shape of
+    the action pass: stage 1 of the core rejects them and the rejection becomes an event.
 
     Raises:
         PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
@@ -154,7 +174,10 @@ def decode_action(message: PolicyAction) -> tuple[int, np.ndarray]:
     if not message.HasField("action"):
         raise PayloadError("missing", "PolicyAction.action is not set")
     action = from_tensor(message.action, np.float32, None, finite=False)  # (B, 21) expected
-    return message.header.step, action
+    episode_ids = None
+    if message.HasField("episode_ids"):
+        episode_ids = from_tensor(message.episode_ids, np.int64, (None,))  # (B,)
+    return ActionIn(message.header.step, action, episode_ids)
 
 
 def decode_schedule(message: Schedule) -> int:
@@ -282,8 +305,8 @@ class SafetyShell:
         """While stopped: when the pending state gets its brake (paced, see BRAKE_PACE)."""
         self.last_command_at = -np.inf
         """When the last command was published (time.monotonic())."""
-        self.action: tuple[int, np.ndarray] | None = None
-        """The newest action (step, raw (B, 21)) not used yet."""
+        self.action: ActionIn | None = None
+        """The newest action not used yet."""
         self.stopped_by: str | None = None
         """None (following the policy), "watchdog" or "estop"."""
         self.answered: tuple[int, SafeCommand] | None = None
@@ -337,7 +360,7 @@ class SafetyShell:
         if name == "schedule":
             self.global_step = value
         elif name == "action":
-            self._on_action(*value)
+            self._on_action(value)
         else:
             self._on_state(value, received_ns)
 
@@ -383,15 +406,15 @@ class SafetyShell:
             if self.stopped_by is not None:  # a new episode does not lift a stop
                 self.filter.stop(env_ids)
 
-    def _on_action(self, step: int, action: np.ndarray) -> None:
+    def _on_action(self, action: ActionIn) -> None:
         if self.estop.latched:
             self.counts["ignored"] += 1
             return
-        if self.latest is not None and step < self.latest.step:
+        if self.latest is not None and action.step < self.latest.step:
             self.counts["stale"] += 1
         if self.stopped_by == "watchdog" and self.latest is not None:
             self._resume("actions arrive again")
-        self.action = (step, action)
+        self.action = action
         self._answer()
 
     def _apply_estop(self) -> None:
@@ -431,11 +454,12 @@ class SafetyShell:
             if time.monotonic() >= self.brake_at:
                 self._publish(self.filter.brake(state.q, state.dq), state)
             return
-        if self.action is None or self.action[0] != state.step:
+        if self.action is None or self.action.step != state.step:
             return
-        _, action = self.action
-        self.action = None
-        output = self.filter.command(action, state.q, state.dq, self.global_step)
+        action, self.action = self.action, None
+        output = self.filter.command(
+            action.action, state.q, state.dq, self.global_step, action.stale(state)
+        )
         self._publish(output, state)
         self._account(output.filtered, state.step)
 
@@ -526,7 +550,7 @@ class SafetyShell:
         return decode_state(parse(RobotState, payload), self.num_envs)
 
 
-def _decode_action_payload(key: str, payload: bytes) -> tuple[int, np.ndarray]:
+def _decode_action_payload(key: str, payload: bytes) -> ActionIn:
     return decode_action(parse(PolicyAction, payload))
 
 

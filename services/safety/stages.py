@@ -39,6 +39,9 @@ class Rejection(IntEnum):
     """The action is not a (B, 21) array of real numbers (rejects every environment)."""
     STATE = 3
     """The robot state (q or dq) holds NaN or Inf: no residual can be applied to it."""
+    EPISODE = 4
+    """The action was computed for another episode than the state's: a residual meant for
+    the old scene would move the arm of the new one."""
 
 
 # --- stage 1 ----------------------------------------------------------------------------

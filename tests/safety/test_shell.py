@@ -92,8 +92,9 @@ def test_nonfinite_action_passes_the_transport_and_the_decoder() -> None:
     action = np.zeros((B, 21), np.float32)
     action[1, 4] = np.nan
     message = parse(PolicyAction, encode(policy_action(5, action)))
-    step, decoded = decode_action(message)
-    assert step == 5 and decoded.shape == (B, 21) and np.isnan(decoded[1, 4])
+    decoded = decode_action(message)
+    assert decoded.step == 5 and decoded.action.shape == (B, 21)
+    assert np.isnan(decoded.action[1, 4]) and decoded.episode_ids is None
     with pytest.raises(PayloadError) as error:
         decode_action(PolicyAction())
     assert error.value.reason == "missing"
@@ -110,7 +111,7 @@ def test_nonfinite_action_becomes_a_rejection_event() -> None:
     safety = SafetyFilter(np.tile(Q_HOME, (B, 1)))
     action = np.zeros((B, 21), np.float32)
     action[1, 0] = np.inf
-    _, decoded = decode_action(parse(PolicyAction, encode(policy_action(0, action))))
+    decoded = decode_action(parse(PolicyAction, encode(policy_action(0, action)))).action
     output = safety.command(decoded, np.tile(Q_HOME, (B, 1)), np.zeros((B, J)), step=0)
     assert np.isfinite(output.q_ref).all()
     events = [wire(e) for e in rejection_events(output.filtered, step=4)]
@@ -118,6 +119,29 @@ def test_nonfinite_action_becomes_a_rejection_event() -> None:
     assert events[0].kind == SafetyEventKind.REJECTED_NONFINITE
     assert events[0].header.step == 4 and events[0].stage == "nonfinite_guard"
     assert from_tensor(events[0].env_ids).tolist() == [1]
+
+
+def test_action_for_an_ended_episode_is_held_and_reported() -> None:
+    """Env 1 was reset after the policy saw its state: its residual, meant for the old
+    scene, must not move the arm (held at the measured q), and a REJECTED_EPISODE event
+    names env 1 only; env 0, same episode, follows its action."""
+    q = np.tile(Q_HOME, (B, 1))
+    state = decode_state(wire(robot_state(7, q)), num_envs=B)  # episode ids [0, 1]
+    message = policy_action(7, np.full((B, 21), 0.5, np.float32))
+    to_tensor(np.array([0, 99], np.int64), message.episode_ids)  # (B,) env 1: old episode
+    decoded = decode_action(wire(message))
+    assert decoded.stale(state).tolist() == [False, True]
+    safety = SafetyFilter(q)
+    output = safety.command(decoded.action, q, np.zeros((B, J)), step=0, stale=decoded.stale(state))
+    assert output.filtered.reason.tolist() == [0, 4]
+    np.testing.assert_allclose(output.filtered.q_target[1], q[1])
+    assert np.abs(output.filtered.q_target[0] - q[0]).max() > 1e-3
+    events = [wire(e) for e in rejection_events(output.filtered, step=7)]
+    assert [e.kind for e in events] == [SafetyEventKind.REJECTED_EPISODE]
+    assert from_tensor(events[0].env_ids).tolist() == [1]
+    wrong_batch = policy_action(7, np.zeros((B, 21), np.float32))
+    to_tensor(np.arange(3, dtype=np.int64), wrong_batch.episode_ids)  # (3,): not the batch
+    assert decode_action(wire(wrong_batch)).stale(state) is None
 
 
 def test_command_round_trips_through_the_sims_decoder() -> None:
