@@ -1,0 +1,137 @@
+"""Reads recordings back: every message of one or more MCAP files, in log-time order.
+
+Consumes MCAP files (finished, or cut short by a crash); produces `RecordedMessage`s with
+the exact payload bytes and key each was recorded with. Files are read front to back with
+the standard sequential reader (`mcap.stream_reader.StreamReader`), which needs no summary:
+a file whose recorder was killed reads up to its last completed chunk, and the reason it
+ends early is kept in its `FileContents`.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.stream_reader import breakup_chunk, StreamReader
+
+
+@dataclass(frozen=True)
+class RecordedMessage:
+    """One recorded message."""
+
+    key: str
+    """The Zenoh key it was received on (the MCAP channel topic)."""
+    payload: bytes
+    """Its bytes, exactly as received."""
+    log_time_ns: int
+    """When the recorder received it, Unix ns."""
+    publish_time_ns: int
+    """When it was published (its header stamp, else the receive time), Unix ns."""
+    schema: str
+    """Protobuf type of its channel, e.g. `hamnet.RobotState`; "" for raw channels."""
+
+
+@dataclass
+class FileContents:
+    """What reading one file found, besides its messages (filled while it is read)."""
+
+    path: Path
+    size_bytes: int = 0
+    """File size on disk."""
+    chunks: int = 0
+    """Completed chunks read."""
+    compression: set[str] = field(default_factory=set)
+    """Chunk compressions seen ("" for uncompressed)."""
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    """MCAP metadata records by name."""
+    complete: bool = False
+    """Whether the footer was reached (False: the writer never finished it, e.g. a crash)."""
+    stopped: str = ""
+    """Why reading stopped before the footer (truncated chunk, corrupt record...)."""
+
+
+def read_file(path: Path, contents: FileContents | None = None) -> Iterator[RecordedMessage]:
+    """Every message of one MCAP file, in file order, up to its last readable record.
+
+    Args:
+        path: the file.
+        contents: filled with what else the file holds, as reading goes.
+    """
+    contents = contents if contents is not None else FileContents(path)
+    contents.size_bytes = path.stat().st_size
+    schemas: dict[int, str] = {}
+    channels: dict[int, Channel] = {}
+    with open(path, "rb") as stream:
+        records = StreamReader(stream, emit_chunks=True).records
+        try:
+            for record in records:
+                if isinstance(record, Chunk):
+                    contents.chunks += 1
+                    contents.compression.add(record.compression)
+                    inner = breakup_chunk(record, validate_crc=True)
+                else:
+                    inner = [record]
+                for item in inner:
+                    if isinstance(item, Schema):
+                        schemas[item.id] = item.name
+                    elif isinstance(item, Channel):
+                        channels[item.id] = item
+                    elif isinstance(item, Message):
+                        channel = channels[item.channel_id]
+                        yield RecordedMessage(
+                            channel.topic, item.data, item.log_time, item.publish_time,
+                            schemas.get(channel.schema_id, ""),
+                        )  # fmt: skip
+                    elif isinstance(item, Metadata):
+                        contents.metadata[item.name] = dict(item.metadata)
+                    elif isinstance(item, Footer):
+                        contents.complete = True
+        except (McapError, ValueError, KeyError) as error:  # truncated or corrupt tail
+            contents.stopped = f"{type(error).__name__}: {error}".rstrip(": ")
+
+
+def read_recording(
+    paths: Sequence[Path], contents: list[FileContents] | None = None
+) -> Iterator[RecordedMessage]:
+    """Every message of several files (e.g. the rotated files of one recording) merged
+    by log time; a recording in one file comes out in file order.
+
+    Args:
+        paths: the files.
+        contents: one `FileContents` per file is appended here, filled as reading goes.
+    """
+    streams: list[Iterable[RecordedMessage]] = []
+    for path in paths:
+        found = FileContents(path)
+        if contents is not None:
+            contents.append(found)
+        streams.append(read_file(path, found))
+    if len(streams) == 1:
+        return iter(streams[0])
+    return heapq.merge(*streams, key=lambda message: message.log_time_ns)
+
+
+def summary_counts(paths: Sequence[Path]) -> tuple[int, int, int] | None:
+    """(messages, first log time, last log time) from the files' summaries, without reading
+    their messages; None when any file has no summary (unfinished) or no messages."""
+    total, first, last = 0, None, None
+    for path in paths:
+        with open(path, "rb") as stream:
+            try:
+                summary = make_reader(stream).get_summary()
+            except (McapError, ValueError, OSError):
+                return None
+        if summary is None or summary.statistics is None:
+            return None
+        statistics = summary.statistics
+        if statistics.message_count == 0:
+            continue
+        total += statistics.message_count
+        first = min(statistics.message_start_time, first or statistics.message_start_time)
+        last = max(statistics.message_end_time, last or 0)
+    return None if first is None else (total, first, last)
