@@ -1,0 +1,290 @@
+"""Point clouds in simulation, batched in torch (B environments, any device): the
+environment cloud sampled from the visible surface of a scene's cuboids, the posed object
+cloud, and the local cloud around the object (paper appendix "Point cloud sampling
+process").
+
+Environment cloud without a boolean mesh union: every face of every cuboid is split into a
+grid of triangles, triangles inside another cuboid are culled (all three vertices covered by
+one convex box), points are drawn in proportion to the area of the triangles left, and the
+few that land on a partly covered triangle's covered part are rejected and redrawn. The
+result is uniform over the visible surface: exactly what sampling the union's surface gives.
+
+"Covered" is exact for the coplanar contacts procedural scenes are full of: a point on a face
+of cuboid A is covered by cuboid B when it lies inside B or on its boundary (within
+`tolerance`), except on a face of B with the same outward normal, where the two faces are one
+surface and the cuboid with the lower index keeps it. So a plate's underside and the table
+top beneath it both vanish, while two plates whose tops meet in one plane show that plane
+once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+MAX_ROUNDS = 32
+"""Rejection rounds before the sampler gives up (one is the norm, see `sample_surface`)."""
+
+
+def quaternion_matrix(quat: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) wxyz (MuJoCo's order)."""
+    w, x, y, z = quat.unbind(-1)
+    rows = (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+    )
+    return torch.stack([torch.stack(row, dim=-1) for row in rows], dim=-2)
+
+
+@dataclass(frozen=True)
+class Cuboids:
+    """C cuboid slots of B scenes (the Scene message), as tensors on one device."""
+
+    centre: torch.Tensor
+    """(B, C, 3) m."""
+    rotation: torch.Tensor
+    """(B, C, 3, 3) cuboid-to-world rotation; columns are the cuboid's axes."""
+    half_extent: torch.Tensor
+    """(B, C, 3) m."""
+    active: torch.Tensor
+    """(B, C) bool."""
+
+    @classmethod
+    def from_quat(cls, centre, quat, half_extent, active) -> Cuboids:
+        """From centres (B, C, 3), wxyz quaternions (B, C, 4), half extents and active mask."""
+        return cls(centre, quaternion_matrix(quat), half_extent, active.bool())
+
+
+@dataclass(frozen=True)
+class Triangles:
+    """The faces of every cuboid split into T = C * 6 * grid^2 * 2 triangles."""
+
+    vertices: torch.Tensor
+    """(B, T, 3, 3) corners, world frame, m."""
+    owner: torch.Tensor
+    """(T,) cuboid slot each triangle belongs to."""
+    normal: torch.Tensor
+    """(B, T, 3) outward unit normal, world frame."""
+    area: torch.Tensor
+    """(B, T) m^2; 0 for triangles of inactive cuboids and culled ones."""
+
+
+def covered(
+    points: torch.Tensor, owner: torch.Tensor, normal: torch.Tensor, cuboids: Cuboids, tolerance: float
+) -> torch.Tensor:
+    """Which surface points another active cuboid hides (see the module docstring).
+
+    Args:
+        points: (B, M, 3) points on cuboid faces, world frame, m.
+        owner: (M,) or (B, M) slot of the cuboid each point lies on.
+        normal: (B, M, 3) outward normal of the face each point lies on.
+        cuboids: the scenes, C slots.
+        tolerance: distance to a boundary that counts as on it, m.
+    Returns:
+        (B, M, C) bool: point m is covered by cuboid c.
+    """
+    offset = points[:, :, None, :] - cuboids.centre[:, None]  # (B, M, C, 3)
+    local = torch.einsum("bmci,bcij->bmcj", offset, cuboids.rotation)  # (B, M, C, 3)
+    local_normal = torch.einsum("bmi,bcij->bmcj", normal, cuboids.rotation)  # (B, M, C, 3)
+    half = cuboids.half_extent[:, None]  # (B, 1, C, 3)
+    inside = (local.abs() <= half + tolerance).all(-1)  # (B, M, C), boundary included
+    on_face = (local.abs() - half).abs() <= tolerance  # (B, M, C, 3)
+    same_normal = on_face & (torch.sign(local) * local_normal > 1.0 - 1e-4)
+    slots = torch.arange(cuboids.active.shape[1], device=points.device)
+    owner = owner.expand(points.shape[:2])  # (B, M)
+    higher = slots[None, None, :] > owner[..., None]  # (B, M, C)
+    kept_by_owner = same_normal.any(-1) & higher  # coplanar, same side: the lower index keeps it
+    other = slots[None, None, :] != owner[..., None]
+    return inside & ~kept_by_owner & other & cuboids.active[:, None, :]
+
+
+def _face_grid(grid: int, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """Vertices of one face's grid in face coordinates and its triangles.
+
+    Returns:
+        (V, 2) vertex coordinates in [-1, 1]^2 (V = (grid+1)^2) and (grid^2 * 2, 3) vertex
+        indices of the triangles.
+    """
+    steps = torch.linspace(-1.0, 1.0, grid + 1, device=device)
+    uv = torch.stack(torch.meshgrid(steps, steps, indexing="ij"), dim=-1).reshape(-1, 2)  # (V, 2)
+    i, j = torch.meshgrid(torch.arange(grid, device=device), torch.arange(grid, device=device), indexing="ij")
+    v00 = (i * (grid + 1) + j).reshape(-1)
+    v10, v01, v11 = v00 + grid + 1, v00 + 1, v00 + grid + 2
+    triangles = torch.cat([torch.stack([v00, v10, v11], -1), torch.stack([v00, v11, v01], -1)])
+    return uv, triangles
+
+
+FACE_AXES = torch.tensor([[0, 1, 2], [0, 1, 2], [1, 2, 0], [1, 2, 0], [2, 0, 1], [2, 0, 1]])
+"""Per face: normal axis, then the two in-face axes (right-handed order)."""
+FACE_SIGNS = torch.tensor([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+"""Per face: side of the normal axis (+x, -x, +y, -y, +z, -z)."""
+
+
+def visible_triangles(cuboids: Cuboids, grid: int, tolerance: float) -> Triangles:
+    """Split every face into triangles and cull those another cuboid hides entirely.
+
+    A triangle is culled when one cuboid covers all three of its vertices: a box is convex,
+    so it then covers the whole triangle. Partly covered triangles stay (rejection handles
+    them), so culling never removes visible surface.
+    """
+    device, dtype = cuboids.centre.device, cuboids.centre.dtype
+    b, c = cuboids.active.shape
+    uv, tri = _face_grid(grid, device)  # (V, 2), (G2, 3)
+    axes, signs = FACE_AXES.to(device), FACE_SIGNS.to(device, dtype)
+    half = cuboids.half_extent  # (B, C, 3)
+    # Local coordinates of every grid vertex of every face: (B, C, 6, V, 3).
+    local = torch.zeros(b, c, 6, len(uv), 3, device=device, dtype=dtype)
+    index = axes[None, None, :, None, :].expand(b, c, 6, len(uv), 3)
+    values = torch.stack(
+        [signs[:, None].expand(6, len(uv)), uv[None, :, 0].expand(6, -1), uv[None, :, 1].expand(6, -1)], -1
+    )  # (6, V, 3) in units of the half extents along (normal, in-face 1, in-face 2)
+    local.scatter_(-1, index, values.expand(b, c, 6, len(uv), 3).to(dtype))
+    local = local * half[:, :, None, None, :]
+    world = torch.einsum("bcij,bcfvj->bcfvi", cuboids.rotation, local) + cuboids.centre[:, :, None, None]
+    normal = cuboids.rotation[:, :, :, axes[:, 0]] * signs  # (B, C, 3, 6)
+    normal = normal.permute(0, 1, 3, 2)  # (B, C, 6, 3)
+    v = len(uv)
+    owner = torch.arange(c, device=device).repeat_interleave(6 * v)  # (C*6*V,)
+    vertex_normal = normal[:, :, :, None, :].expand(b, c, 6, v, 3).reshape(b, -1, 3)
+    hidden = covered(world.reshape(b, -1, 3), owner, vertex_normal, cuboids, tolerance)
+    hidden = hidden.reshape(b, c, 6, v, c)  # (B, C, 6, V, C)
+    corners = hidden[:, :, :, tri, :]  # (B, C, 6, G2, 3, C)
+    culled = corners.all(-2).any(-1)  # (B, C, 6, G2)
+    vertices = world[:, :, :, tri, :]  # (B, C, 6, G2, 3, 3)
+    extent = 2.0 * half.gather(-1, axes[None, None, :, 1].expand(b, c, 6)) * 2.0 * half.gather(
+        -1, axes[None, None, :, 2].expand(b, c, 6)
+    )  # (B, C, 6) face area, m^2
+    area = (extent / (2 * grid * grid))[..., None].expand(-1, -1, -1, len(tri))  # (B, C, 6, G2)
+    area = area * ~culled * cuboids.active[:, :, None, None]
+    t = c * 6 * len(tri)
+    return Triangles(
+        vertices=vertices.reshape(b, t, 3, 3),
+        owner=torch.arange(c, device=device).repeat_interleave(6 * len(tri)),
+        normal=normal[:, :, :, None, :].expand(b, c, 6, len(tri), 3).reshape(b, t, 3),
+        area=area.reshape(b, t),
+    )
+
+
+def _points_on(triangles: Triangles, index: torch.Tensor, generator) -> torch.Tensor:
+    """Uniform points (B, M, 3) on the triangles `index` (B, M)."""
+    b, m = index.shape
+    corners = triangles.vertices.gather(1, index[..., None, None].expand(b, m, 3, 3))  # (B, M, 3, 3)
+    r = torch.rand(b, m, 2, device=index.device, dtype=corners.dtype, generator=generator)
+    s = r[..., :1].sqrt()  # the square root makes the density uniform over the triangle
+    weights = torch.cat([1 - s, s * (1 - r[..., 1:]), s * r[..., 1:]], -1)  # (B, M, 3)
+    return torch.einsum("bmk,bmki->bmi", weights, corners)
+
+
+def sample_surface(
+    cuboids: Cuboids,
+    num_points: int,
+    grid: int = 8,
+    tolerance: float = 1e-5,
+    generator: torch.Generator | None = None,
+) -> torch.Tensor:
+    """Points drawn uniformly from the visible surface of each scene's cuboids.
+
+    Args:
+        cuboids: B scenes of C slots; every scene needs an active cuboid.
+        num_points: N points per scene.
+        grid: face subdivision (see `CloudConfig.grid`).
+        tolerance: boundary tolerance, m.
+        generator: torch random generator on the cuboids' device (None: the global one).
+    Returns:
+        (B, N, 3) world-frame points, m, in random order (any prefix is a uniform sample).
+    """
+    if not bool(cuboids.active.any(-1).all()):
+        raise ValueError("every scene needs at least one active cuboid")
+    triangles = visible_triangles(cuboids, grid, tolerance)
+    b = cuboids.active.shape[0]
+    draws = num_points + num_points // 4  # most points survive: culling removed the hidden parts
+    points, valid = [], []
+    for _ in range(MAX_ROUNDS):
+        index = torch.multinomial(triangles.area, draws, replacement=True, generator=generator)  # (B, M)
+        candidate = _points_on(triangles, index, generator)  # (B, M, 3)
+        normal = triangles.normal.gather(1, index[..., None].expand(b, draws, 3))
+        hidden = covered(candidate, triangles.owner[index], normal, cuboids, tolerance).any(-1)
+        points.append(candidate)
+        valid.append(~hidden)
+        if int(torch.cat(valid, 1).sum(1).min()) >= num_points:
+            break
+    else:
+        raise RuntimeError(f"fewer than {num_points} visible points after {MAX_ROUNDS} rounds")
+    points, valid = torch.cat(points, 1), torch.cat(valid, 1)  # (B, R*M, 3), (B, R*M)
+    order = torch.argsort((~valid).to(torch.uint8), dim=1, stable=True)[:, :num_points]  # (B, N)
+    return gather(points, order)
+
+
+def gather(points: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """points (B, N, D) at index (B, ...) -> (B, ..., D)."""
+    b, d = points.shape[0], points.shape[-1]
+    flat = index.reshape(b, -1)
+    picked = points.gather(1, flat[..., None].expand(b, flat.shape[1], d))
+    return picked.reshape(*index.shape, d)
+
+
+def pose_points(points: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+    """Object-frame points (B, P, 3) in the world at pose (B, 7) = position (m) + wxyz."""
+    rotation = quaternion_matrix(pose[:, 3:])  # (B, 3, 3)
+    return torch.einsum("bij,bpj->bpi", rotation, points) + pose[:, None, :3]
+
+
+def farthest_point_sample(points: torch.Tensor, k: int) -> torch.Tensor:
+    """Indices (B, k) of k farthest-point samples of points (B, N, 3), batched.
+
+    Starts from the point farthest from the centroid, so the choice does not depend on the
+    order of the points (the first-index start of most implementations does).
+    """
+    b, n, _ = points.shape
+    centroid = points.mean(1, keepdim=True)  # (B, 1, 3)
+    current = ((points - centroid) ** 2).sum(-1).argmax(1)  # (B,)
+    chosen = torch.empty(b, k, dtype=torch.long, device=points.device)
+    distance = torch.full((b, n), float("inf"), device=points.device, dtype=points.dtype)
+    rows = torch.arange(b, device=points.device)
+    for i in range(k):
+        chosen[:, i] = current
+        last = points[rows, current]  # (B, 3)
+        distance = torch.minimum(distance, ((points - last[:, None]) ** 2).sum(-1))
+        current = distance.argmax(1)
+    return chosen
+
+
+def knn(points: torch.Tensor, centres: torch.Tensor, k: int) -> torch.Tensor:
+    """Indices (B, K, k) of the k points (B, N, 3) nearest each centre (B, K, 3), nearest
+    first."""
+    distance = torch.cdist(centres, points)  # (B, K, N)
+    return distance.topk(k, dim=-1, largest=False, sorted=True).indices
+
+
+def local_cloud(scene: torch.Tensor, keypoints: torch.Tensor, num_points: int) -> torch.Tensor:
+    """The scene points nearest the object: the local (focal) cloud.
+
+    Args:
+        scene: (B, S, 3) scene points (the dense pool), m.
+        keypoints: (B, K, 3) object keypoints in the current pose, m.
+        num_points: L <= S points to keep.
+    Returns:
+        (B, L, 3) the L scene points with the smallest distance to their nearest keypoint.
+    """
+    nearest = torch.cdist(scene, keypoints).min(-1).values  # (B, S)
+    index = nearest.topk(num_points, dim=1, largest=False, sorted=True).indices  # (B, L)
+    return gather(scene, index)
+
+
+def corrupt(
+    points: torch.Tensor, noise_std: float, dropout: float, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Sensor-like corruption of clouds (B, P, 3): Gaussian noise (std m) and dropout (share of
+    points replaced by copies of the cloud's remaining points, so the size stays P)."""
+    if dropout > 0.0:
+        b, p, _ = points.shape
+        dropped = torch.rand(b, p, device=points.device, generator=generator) < dropout  # (B, P)
+        dropped[:, 0] &= ~dropped.all(1)  # keep at least one point per cloud
+        source = torch.multinomial((~dropped).float(), p, replacement=True, generator=generator)
+        points = torch.where(dropped[..., None], gather(points, source), points)
+    if noise_std > 0.0:
+        noise = torch.randn(points.shape, device=points.device, dtype=points.dtype, generator=generator)
+        points = points + noise_std * noise
+    return points

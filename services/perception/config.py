@@ -1,0 +1,127 @@
+"""Configuration of the perception core: cloud sampling, the UniCORN encoder and the depth
+camera path, one frozen dataclass each (paper appendix "Point cloud sampling process",
+Table tab:network, and the real-robot setup with four RealSense D435 cameras).
+
+`EncoderConfig` is also the architecture record written into every encoder checkpoint: a
+checkpoint loads only into an encoder built from an equal config.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+
+
+def _at_least(owner: object, minimum: float, *names: str) -> None:
+    for name in names:
+        value = getattr(owner, name)
+        if not value >= minimum:
+            raise ValueError(f"{type(owner).__name__}.{name} must be >= {minimum}, got {value}")
+
+
+@dataclass(frozen=True)
+class CloudConfig:
+    """Clouds in simulation: environment (global), object and local (focal) clouds."""
+
+    num_points: int = 512
+    """Points per cloud, P (Table tab:network)."""
+    grid: int = 8
+    """Each cuboid face is split into grid x grid cells of two triangles each before culling:
+    finer grids cull more of a partly covered face up front, so fewer samples are rejected."""
+    scene_pool: int = 4096
+    """Scene points sampled per environment at reset; the global cloud is the first
+    `num_points` of them (a uniform subset of a uniform sample) and the local cloud picks
+    among all of them, so it stays dense near the object."""
+    num_keypoints: int = 64
+    """FPS keypoints of the object cloud that the local cloud is gathered around."""
+    noise_std: float = 0.0
+    """Gaussian noise added to every published cloud point, m (0: none; the student and the
+    real robot see noisy clouds)."""
+    dropout: float = 0.0
+    """Share of each cloud's points replaced by copies of its other points (0: none): holes
+    as a depth camera leaves them, with the cloud size kept."""
+    tolerance: float = 1e-5
+    """A point closer than this to another cuboid (m) counts as on its boundary."""
+
+    def __post_init__(self) -> None:
+        _at_least(self, 1, "num_points", "grid", "num_keypoints")
+        if self.scene_pool < self.num_points:
+            raise ValueError(f"scene_pool ({self.scene_pool}) must be >= num_points ({self.num_points})")
+        if self.noise_std < 0.0 or not 0.0 <= self.dropout < 1.0 or self.tolerance < 0.0:
+            raise ValueError("noise_std and tolerance must be >= 0 and dropout in [0, 1)")
+
+
+@dataclass(frozen=True)
+class EncoderConfig:
+    """The UniCORN geometry encoder (paper Fig. pretraining_network, Table tab:network)."""
+
+    num_points: int = 512
+    """Points per input cloud."""
+    num_patches: int = 16
+    """Patch centres chosen by farthest-point sampling."""
+    patch_size: int = 32
+    """Points per patch (k nearest neighbours of its centre)."""
+    width: int = 128
+    """Token width D."""
+    depth: int = 4
+    """Pre-LN transformer layers."""
+    heads: int = 4
+    """Self-attention heads."""
+    mlp_ratio: int = 2
+    """Hidden width of each transformer layer's MLP, in multiples of `width`."""
+    tokenizer_hidden: int = 64
+    """Hidden width of the per-point MLP of the patch tokenizer (max-pooled over a patch)."""
+    frequencies: int = 16
+    """Sinusoidal frequencies per coordinate of the positional embedding of the centres."""
+    max_wavelength: float = 4.0
+    """Longest wavelength of the positional embedding, m (the shortest is 4 mm: from the
+    size of a workspace down to below a patch's spacing)."""
+
+    def __post_init__(self) -> None:
+        _at_least(self, 1, "num_patches", "patch_size", "width", "depth", "heads", "mlp_ratio")
+        _at_least(self, 1, "tokenizer_hidden", "frequencies")
+        if self.width % self.heads:
+            raise ValueError(f"width ({self.width}) must be divisible by heads ({self.heads})")
+        if self.patch_size > self.num_points or self.num_patches > self.num_points:
+            raise ValueError("patch_size and num_patches must be <= num_points")
+
+    @property
+    def num_tokens(self) -> int:
+        """Tokens per cloud: [EMB] first, then one per patch."""
+        return self.num_patches + 1
+
+    def to_json(self) -> str:
+        """The architecture as canonical JSON (stored in checkpoint metadata)."""
+        return json.dumps(asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> EncoderConfig:
+        """Inverse of `to_json`; unknown or missing fields raise TypeError."""
+        return cls(**json.loads(text))
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Depth cameras to clouds (the bridge's path): fuse, crop, filter, split, resample."""
+
+    workspace_min: tuple[float, float, float] = (-0.2, -1.0, -0.2)
+    """Lower corner of the workspace crop in the world frame, m."""
+    workspace_max: tuple[float, float, float] = (1.6, 1.0, 1.5)
+    """Upper corner of the workspace crop, m."""
+    max_depth: float = 3.0
+    """Depth readings beyond this are discarded, m (D435 noise grows with distance)."""
+    voxel_size: float = 0.005
+    """Voxel edge of the downsampling that evens out the density of overlapping views, m."""
+    outlier_neighbors: int = 16
+    """Neighbours of the statistical outlier removal."""
+    outlier_std_ratio: float = 2.0
+    """Points farther than mean + ratio * std from their neighbours are removed."""
+    num_points: int = 512
+    """Points of each output cloud (object, scene) after resampling."""
+
+    def __post_init__(self) -> None:
+        if any(lo >= hi for lo, hi in zip(self.workspace_min, self.workspace_max)):
+            raise ValueError("workspace_min must be below workspace_max on every axis")
+        if not (self.max_depth > 0 and self.voxel_size > 0 and self.outlier_std_ratio > 0):
+            raise ValueError("max_depth, voxel_size and outlier_std_ratio must be > 0")
+        _at_least(self, 1, "outlier_neighbors", "num_points")

@@ -1,0 +1,135 @@
+"""The perception core: per-environment caches of scene and object clouds and tokens, and
+the per-step work (pose the object, gather the local cloud, encode it).
+
+What changes when (paper: object tokens once per episode, scene tokens at reset, local
+tokens every step):
+- at an episode's start (`start_episodes`): the scene's visible surface is sampled into a
+  dense pool (S points), its first P points are the global cloud, encoded once; the object's
+  surface points (own frame) are encoded once, and 64 FPS keypoints are picked from them;
+- every step (`step`): the object cloud and the keypoints are posed, the local cloud is the P
+  pool points nearest the posed keypoints, and only it is encoded.
+
+Sensor noise and dropout (`CloudConfig.noise_std`, `dropout`) corrupt each cloud where it
+is made: the global and object clouds once per episode, the local cloud every step.
+No Zenoh, no protobuf: tensors in, tensors out, on any torch device.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from hamnet.perception.clouds import (
+    Cuboids,
+    corrupt,
+    farthest_point_sample,
+    gather,
+    local_cloud,
+    pose_points,
+    sample_surface,
+)
+from hamnet.perception.config import CloudConfig
+from hamnet.perception.unicorn import UniCORN
+
+
+@dataclass(frozen=True)
+class EpisodeScenes:
+    """The scenes of K environments that start an episode (the Scene message)."""
+
+    env_ids: torch.Tensor
+    """(K,) long, environment indices."""
+    episode_ids: torch.Tensor
+    """(K,) long."""
+    cuboids: Cuboids
+    """K scenes of C cuboid slots."""
+    object_points: torch.Tensor
+    """(K, P, 3) object surface points in the object's frame, m."""
+
+
+@dataclass(frozen=True)
+class Percepts:
+    """One step of every environment: clouds (world frame, m) and tokens ([EMB] first)."""
+
+    object_cloud: torch.Tensor  # (B, P, 3)
+    environment_cloud: torch.Tensor  # (B, P, 3)
+    local_cloud: torch.Tensor  # (B, P, 3)
+    object_tokens: torch.Tensor  # (B, 1 + K, D)
+    local_tokens: torch.Tensor  # (B, 1 + K, D)
+    global_tokens: torch.Tensor  # (B, 1 + K, D)
+
+
+class Perception:
+    """Clouds and UniCORN tokens for B environments, with per-episode caches."""
+
+    def __init__(
+        self,
+        encoder: UniCORN,
+        num_envs: int,
+        config: CloudConfig | None = None,
+        device: str | torch.device = "cpu",
+        seed: int = 0,
+    ) -> None:
+        self.config = config = config if config is not None else CloudConfig()
+        if encoder.config.num_points != config.num_points:
+            raise ValueError(f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}")
+        self.device = torch.device(device)
+        self.encoder = encoder.to(self.device).eval()
+        self.generator = torch.Generator(self.device).manual_seed(seed)
+        b, p, s, d = num_envs, config.num_points, config.scene_pool, encoder.config.width
+        n, k = encoder.config.num_tokens, config.num_keypoints
+        zeros = lambda *shape: torch.zeros(*shape, device=self.device)  # noqa: E731
+        self.episode_ids = torch.full((b,), -1, dtype=torch.long, device=self.device)
+        """(B,) episode each environment's cache belongs to; -1 before its first scene."""
+        self.scene_pool = zeros(b, s, 3)  # (B, S, 3) world frame
+        self.environment_cloud = zeros(b, p, 3)  # (B, P, 3) world frame
+        self.object_points = zeros(b, p, 3)  # (B, P, 3) object frame
+        self.keypoints = zeros(b, k, 3)  # (B, K, 3) object frame
+        self.object_tokens = zeros(b, n, d)  # (B, 1 + K, D)
+        self.global_tokens = zeros(b, n, d)  # (B, 1 + K, D)
+
+    @property
+    def num_envs(self) -> int:
+        """B."""
+        return len(self.episode_ids)
+
+    def missing(self, episode_ids: torch.Tensor) -> torch.Tensor:
+        """(M,) environments whose cache is not for their current episode (B,) yet."""
+        return torch.nonzero(self.episode_ids != episode_ids.to(self.device)).flatten()
+
+    @torch.no_grad()
+    def start_episodes(self, scenes: EpisodeScenes) -> None:
+        """Sample and encode the scene and object clouds of the K environments starting."""
+        config, g = self.config, self.generator
+        ids = scenes.env_ids.to(self.device)
+        if len(ids) == 0:
+            return
+        cuboids = Cuboids(*(t.to(self.device) for t in vars(scenes.cuboids).values()))
+        pool = sample_surface(cuboids, config.scene_pool, config.grid, config.tolerance, g)  # (K, S, 3)
+        environment = corrupt(pool[:, : config.num_points], config.noise_std, config.dropout, g)
+        points = scenes.object_points.to(self.device, torch.float32)  # (K, P, 3)
+        keypoints = gather(points, farthest_point_sample(points, config.num_keypoints))  # (K, 64, 3)
+        points = corrupt(points, config.noise_std, config.dropout, g)
+        self.scene_pool[ids], self.environment_cloud[ids] = pool, environment
+        self.object_points[ids], self.keypoints[ids] = points, keypoints
+        self.global_tokens[ids] = self.encoder(environment)
+        self.object_tokens[ids] = self.encoder(points)
+        self.episode_ids[ids] = scenes.episode_ids.to(self.device)
+
+    @torch.no_grad()
+    def step(self, object_pose: torch.Tensor) -> Percepts:
+        """Clouds and tokens of every environment with the object at `object_pose` (B, 7):
+        position (m) and quaternion wxyz."""
+        config = self.config
+        pose = object_pose.to(self.device, torch.float32)
+        keypoints = pose_points(self.keypoints, pose)  # (B, 64, 3)
+        local = local_cloud(self.scene_pool, keypoints, config.num_points)  # (B, P, 3)
+        local = corrupt(local, config.noise_std, config.dropout, self.generator)
+        return Percepts(
+            object_cloud=pose_points(self.object_points, pose),
+            environment_cloud=self.environment_cloud,
+            local_cloud=local,
+            object_tokens=self.object_tokens,
+            local_tokens=self.encoder(local),
+            global_tokens=self.global_tokens,
+        )
