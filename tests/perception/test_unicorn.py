@@ -1,0 +1,133 @@
+"""The UniCORN encoder (shapes, [EMB] first, invariance to the order of the points,
+batch independence), its checkpoints (round trip, clear errors) and the cached core."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hamnet.perception.checkpoint import (
+    CheckpointError,
+    load_checkpoint,
+    save_checkpoint,
+    write_random_checkpoint,
+)
+from hamnet.perception.clouds import Cuboids, pose_points
+from hamnet.perception.config import CloudConfig, EncoderConfig
+from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.unicorn import UniCORN, patchify
+
+SMALL = EncoderConfig(num_points=128, num_patches=8, patch_size=16, width=32, depth=2, heads=4)
+
+
+def test_encoder_gives_one_emb_token_plus_one_per_patch() -> None:
+    encoder = UniCORN().eval()
+    with torch.no_grad():
+        tokens = encoder(torch.rand(3, 512, 3))
+    assert tokens.shape == (3, 17, 128) and tokens.dtype == torch.float32
+    assert bool(torch.isfinite(tokens).all())
+
+
+def test_tokens_do_not_depend_on_the_order_of_the_points() -> None:
+    torch.manual_seed(0)
+    encoder = UniCORN(SMALL).eval()
+    points = torch.rand(4, 128, 3)
+    shuffled = points[:, torch.randperm(128)]
+    with torch.no_grad():
+        torch.testing.assert_close(encoder(shuffled), encoder(points), atol=1e-5, rtol=0)
+
+
+def test_each_cloud_is_encoded_on_its_own() -> None:
+    """Batching must not mix clouds: a cloud's tokens are the same alone or in a batch."""
+    encoder = UniCORN(SMALL).eval()
+    points = torch.rand(3, 128, 3)
+    with torch.no_grad():
+        torch.testing.assert_close(encoder(points)[1:2], encoder(points[1:2]), atol=1e-5, rtol=0)
+
+
+def test_patches_are_centred_knn_groups_of_fps_centres() -> None:
+    points = torch.rand(2, 128, 3)
+    centres, patches = patchify(points, 8, 16)
+    assert centres.shape == (2, 8, 3) and patches.shape == (2, 8, 16, 3)
+    assert float(patches[:, :, 0].abs().max()) == 0.0  # the nearest point is the centre itself
+    radius = patches.norm(dim=-1)  # (B, K, k): sorted, nearest first
+    assert bool((radius[..., 1:] >= radius[..., :-1]).all())
+
+
+def test_wrong_cloud_shape_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match=r"\(B, 512, 3\)"):
+        UniCORN()(torch.rand(1, 100, 3))
+
+
+def test_checkpoint_round_trip_keeps_weights_and_version(tmp_path) -> None:
+    encoder = UniCORN(SMALL).eval()
+    save_checkpoint(tmp_path / "e.safetensors", encoder, 7)
+    loaded, version = load_checkpoint(tmp_path / "e.safetensors", SMALL)
+    assert version == 7
+    points = torch.rand(2, 128, 3)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(points), encoder(points))
+
+
+def test_random_checkpoint_is_version_zero(tmp_path) -> None:
+    write_random_checkpoint(tmp_path / "r.safetensors")
+    _, version = load_checkpoint(tmp_path / "r.safetensors")
+    assert version == 0
+
+
+def test_bad_checkpoints_fail_with_a_message_that_says_why(tmp_path) -> None:
+    with pytest.raises(CheckpointError, match="does not exist"):
+        load_checkpoint(tmp_path / "none.safetensors")
+    (tmp_path / "junk.safetensors").write_bytes(b"not a safetensors file")
+    with pytest.raises(CheckpointError, match="not a readable"):
+        load_checkpoint(tmp_path / "junk.safetensors")
+    save_checkpoint(tmp_path / "small.safetensors", UniCORN(SMALL), 1)
+    with pytest.raises(CheckpointError, match="another encoder architecture.*width"):
+        load_checkpoint(tmp_path / "small.safetensors", EncoderConfig())
+    from safetensors.torch import save_file
+
+    tensors = {k: v for k, v in UniCORN(SMALL).state_dict().items() if k != "emb"}
+    save_file(tensors, str(tmp_path / "cut.safetensors"),
+              metadata={"hamnet.encoder.config": SMALL.to_json(), "hamnet.encoder.version": "2"})  # fmt: skip
+    with pytest.raises(CheckpointError, match=r"missing \['emb'\]"):
+        load_checkpoint(tmp_path / "cut.safetensors", SMALL)
+
+
+def one_scene(num_envs: int) -> Cuboids:
+    """A table (slot 0) and a block on it, in every environment."""
+    centre = torch.tensor([[0.5, 0.0, 0.3], [0.6, 0.1, 0.45]]).expand(num_envs, 2, 3)
+    half = torch.tensor([[0.4, 0.4, 0.1], [0.05, 0.05, 0.05]]).expand(num_envs, 2, 3)
+    quat = torch.tensor([1.0, 0.0, 0.0, 0.0]).expand(num_envs, 2, 4)
+    return Cuboids.from_quat(centre, quat, half, torch.ones(num_envs, 2, dtype=torch.bool))
+
+
+def test_core_caches_scene_and_object_tokens_and_follows_the_object() -> None:
+    config = CloudConfig(num_points=128, scene_pool=512, num_keypoints=16)
+    core = Perception(UniCORN(SMALL), 3, config)
+    object_points = torch.rand(3, 128, 3) * 0.05
+    assert core.missing(torch.tensor([0, 1, 2])).tolist() == [0, 1, 2]
+    core.start_episodes(EpisodeScenes(torch.arange(3), torch.tensor([0, 1, 2]), one_scene(3), object_points))
+    assert core.missing(torch.tensor([0, 1, 2])).numel() == 0
+    assert core.missing(torch.tensor([0, 5, 2])).tolist() == [1]
+    pose = torch.tensor([[0.5, 0.0, 0.45, 1.0, 0.0, 0.0, 0.0]]).repeat(3, 1)
+    first = core.step(pose)
+    pose[0, 0] = 0.2
+    second = core.step(pose)
+    torch.testing.assert_close(second.object_cloud, pose_points(object_points, pose))
+    torch.testing.assert_close(second.global_tokens, first.global_tokens)
+    torch.testing.assert_close(second.object_tokens, first.object_tokens)
+    assert not torch.equal(second.local_tokens[0], first.local_tokens[0])  # moved: new local cloud
+    torch.testing.assert_close(second.local_tokens[1:], first.local_tokens[1:])
+    keypoints = pose_points(core.keypoints, pose)
+    near = torch.cdist(second.local_cloud, keypoints).min(-1).values.max(-1).values  # (B,)
+    far = torch.cdist(core.scene_pool, keypoints).min(-1).values  # (B, S)
+    assert bool((near <= far.sort(-1).values[:, 128 - 1] + 1e-6).all())  # the nearest 128
+    # a new episode in environment 1 only: its scene changes, the others keep theirs
+    table = one_scene(1)
+    moved = Cuboids(table.centre + 0.1, table.rotation, table.half_extent, table.active)
+    core.start_episodes(EpisodeScenes(torch.tensor([1]), torch.tensor([9]), moved, object_points[:1]))
+    third = core.step(pose)
+    torch.testing.assert_close(third.global_tokens[[0, 2]], first.global_tokens[[0, 2]])
+    assert not torch.allclose(third.global_tokens[1], first.global_tokens[1])
+    np.testing.assert_array_equal(core.episode_ids.numpy(), [0, 9, 2])
