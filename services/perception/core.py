@@ -110,11 +110,14 @@ class Perception:
         points = scenes.object_points.to(self.device, torch.float32)  # (K, P, 3)
         keypoints = gather(points, farthest_point_sample(points, config.num_keypoints))  # (K, 64, 3)
         points = corrupt(points, config.noise_std, config.dropout, g)
-        self.scene_pool[ids], self.environment_cloud[ids] = pool, environment
-        self.object_points[ids], self.keypoints[ids] = points, keypoints
-        self.global_tokens[ids] = self.encoder(environment)
-        self.object_tokens[ids] = self.encoder(points)
-        self.episode_ids[ids] = scenes.episode_ids.to(self.device)
+        # Out of place: `Percepts` handed out earlier share these tensors and must not change.
+        update = lambda cache, rows: cache.index_copy(0, ids, rows)  # noqa: E731
+        self.scene_pool = update(self.scene_pool, pool)
+        self.environment_cloud = update(self.environment_cloud, environment)
+        self.object_points, self.keypoints = update(self.object_points, points), update(self.keypoints, keypoints)
+        self.global_tokens = update(self.global_tokens, self.encoder(environment))
+        self.object_tokens = update(self.object_tokens, self.encoder(points))
+        self.episode_ids = update(self.episode_ids, scenes.episode_ids.to(self.device, torch.long))
 
     @torch.no_grad()
     def step(self, object_pose: torch.Tensor) -> Percepts:
