@@ -1,0 +1,77 @@
+"""`hamnet perception`: point clouds and UniCORN tokens for every sim (or bridge) state.
+
+Needs the encoder weights: `--checkpoint PATH` (a safetensors file written by pre-training,
+or by `--write-random-checkpoint PATH`). `--random-init` runs on random weights instead, for
+tests and smoke runs; every message then carries encoder_version 0. Cloud sampling is
+configured under `--clouds.<field>` (e.g. `--clouds.noise-std 0.005`), the architecture the
+checkpoint must match under `--encoder.<field>`.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+import torch
+
+from hamnet.perception.checkpoint import RANDOM_VERSION, CheckpointError, load_checkpoint, write_random_checkpoint
+from hamnet.perception.config import CloudConfig, EncoderConfig
+from hamnet.perception.shell import PerceptionShell, ShellConfig
+from hamnet.perception.unicorn import UniCORN
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
+
+
+@dataclass(frozen=True)
+class PerceptionServiceConfig:
+    """One perception worker: encoder weights, cloud sampling and the loop."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    checkpoint: Path | None = None
+    """Encoder checkpoint (safetensors with architecture and version metadata)."""
+    random_init: bool = False
+    """Run on randomly initialised weights (tests only); messages say encoder_version 0."""
+    write_random_checkpoint: Path | None = None
+    """Write a random-weights checkpoint (version 0) for `--encoder` to this path and exit."""
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    """The architecture the checkpoint must have."""
+    clouds: CloudConfig = field(default_factory=CloudConfig)
+    """Environment, object and local cloud sampling."""
+    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+
+
+CONFIG = PerceptionServiceConfig
+"""The config `hamnet perception` parses (the launcher validates stack files against it)."""
+
+
+def encoder_from(config: PerceptionServiceConfig) -> tuple[UniCORN, int]:
+    """The encoder and its version, from the checkpoint or random (`--random-init`).
+
+    Raises:
+        CheckpointError: no weights were given, both were, or the checkpoint is unusable.
+    """
+    if config.random_init == (config.checkpoint is not None):
+        raise CheckpointError("give exactly one of --checkpoint PATH and --random-init (tests only)")
+    if config.random_init:
+        torch.manual_seed(config.loop.seed)
+        return UniCORN(config.encoder), RANDOM_VERSION
+    return load_checkpoint(config.checkpoint, config.encoder)
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet perception` with command-line arguments `argv`; returns the exit status."""
+    config, identity = parse_service(CONFIG, argv, "perception", __doc__)
+    if config.write_random_checkpoint is not None:
+        write_random_checkpoint(config.write_random_checkpoint, config.encoder, config.loop.seed)
+        print(f"wrote random encoder weights (version 0) to {config.write_random_checkpoint}")
+        return 0
+    try:
+        encoder, version = encoder_from(config)
+    except CheckpointError as error:
+        print(f"hamnet perception: {error}", file=sys.stderr)
+        return 2
+    with Service(identity, config.common.transport) as service:
+        return PerceptionShell(service, encoder, version, config.loop, config.clouds).run()

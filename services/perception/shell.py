@@ -1,0 +1,236 @@
+"""The perception service's Zenoh shell: clouds and UniCORN tokens for every state.
+
+Consumes `sim/<w>/scene` (Scene: the environments starting an episode, published before the
+state of that step) and `sim/<w>/state` (RobotState: `header.step` k, `episode_ids`, and
+`privileged.object_pose`). Produces `perception/<w>/tokens` (PerceptionTokens k, with the
+state's step and episode ids, so the policy pairs them by step) for all B environments.
+
+`encoder_version` is the version of the encoder weights; 0 means random weights
+(`--random-init` or a random checkpoint), so a consumer can tell untrained tokens apart.
+
+A state is answered only when every environment's cached scene belongs to its current
+episode; otherwise it waits (counted as `waiting_for_scene`) until the scene arrives (the
+sim republishes scenes and state while it waits). A state sent again gets the same answer.
+A state without the privileged object pose (the real bridge) is dropped and counted: the
+object cloud must then come from the depth cameras (`hamnet.perception.cameras`), which have
+no topic in the contract yet.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.proto.sim_pb2 import RobotState, Scene
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.perception.clouds import Cuboids
+from hamnet.perception.config import CloudConfig
+from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.perception.unicorn import UniCORN
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+SCENE = contract.topic("sim/<w>/scene")
+TOKENS = contract.topic("perception/<w>/tokens")
+
+
+# --- decode / encode: pure functions, tested without a session -------------------------
+
+
+@dataclass(frozen=True)
+class StateIn:
+    """What perception needs of RobotState k."""
+
+    step: int
+    episode_ids: np.ndarray  # (B,) int64
+    object_pose: np.ndarray  # (B, 7) float32: position (m) + quaternion wxyz
+
+
+def _field(message, name: str, dtype, shape, finite: bool = False) -> np.ndarray:
+    owner = type(message).__name__
+    if not message.HasField(name):
+        raise PayloadError("missing", f"{owner}.{name} is not set")
+    try:
+        return from_tensor(getattr(message, name), dtype, shape, finite=finite)
+    except PayloadError as error:
+        raise PayloadError(error.reason, f"{owner}.{name}: {error.detail}") from None
+
+
+def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
+    """RobotState k; `num_envs` None accepts any batch size.
+
+    Raises:
+        PayloadError: `missing` (no episode ids, or no privileged object pose: a real robot
+            needs the camera path), `dtype`, `shape`, `nonfinite`.
+    """
+    episode_ids = _field(message, "episode_ids", np.int64, (num_envs,))  # (B,)
+    if not message.privileged.HasField("object_pose"):
+        raise PayloadError(
+            "missing",
+            "RobotState.privileged.object_pose is not set: without the sim's object pose the "
+            "object cloud must come from depth cameras, which have no topic yet",
+        )
+    pose = _field(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
+    return StateIn(message.header.step, episode_ids.copy(), pose.copy())
+
+
+def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> EpisodeScenes:
+    """The K scenes of a Scene message as CPU tensors.
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (counts disagree, object points not
+            (K, num_points, 3)), `nonfinite`, `range` (an environment index outside [0, B)).
+    """
+    env_ids = _field(message, "env_ids", np.int32, (None,))  # (K,)
+    k = len(env_ids)
+    if num_envs is not None and len(env_ids) and (env_ids.min() < 0 or env_ids.max() >= num_envs):
+        raise PayloadError("range", f"Scene.env_ids {env_ids.tolist()} outside [0, {num_envs})")
+    episode_ids = _field(message, "episode_ids", np.int64, (k,))
+    centre = _field(message, "cuboid_pos", np.float32, (k, None, 3), finite=True)  # (K, C, 3)
+    c = centre.shape[1]
+    quat = _field(message, "cuboid_quat", np.float32, (k, c, 4), finite=True)
+    half = _field(message, "cuboid_half_size", np.float32, (k, c, 3), finite=True)
+    active = _field(message, "cuboid_active", np.bool_, (k, c))
+    points = _field(message, "object_points", np.float32, (k, num_points, 3), finite=True)
+    if k and not active.any(1).all():
+        raise PayloadError("range", "Scene holds a scene without any active cuboid")
+    tensor = lambda a: torch.from_numpy(np.array(a))  # noqa: E731  (writable copies)
+    cuboids = Cuboids.from_quat(tensor(centre), tensor(quat), tensor(half), tensor(active))
+    return EpisodeScenes(tensor(env_ids).long(), tensor(episode_ids), cuboids, tensor(points))
+
+
+def encode_tokens(percepts: Percepts, step: int, episode_ids: np.ndarray, version: int) -> PerceptionTokens:
+    """PerceptionTokens k: clouds (B, P, 3) and tokens (B, 1 + K, D), float32."""
+    message = PerceptionTokens(header=Header(step=step), encoder_version=version)
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
+    for name in ("object_cloud", "environment_cloud", "local_cloud", "object_tokens", "local_tokens",
+                 "global_tokens"):  # fmt: skip
+        to_tensor(getattr(percepts, name).detach().cpu().numpy().astype(np.float32), getattr(message, name))
+    return message
+
+
+# --- the loop ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ShellConfig:
+    """Batch size, device and reporting of the shell."""
+
+    num_envs: int = 0
+    """B, environments per state; 0 takes it from the first state."""
+    device: str = "cpu"
+    """Torch device of the clouds and the encoder (cpu, cuda, cuda:1...)."""
+    seed: int = 0
+    """Seed of the cloud sampling."""
+    report_period_s: float = 10.0
+    """Seconds between rate lines in the log."""
+
+    def __post_init__(self) -> None:
+        if self.num_envs < 0:
+            raise ValueError(f"num_envs must be >= 0, got {self.num_envs}")
+
+
+class PerceptionShell:
+    """One perception worker on the network."""
+
+    def __init__(
+        self,
+        service: Service,
+        encoder: UniCORN,
+        version: int,
+        config: ShellConfig | None = None,
+        clouds: CloudConfig | None = None,
+    ) -> None:
+        self.service, self.encoder, self.version = service, encoder, version
+        self.config = config if config is not None else ShellConfig()
+        self.clouds = clouds if clouds is not None else CloudConfig()
+        ns, w = service.namespace, service.identity.worker
+        self.num_envs: int | None = self.config.num_envs or None
+        service.inbox.subscribe("scene", SCENE.key(ns, w=w), decoder=self._decode_scene)
+        service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
+        self.tokens = service.publisher(TOKENS.key(ns, w=w))
+        self.core: Perception | None = None
+        self.pending: list[EpisodeScenes] = []
+        """Scenes received before the first state (which fixes B)."""
+        self.answered: tuple[int, PerceptionTokens] | None = None
+        self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
+        self.seconds: list[float] = []
+        self._last_report = time.monotonic()
+
+    def run(self) -> int:
+        """Answer states until stopped; returns the exit status."""
+        random = " (random weights)" if self.version == 0 else ""
+        log.info("encoder version %d%s on %s", self.version, random, self.config.device)
+        while self.service.running:
+            received = self.service.receive(timeout=0.1)
+            if received is not None:
+                if received.name == "scene":
+                    self._on_scene(received.value)
+                else:
+                    self._on_state(received.value)
+            self._report()
+        return 0
+
+    def _on_scene(self, scenes: EpisodeScenes) -> None:
+        if self.core is None:
+            self.pending.append(scenes)
+        else:
+            self.core.start_episodes(scenes)
+
+    def _on_state(self, state: StateIn) -> None:
+        if self.answered is not None and self.answered[0] == state.step:
+            self.tokens.put(self.answered[1])  # the sim sent it again: same answer
+            self.counts["repeated"] += 1
+            return
+        if self.core is None:
+            self.num_envs = len(state.episode_ids)
+            self.core = Perception(self.encoder, self.num_envs, self.clouds, self.config.device, self.config.seed)
+            log.info("%d environments, first state %d", self.num_envs, state.step)
+            for scenes in self.pending:
+                if len(scenes.env_ids) and int(scenes.env_ids.max()) >= self.num_envs:
+                    self.service.drops.drop(SCENE.key(self.service.namespace, w=self.service.identity.worker),
+                                            "range", "scene for an environment beyond the first state's batch")  # fmt: skip
+                    continue
+                self.core.start_episodes(scenes)
+            self.pending.clear()
+        waiting = self.core.missing(torch.from_numpy(state.episode_ids))
+        if len(waiting):
+            self.counts["waiting_for_scene"] += 1
+            log.debug("state %d: no scene yet for environments %s", state.step, waiting.tolist())
+            return
+        started = time.perf_counter()
+        percepts = self.core.step(torch.from_numpy(state.object_pose))
+        message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
+        self.tokens.put(message)
+        self.answered = (state.step, message)
+        self.counts["published"] += 1
+        self.seconds.append(time.perf_counter() - started)
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        elapsed = now - self._last_report
+        if elapsed < self.config.report_period_s:
+            return
+        c = self.counts
+        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
+        log.info("%.1f token messages/s, median %.1f ms per step, %d repeated, %d states waiting for "
+                 "their scene", c["published"] / elapsed, median, c["repeated"], c["waiting_for_scene"])  # fmt: skip
+        self.counts = dict.fromkeys(self.counts, 0)
+        self.seconds.clear()
+        self._last_report = now
+
+    def _decode_state(self, key: str, payload: bytes) -> StateIn:
+        return decode_state(parse(RobotState, payload), self.num_envs)
+
+    def _decode_scene(self, key: str, payload: bytes) -> EpisodeScenes:
+        return decode_scene(parse(Scene, payload), self.num_envs, self.clouds.num_points)
