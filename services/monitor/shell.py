@@ -1,0 +1,126 @@
+"""The monitor's Zenoh shell: subscribes to the whole stack of one worker and hands each
+decoded frame to the view.
+
+Consumes `sim/<w>/state`, `sim/<w>/scene`, `sim/<w>/transition`, `perception/<w>/tokens`,
+`policy/<w>/action`, `safety/<w>/event` and `trainer/metrics`; publishes nothing but its
+Health. It never slows the stack: it runs in its own process, its inbox is bounded (the
+oldest payload is dropped, reason `overflow`), and the pacer decides from a message's
+header alone, before any tensor is decoded, whether its step is drawn; the state, clouds
+and action of a skipped step are dropped with reason `rate`. Transitions are always
+decoded (the success rate counts every episode); their reward terms are drawn only on
+drawn steps. Both kinds of drop are counted in Health.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from typing import Any
+
+from google.protobuf.message import Message
+
+from hamnet.monitor.config import LoopConfig
+from hamnet.monitor.decode import (
+    decode_action,
+    decode_event,
+    decode_metrics,
+    decode_scene,
+    decode_state,
+    decode_tokens,
+    decode_transition,
+)
+from hamnet.monitor.pacing import FramePacer
+from hamnet.monitor.view import MonitorView
+from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.proto.safety_pb2 import SafetyEvent
+from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
+from hamnet.proto.trainer_pb2 import Metrics
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+SCENE = contract.topic("sim/<w>/scene")
+TRANSITION = contract.topic("sim/<w>/transition")
+TOKENS = contract.topic("perception/<w>/tokens")
+ACTION = contract.topic("policy/<w>/action")
+EVENT = contract.topic("safety/<w>/event")
+METRICS = contract.topic("trainer/metrics")
+
+Decoder = Callable[[str, bytes], Any]
+
+
+class MonitorShell:
+    """One monitor on the network: subscriptions, pacing and the loop."""
+
+    def __init__(self, service: Service, view: MonitorView, loop: LoopConfig | None = None) -> None:
+        self.service, self.view = service, view
+        self.loop = loop if loop is not None else LoopConfig()
+        self.env = view.config.env
+        self.pacer = FramePacer(view.config.min_frame_interval_s)
+        ns, w = service.namespace, service.identity.worker
+        env = self.env
+        subscriptions: dict[str, tuple[str, Decoder]] = {
+            "state": (STATE.key(ns, w=w), self._paced(RobotState, decode_state)),
+            "tokens": (TOKENS.key(ns, w=w), self._paced(PerceptionTokens, decode_tokens)),
+            "action": (ACTION.key(ns, w=w), self._paced(PolicyAction, decode_action)),
+            "transition": (TRANSITION.key(ns, w=w), self._decode_transition),
+            "scene": (SCENE.key(ns, w=w), lambda key, p: decode_scene(parse(Scene, p), env)),
+            "event": (EVENT.key(ns, w=w), lambda key, p: decode_event(parse(SafetyEvent, p))),
+            "metrics": (METRICS.key(ns), lambda key, p: decode_metrics(parse(Metrics, p))),
+        }
+        for name, (key, decoder) in subscriptions.items():
+            service.inbox.subscribe(name, key, decoder=decoder)
+        self.handlers: dict[str, Callable[[Any], None]] = {
+            "state": view.on_state, "tokens": view.on_clouds, "action": view.on_action,
+            "transition": view.on_transition, "scene": view.on_scene, "event": view.on_event,
+            "metrics": view.on_metrics,
+        }  # fmt: skip
+        self._last_report = (time.monotonic(), 0)
+        """(when, steps drawn by then) of the last rate line."""
+
+    def run(self) -> int:
+        """Draw what arrives until stopped; returns the exit status."""
+        log.info("watching worker %s, environment %d, at most %.0f steps/s",
+                 self.service.identity.worker, self.env, self.view.config.max_rate_hz)  # fmt: skip
+        while self.service.running:
+            received = self.service.receive(timeout=0.1)
+            if received is not None and received.value is not None:  # None: not the focus env
+                self.handlers[received.name](received.value)
+            self._report()
+        return 0
+
+    def _paced(self, message_type: type[Message], decode: Callable[[Any, int], Any]) -> Decoder:
+        """Decoder that drops the message of a step the pacer skips, before decoding it."""
+
+        def decoder(key: str, payload: bytes) -> Any:
+            message = parse(message_type, payload)
+            step = message.header.step
+            if not self.pacer.draw(step, time.monotonic()):
+                raise PayloadError("rate", f"step {step} not drawn: at most "
+                                   f"{self.view.config.max_rate_hz:g} steps/s (--max-rate-hz)")  # fmt: skip
+            return decode(message, self.env)
+
+        return decoder
+
+    def _decode_transition(self, key: str, payload: bytes) -> Any:
+        message = parse(Transition, payload)
+        drawn = self.pacer.draw(message.header.step, time.monotonic())
+        return decode_transition(message, self.env, drawn)
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        then, drawn = self._last_report
+        if now - then < self.loop.report_period_s:
+            return
+        success = self.view.success
+        log.info("%.1f steps/s drawn, %d skipped in all, step %d, %d episodes finished, "
+                 "success rate %.2f, %d payloads dropped in all",
+                 (self.pacer.drawn - drawn) / (now - then), self.pacer.skipped, self.view.step,
+                 success.finished, success.rate, self.service.drops.total)  # fmt: skip
+        self._last_report = (now, self.pacer.drawn)
