@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
+
+import tyro
 
 Compression = Literal["zstd", "lz4", "none"]
 """How each MCAP chunk is compressed (both codecs come with the `mcap` package)."""
@@ -22,7 +24,7 @@ MB = 1_000_000
 class RecorderConfig:
     """Where a recording goes, its chunks and its rotation."""
 
-    output: Path | None = None
+    output: Annotated[Path | None, tyro.conf.arg(aliases=("-o",))] = None
     """Recording file. None: runs/record/<UTC date-time>.mcap. With rotation, files are
     <stem>-0000.mcap, <stem>-0001.mcap, ... beside it (replay and info take them all)."""
     overwrite: bool = False
@@ -35,7 +37,8 @@ class RecorderConfig:
     """... or once it is this many seconds old: a crash (even SIGKILL) loses at most the
     messages of the open chunk, so at most this long of a slow stream."""
     rotate_mb: float = 0.0
-    """Start a new file once the current one reaches about this many MB (0: never)."""
+    """Start a new file once the current one holds this many MB of data (0: never); its
+    summary (indexes and schemas, a few kB) comes on top."""
     rotate_s: float = 0.0
     """Start a new file once the current one spans this many seconds (0: never)."""
 

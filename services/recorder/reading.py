@@ -10,6 +10,7 @@ ends early is kept in its `FileContents`.
 from __future__ import annotations
 
 import heapq
+import struct
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,7 +92,7 @@ def read_file(path: Path, contents: FileContents | None = None) -> Iterator[Reco
                         contents.metadata[item.name] = dict(item.metadata)
                     elif isinstance(item, Footer):
                         contents.complete = True
-        except (McapError, ValueError, KeyError) as error:  # truncated or corrupt tail
+        except (McapError, struct.error, ValueError, KeyError) as error:  # truncated or corrupt tail
             contents.stopped = f"{type(error).__name__}: {error}".rstrip(": ")
 
 

@@ -109,6 +109,7 @@ class RecordingWriter:
             log_time_ns: when it was received, Unix ns.
             publish_time_ns: when it was published (header stamp), Unix ns.
         """
+        self._maybe_rotate(log_time_ns)  # a file spans less than rotate_s
         if self._file is None:
             self._file = self._open(log_time_ns)
         sequence = self._sequence.get(key, 0)
