@@ -1,0 +1,110 @@
+"""Render depth views of a sim scene with MuJoCo's offscreen renderer (EGL), from virtual
+cameras placed like the paper's four D435s, with a segmentation mask (scene cuboids, object).
+
+Runs as a script because MuJoCo picks its OpenGL backend when it is first imported:
+
+    python -m hamnet.perception.render OUT.npz [--seed N] [--width W --height H]
+
+writes the views and the scene they show (cuboids, object points and pose of environment 0
+of a `VectorEnv`), so depth fusion can be compared with the analytic clouds of that scene.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import argparse  # noqa: E402
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from hamnet.perception.cameras import OBJECT, SCENE, DepthView, d435_rig  # noqa: E402
+from hamnet.sim.config import SimConfig  # noqa: E402
+from hamnet.sim.env import VectorEnv  # noqa: E402
+
+D435_FOVY = 58.0
+"""Vertical field of view of the D435 depth camera, degrees (87 x 58)."""
+FIELDS = ("geom_pos", "geom_quat", "geom_size", "geom_dataid", "geom_rbound", "geom_aabb")
+
+
+def environment_model(env: VectorEnv, index: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """A model and data showing environment `index` of the batch (its cuboids and object)."""
+    model = env.world.model.__copy__()
+    for name in FIELDS:
+        getattr(model, name)[:] = env.physics.fields[name][index]
+    model.vis.global_.fovy = D435_FOVY
+    data = mujoco.MjData(model)
+    data.qpos[:] = env.physics.qpos[index]
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def _pose(scene: mujoco.MjvScene) -> np.ndarray:
+    """(4, 4) OpenCV camera-to-world pose of the rendered view: MuJoCo keeps two eye cameras
+    half the inter-pupillary distance apart and renders a mono view from their average."""
+    eyes = scene.camera[0], scene.camera[1]
+    forward, up = (np.mean([np.array(getattr(e, name)) for e in eyes], 0) for name in ("forward", "up"))
+    pose = np.eye(4)
+    pose[:3, :3] = np.stack([np.cross(forward, up), -up, forward], axis=1)
+    pose[:3, 3] = np.mean([np.array(e.pos) for e in eyes], 0)
+    return pose
+
+
+def _intrinsics(gl_camera, width: int, height: int) -> np.ndarray:
+    near, top, bottom = gl_camera.frustum_near, gl_camera.frustum_top, gl_camera.frustum_bottom
+    fy = height * near / (top - bottom)
+    fx = fy  # square pixels: MuJoCo widens the frustum with the aspect ratio
+    return np.array([[fx, 0.0, width / 2 - 0.5], [0.0, fy, height / 2 - 0.5], [0.0, 0.0, 1.0]])
+
+
+def render_views(env: VectorEnv, index: int, width: int, height: int) -> list[DepthView]:
+    """Depth and segmentation of environment `index` from the four D435-like cameras."""
+    model, data = environment_model(env, index)
+    table = env.scene_arrays["centre"][index, 0]
+    labels_of = np.zeros(model.ngeom + 1, np.uint8)
+    labels_of[env.world.cuboid_geoms] = SCENE
+    labels_of[env.world.object_geoms] = OBJECT
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = 1  # the object's parts are in group 3, hidden by default
+    views = []
+    with mujoco.Renderer(model, height, width) as renderer:
+        for lookat, azimuth, elevation in d435_rig(table):
+            camera = mujoco.MjvCamera()
+            camera.lookat[:], camera.distance = lookat, float(np.hypot(1.0, 0.7))
+            camera.azimuth, camera.elevation = azimuth, elevation
+            renderer.update_scene(data, camera, scene_option=option)
+            renderer.enable_depth_rendering()
+            depth = renderer.render().copy()
+            renderer.disable_depth_rendering()
+            renderer.enable_segmentation_rendering()
+            segment = renderer.render()
+            renderer.disable_segmentation_rendering()
+            is_geom = segment[..., 1] == mujoco.mjtObj.mjOBJ_GEOM
+            labels = np.where(is_geom, labels_of[np.clip(segment[..., 0], 0, model.ngeom)], 0)
+            views.append(DepthView(depth.astype(np.float32), labels.astype(np.uint8),
+                                   _intrinsics(renderer.scene.camera[0], width, height), _pose(renderer.scene)))  # fmt: skip
+    return views
+
+
+def main() -> None:
+    """Render environment 0 of a seeded sim and save views and scene to an .npz file."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("out")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--width", type=int, default=212)
+    parser.add_argument("--height", type=int, default=120)
+    args = parser.parse_args()
+    env = VectorEnv(SimConfig(num_envs=1, num_objects=2, nthread=1, seed=args.seed))
+    obs = env.reset(seed=args.seed)
+    views = render_views(env, 0, args.width, args.height)
+    arrays = {f"{name}_{i}": getattr(v, name) for i, v in enumerate(views)
+              for name in ("depth", "labels", "intrinsics", "camera_to_world")}  # fmt: skip
+    scene = {name: env.scene_arrays[name][0] for name in ("centre", "quat", "half_extent", "active")}
+    np.savez(args.out, **arrays, **scene, object_points=env.object_points[env.object_index[0]],
+             object_pose=obs.object_pose[0])  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
