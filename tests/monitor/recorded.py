@@ -17,6 +17,7 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import from_tensor, to_tensor
+from hamnet.sim import quaternion
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
@@ -71,6 +72,23 @@ def action(step: int, rng: np.random.Generator) -> PolicyAction:
     to_tensor(rng.standard_normal((B, 3)).astype(np.float32), message.values)
     to_tensor(np.zeros(B, np.float32), message.log_prob)
     return message
+
+
+EE_OFFSET = np.array([0.0, 0.0, 0.09])
+"""Site `ee` in the paddle body's frame, m (fr3.xml)."""
+
+
+def xyzw_matrix(quat: list[float]) -> np.ndarray:
+    """Rotation matrix (3, 3) of a Rerun (xyzw) quaternion."""
+    x, y, z, w = quat
+    return quaternion.to_matrix(np.array([w, x, y, z]))
+
+
+def drawn_ee(rrd: Rrd, step: int) -> np.ndarray:
+    """Where the drawn paddle puts site `ee` at `step`, (3,) m."""
+    translation = rrd.rows("/robot/fr3_paddle", "Transform3D:translation")[step][0]
+    quat = rrd.rows("/robot/fr3_paddle", "Transform3D:quaternion")[step][0]
+    return np.array(translation) + xyzw_matrix(quat) @ EE_OFFSET
 
 
 class Rrd:

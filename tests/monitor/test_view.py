@@ -6,7 +6,6 @@ reward terms, success rate, safety events and trainer metrics."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,23 +25,16 @@ from hamnet.monitor.decode import (
 from hamnet.monitor.robot import RobotView
 from hamnet.monitor.view import MonitorView
 from hamnet.proto.common_pb2 import Header
-from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind, StageStats
+from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
 from hamnet.proto.trainer_pb2 import Metrics
 from hamnet.runtime.tensor import from_tensor, to_tensor
-from hamnet.sim import quaternion
 from hamnet.sim.scene import NUM_BASE
-from tests.monitor.recorded import B, L, M, Rrd, action, sim_messages, tokens
+from tests.monitor.recorded import B, L, M, Rrd, action, drawn_ee, sim_messages, tokens, xyzw_matrix
 
 ENV = 1
 """The environment in focus (not 0, so that a wrong row shows)."""
 STEPS = 7
 TIMEOUT = 3
-
-
-def xyzw_matrix(quat: list[float]) -> np.ndarray:
-    """Rotation matrix of a Rerun (xyzw) quaternion."""
-    x, y, z, w = quat
-    return quaternion.to_matrix(np.array([w, x, y, z]))
 
 
 @pytest.fixture(scope="module")
@@ -117,14 +109,10 @@ def test_paddle_is_drawn_where_the_sim_reports_the_end_effector(run) -> None:
     """The paddle body's drawn pose, moved to site `ee` (0.09 m along its z), equals the
     end-effector position in each state of the focus environment (sim's own kinematics)."""
     rrd, sent = run
-    translations = rrd.rows("/robot/fr3_paddle", "Transform3D:translation")
-    quats = rrd.rows("/robot/fr3_paddle", "Transform3D:quaternion")
-    assert sorted(translations) == list(range(STEPS + 1))
+    assert sorted(rrd.rows("/robot/fr3_paddle", "Transform3D:translation")) == list(range(STEPS + 1))
     for state in sent["state"]:
-        step = state.header.step
         ee = from_tensor(state.ee_pose, np.float32, (B, 9))[ENV, :3]
-        site = np.array(translations[step][0]) + xyzw_matrix(quats[step][0]) @ [0, 0, 0.09]
-        np.testing.assert_allclose(site, ee, atol=1e-4)
+        np.testing.assert_allclose(drawn_ee(rrd, state.header.step), ee, atol=1e-4)
 
 
 def test_scene_object_and_goal_of_the_focus_environment(run) -> None:
