@@ -1,0 +1,158 @@
+"""Building blocks of the policy networks: cross-attention over tokens, plain MLPs, and the
+module bank whose per-sample mixture is a contraction over the module axis.
+
+Hidden layers are Linear -> LayerNorm (no affine, as in the authors' code) -> tanh; output
+layers are linear. Shapes: B batch, N tokens, D token width, M modules, J in, I out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor, nn
+from torch.nn import functional as F
+
+
+def hidden_activation(x: Tensor) -> Tensor:
+    """LayerNorm without affine parameters, then tanh (every hidden layer of every network)."""
+    return torch.tanh(F.layer_norm(x, x.shape[-1:]))
+
+
+class MLP(nn.Module):
+    """Linear layers with `hidden_activation` between them; the last layer is linear unless
+    `activate_last` (an embedding rather than an output)."""
+
+    def __init__(self, dims: Sequence[int], activate_last: bool = False) -> None:
+        super().__init__()
+        self.layers = nn.ModuleList(nn.Linear(i, o) for i, o in zip(dims[:-1], dims[1:]))
+        self.activate_last = activate_last
+
+    def forward(self, x: Tensor) -> Tensor:
+        """(B, dims[0]) -> (B, dims[-1])."""
+        for index, layer in enumerate(self.layers):
+            x = layer(x)
+            if self.activate_last or index < len(self.layers) - 1:
+                x = hidden_activation(x)
+        return x
+
+
+class CrossAttention(nn.Module):
+    """One query per sample attends over N tokens with H heads (paper Fig. overall-arch).
+
+    The query is the sample's state group, tokenized by a two-layer MLP (paper's caption).
+    The key and value projections are absorbed into the query side: q_h . (W_k,h t_n)
+    equals (W_k,h^T q_h) . t_n and sum_n a_n W_v,h t_n equals W_v,h sum_n a_n t_n, so the
+    tokens are never projected: O(H N D) per sample instead of O(N D E). Key biases shift
+    every score of a query equally (softmax ignores them) and value biases pass through the
+    convex sum into the output bias, so nothing is lost (checked against a standard
+    implementation in the tests).
+    """
+
+    def __init__(self, query_dim: int, token_dim: int, dim: int, heads: int) -> None:
+        super().__init__()
+        self.heads, self.head_dim = heads, dim // heads
+        self.query = nn.Sequential(nn.Linear(query_dim, dim), nn.Tanh(), nn.Linear(dim, dim))
+        self.key = nn.Parameter(torch.empty(heads, self.head_dim, token_dim))  # (H, E/H, D)
+        self.value = nn.Parameter(torch.empty(heads, self.head_dim, token_dim))  # (H, E/H, D)
+        self.out = nn.Linear(dim, dim)
+        bound = 1.0 / math.sqrt(token_dim)
+        nn.init.uniform_(self.key, -bound, bound)
+        nn.init.uniform_(self.value, -bound, bound)
+
+    def forward(self, query: Tensor, tokens: Tensor) -> Tensor:
+        """(B, Q) queries over (B, N, D) tokens -> (B, E) summaries."""
+        b = query.shape[0]
+        q = self.query(query).view(b, self.heads, self.head_dim).transpose(0, 1)  # (H, B, E/H)
+        # Batched over heads, not broadcast over samples: broadcasting would copy the
+        # projections B times.
+        q_key = (q @ self.key).transpose(0, 1) / math.sqrt(self.head_dim)  # (B, H, D)
+        attention = torch.softmax(q_key @ tokens.transpose(1, 2), dim=-1)  # (B, H, N)
+        mixed = (attention @ tokens).transpose(0, 1)  # (H, B, D)
+        heads = (mixed @ self.value.transpose(1, 2)).transpose(0, 1).reshape(b, -1)  # (B, E)
+        return self.out(heads)
+
+
+class _ModuleMixture(torch.autograd.Function):
+    """y = (w (x) x) @ W_stacked: the contraction over modules, with a backward that reads
+    the (B, M*J) input gradient once per operand (two batched mat-vecs) instead of letting
+    autograd materialise two more (B, M, J) products and reduce them."""
+
+    @staticmethod
+    def forward(ctx, x: Tensor, weights: Tensor, stacked: Tensor) -> Tensor:
+        b, m = weights.shape
+        scaled = (weights.unsqueeze(2) * x.unsqueeze(1)).reshape(b, -1)  # (B, M*J)
+        ctx.save_for_backward(x, weights, stacked, scaled)
+        return scaled @ stacked  # (B, I)
+
+    @staticmethod
+    def backward(ctx, grad: Tensor) -> tuple[Tensor | None, ...]:
+        x, weights, stacked, scaled = ctx.saved_tensors
+        grad_x = grad_weights = grad_stacked = None
+        if ctx.needs_input_grad[2]:
+            grad_stacked = scaled.T @ grad  # (M*J, I)
+        if ctx.needs_input_grad[0] or ctx.needs_input_grad[1]:
+            grad_scaled = (grad @ stacked.T).view(len(x), weights.shape[1], -1)  # (B, M, J)
+            grad_x = (weights.unsqueeze(1) @ grad_scaled).squeeze(1)  # (B, J)
+            grad_weights = (grad_scaled @ x.unsqueeze(2)).squeeze(2)  # (B, M)
+        return grad_x, grad_weights, grad_stacked
+
+
+class ModularLinear(nn.Module):
+    """A bank of M linear modules mixed per sample: y = g * (sum_m w_m (W_m x + b_m)).
+
+    The mixture is one contraction over the module axis: the sample's module weights scale
+    copies of its input, (B, M*J), which one GEMM maps through the stacked modules
+    (M*J, I). Per-sample weight matrices (B, I, J) are never built, and the cost is that of
+    a single linear layer M times as wide at the input.
+    """
+
+    def __init__(self, in_dim: int, out_dim: int, num_modules: int) -> None:
+        super().__init__()
+        self.in_dim, self.out_dim, self.num_modules = in_dim, out_dim, num_modules
+        bound = 1.0 / math.sqrt(in_dim)  # nn.Linear's initialisation, module by module
+        self.weight = nn.Parameter(torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound))
+        self.bias = nn.Parameter(torch.empty(num_modules, out_dim).uniform_(-bound, bound))
+
+    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gate: Tensor | None) -> Tensor:
+        """Mix the modules for each sample.
+
+        Args:
+            x: (B, J) inputs.
+            weights: (B, M) softmax over modules for the weight matrices.
+            bias_weights: (B, M) softmax over modules for the biases.
+            gate: (B, I) per-unit gates, or None.
+
+        Returns:
+            (B, I) outputs.
+        """
+        stacked = self.weight.view(-1, self.out_dim)  # (M*J, I)
+        y = _ModuleMixture.apply(x, weights, stacked) + bias_weights @ self.bias  # (B, I)
+        return y if gate is None else y * gate
+
+
+class ModularMLP(nn.Module):
+    """Base network of HAMnet: one module bank per layer (`ModularLinear`)."""
+
+    def __init__(self, dims: Sequence[int], num_modules: int) -> None:
+        super().__init__()
+        self.layers = nn.ModuleList(
+            ModularLinear(i, o, num_modules) for i, o in zip(dims[:-1], dims[1:])
+        )
+
+    @property
+    def out_dims(self) -> list[int]:
+        """Output width of every layer (the widths the gates scale)."""
+        return [layer.out_dim for layer in self.layers]
+
+    def forward(
+        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Sequence[Tensor] | None
+    ) -> Tensor:
+        """(B, J) -> (B, out) with (B, L, M) module weights and L gates (B, D_l) or None."""
+        for index, layer in enumerate(self.layers):
+            gate = None if gates is None else gates[index]
+            x = layer(x, weights[:, index], bias_weights[:, index], gate)
+            if index < len(self.layers) - 1:
+                x = hidden_activation(x)
+        return x

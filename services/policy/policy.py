@@ -1,0 +1,109 @@
+"""The in-process policy core the service and the trainer share: a network plus the Gaussian
+actor around it (PPO's act and evaluate) and the log-std schedule.
+
+The log std is a buffer, not a parameter: it follows `log_std_at(update)` (Table tab:PPO),
+is saved with the weights, so the service samples with the trainer's current std, and is
+the same for every environment. Shapes: B batch, A action components, R reward terms,
+L base-network layers, M modules, H recurrent memory.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor, nn
+
+from hamnet.policy.config import LogStdConfig, ModelConfig
+from hamnet.policy.networks import PolicyInputs
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class Action:
+    """What `Policy.act` returns for one batch."""
+
+    action: Tensor
+    """(B, A) raw action (sample, or the mean when deterministic)."""
+    log_prob: Tensor
+    """(B,) log-density of `action` under the policy."""
+    values: Tensor
+    """(B, R) value per reward term."""
+    module_weights: Tensor
+    """(B, L, M) module activations."""
+    memory: Tensor | None
+    """(B, H) next recurrent state, or None."""
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What `Policy.evaluate` returns for given actions (the PPO losses' inputs)."""
+
+    log_prob: Tensor
+    """(B,) log-density of the given actions."""
+    entropy: Tensor
+    """(B,) entropy of the action distribution."""
+    values: Tensor
+    """(B, R) value per reward term."""
+    memory: Tensor | None
+    """(B, H) next recurrent state, or None."""
+
+
+def log_std_at(update: int, config: LogStdConfig) -> float:
+    """log sigma after `update` PPO updates: initial + decay * update, floored at minimum."""
+    return max(config.initial + config.decay * update, config.minimum)
+
+
+class Policy(nn.Module):
+    """A registered architecture's network with a diagonal Gaussian over raw actions."""
+
+    def __init__(self, architecture: str, config: ModelConfig, network: nn.Module) -> None:
+        super().__init__()
+        self.architecture, self.config, self.network = architecture, config, network
+        self.register_buffer("log_std", torch.full((config.action_dim,), config.log_std.initial))
+
+    @property
+    def memory_width(self) -> int:
+        """H of the recurrent memory; 0 for feed-forward networks."""
+        return getattr(self.network, "memory_width", 0)
+
+    def initial_memory(self, batch: int) -> Tensor | None:
+        """(B, H) zeros for a recurrent policy at episode starts; None otherwise."""
+        if not self.memory_width:
+            return None
+        return self.log_std.new_zeros(batch, self.memory_width)
+
+    def set_update(self, update: int) -> None:
+        """Move the log std to its scheduled value after `update` PPO updates."""
+        self.log_std.fill_(log_std_at(update, self.config.log_std))
+
+    def act(
+        self, inputs: PolicyInputs, deterministic: bool = False, generator: torch.Generator | None = None
+    ) -> Action:
+        """Actions for one batch: a sample (or the mean), its log-prob, values, modules."""
+        out = self.network(inputs)
+        std = self.log_std.exp().expand_as(out.mean)  # (B, A)
+        if deterministic:
+            action = out.mean
+        else:
+            noise = torch.randn(out.mean.shape, generator=generator, device=out.mean.device)
+            action = out.mean + std * noise  # (B, A)
+        log_prob = self._log_prob(action, out.mean)
+        return Action(action, log_prob, out.values, out.module_weights, out.memory)
+
+    def evaluate(self, inputs: PolicyInputs, actions: Tensor) -> Evaluation:
+        """Log-prob and entropy of `actions` (B, A) and the values, with gradients."""
+        out = self.network(inputs)
+        entropy = (self.log_std + 0.5 + _LOG_SQRT_2PI).sum().expand(actions.shape[0])  # (B,)
+        return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory)
+
+    def _log_prob(self, action: Tensor, mean: Tensor) -> Tensor:
+        """(B,) log N(action; mean, exp(log_std)^2), summed over the A components."""
+        z = (action - mean) * torch.exp(-self.log_std)
+        return (-0.5 * z.square() - self.log_std - _LOG_SQRT_2PI).sum(dim=-1)
+
+    def parameter_count(self) -> int:
+        """Trainable parameters (the log std is scheduled, not trained)."""
+        return sum(p.numel() for p in self.parameters())

@@ -1,0 +1,77 @@
+"""Every policy architecture by name: the network class and its preset `ModelConfig`.
+
+`build(name)` makes a `Policy` with the preset; `build(name, config)` with a config read
+from weights metadata. The names are the ones on the wire (`WeightsAnnouncement.architecture`)
+and on the command line (`hamnet policy --random-init NAME`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from hamnet.policy.baselines import HyperNetwork, MonolithicMLP, SoftModularization
+from hamnet.policy.config import ModelConfig
+from hamnet.policy.networks import HAMNet
+from hamnet.policy.policy import Policy
+
+
+@dataclass(frozen=True)
+class Architecture:
+    """One registered architecture."""
+
+    network: type[nn.Module]
+    config: ModelConfig
+    """Preset configuration."""
+    summary: str
+    """What it is, in the paper's words."""
+    paper_params: str
+    """Parameter count the paper reports for it, or why it reports none."""
+
+
+ARCHITECTURES: dict[str, Architecture] = {}
+"""Name -> architecture, in the order `--print-params` lists them."""
+
+
+def register(name: str, network: type[nn.Module], summary: str, paper: str, **preset) -> None:
+    """Add an architecture under `name`; `preset` overrides ModelConfig's defaults."""
+    if name in ARCHITECTURES:
+        raise ValueError(f"architecture {name!r} is registered twice")
+    ARCHITECTURES[name] = Architecture(network, ModelConfig(**preset), summary, paper)
+
+
+register("hamnet", HAMNet, "UniCORN-HAMnet teacher (modules + gates)",
+         "about 1.76 M: Table tab:mlp-scale sizes the MLP to match it")  # fmt: skip
+register("hamnet-nogate", HAMNet, "HAMnet without gates (ablation)", "not reported", gates=False)
+register("hamnet-envcode", HAMNet, "EnvCode-HAMnet: oracle scene code instead of scene tokens",
+         "not reported", scene_input="env_code")  # fmt: skip
+register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (768, 384, 384, 192)",
+         "1.76 M (Table tab:mlp-scale)")  # fmt: skip
+register("hyper", HyperNetwork, "UniCORN-HYPER: low-rank hypernetwork (rank 16)", "not reported")
+register("sm", SoftModularization, "UniCORN-SM: soft modularization", "not reported")
+register("student", HAMNet, "student: HAMnet with GRUs, real-robot inputs only",
+         "not reported", privileged=False, recurrent=True)  # fmt: skip
+
+
+def architecture(name: str) -> Architecture:
+    """The registered architecture `name`; a ValueError lists the known names."""
+    if name not in ARCHITECTURES:
+        raise ValueError(f"unknown architecture {name!r}; known: {', '.join(ARCHITECTURES)}")
+    return ARCHITECTURES[name]
+
+
+def build(name: str, config: ModelConfig | None = None, seed: int | None = None) -> Policy:
+    """A freshly initialised policy of architecture `name` (preset config unless given)."""
+    entry = architecture(name)
+    config = entry.config if config is None else config
+    if seed is not None:
+        torch.manual_seed(seed)
+    return Policy(name, config, entry.network(config))
+
+
+def with_changes(name: str, **changes) -> ModelConfig:
+    """The preset config of `name` with some fields changed (tests, benchmarks, scaling)."""
+    return dataclasses.replace(architecture(name).config, **changes)

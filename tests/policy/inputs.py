@@ -1,0 +1,33 @@
+"""Random but well-formed policy inputs for tests (tiny batches, real tensor shapes)."""
+
+from __future__ import annotations
+
+import torch
+
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import RobotObservation, assemble
+from hamnet.policy.policy import Policy
+
+
+def random_robot(batch: int, seed: int = 0) -> RobotObservation:
+    """A random robot state with unit quaternions and the privileged block."""
+    g = torch.Generator().manual_seed(seed)
+    r = lambda *shape: torch.randn(*shape, generator=g)  # noqa: E731
+    unit = lambda q: q / q.norm(dim=-1, keepdim=True)  # noqa: E731
+    pose = lambda: torch.cat((r(batch, 3), unit(r(batch, 4))), dim=-1)  # noqa: E731
+    return RobotObservation(r(batch, 7), r(batch, 7), r(batch, 9), pose(), pose(), r(batch, 6), r(batch, 6))
+
+
+def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs:
+    """Inputs for `policy` with every optional piece its architecture may read."""
+    config = policy.config
+    g = torch.Generator().manual_seed(seed + 1)
+    tokens = lambda: torch.randn(batch, config.num_tokens, config.token_dim, generator=g)  # noqa: E731
+    return PolicyInputs(
+        observation=assemble(random_robot(batch, seed), config.privileged),
+        object_tokens=tokens(),
+        local_tokens=tokens(),
+        global_tokens=tokens(),
+        env_code=torch.randn(batch, config.env_code_dim, generator=g),
+        memory=policy.initial_memory(batch),
+    )

@@ -1,0 +1,162 @@
+"""Policy networks: every architecture's shapes, the module contraction against a naive
+per-sample reference, the M = 1 reduction to an MLP, gradients into every module, the
+absorbed cross-attention against a standard one, and the Gaussian actor's maths."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+import torch
+from torch.nn import functional as F
+
+from hamnet.policy.layers import MLP, CrossAttention, ModularLinear, hidden_activation
+from hamnet.policy.networks import HAMNet
+from hamnet.policy.policy import log_std_at
+from hamnet.policy.registry import ARCHITECTURES, build, with_changes
+from hamnet.sim.rewards import REWARD_NAMES
+from tests.policy.inputs import random_inputs
+
+B = 4
+
+
+@pytest.mark.parametrize("name", list(ARCHITECTURES))
+def test_every_architecture_acts_with_the_contract_shapes(name: str) -> None:
+    policy = build(name, seed=0)
+    action = policy.act(random_inputs(policy, B))
+    assert action.action.shape == (B, 21) and action.log_prob.shape == (B,)
+    assert action.values.shape == (B, len(REWARD_NAMES))
+    assert action.module_weights.dim() == 3 and action.module_weights.shape[0] == B
+    for tensor in (action.action, action.log_prob, action.values, action.module_weights):
+        assert torch.isfinite(tensor).all()
+    if action.module_weights.shape[1]:  # softmax over modules
+        torch.testing.assert_close(action.module_weights.sum(-1), torch.ones(action.module_weights.shape[:2]))
+    assert (action.memory is None) == (not policy.config.recurrent)
+
+
+def test_hamnet_reports_one_softmax_per_actor_and_critic_layer() -> None:
+    policy = build("hamnet", seed=0)
+    assert policy.act(random_inputs(policy, B)).module_weights.shape == (B, 10, 8)
+
+
+def naive_modular(layer: ModularLinear, x, weights, bias_weights, gate):
+    """Per-sample reference: build each sample's weight matrix, then multiply."""
+    matrices = torch.einsum("bm,mji->bji", weights, layer.weight)  # (B, J, I)
+    bias = bias_weights @ layer.bias  # (B, I)
+    y = torch.bmm(x.unsqueeze(1), matrices).squeeze(1) + bias
+    return y * gate
+
+
+def test_module_contraction_equals_per_sample_weight_matrices() -> None:
+    torch.manual_seed(0)
+    layer = ModularLinear(13, 11, 8)
+    x = torch.randn(B, 13, dtype=torch.float64)
+    layer = layer.double()
+    weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
+    bias_weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
+    gate = 1 + 0.1 * torch.randn(B, 11, dtype=torch.float64)
+    torch.testing.assert_close(layer(x, weights, bias_weights, gate), naive_modular(layer, x, weights, bias_weights, gate))
+    # The hand-written backward against autograd through the naive reference.
+    inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, gate)]
+    assert torch.autograd.gradcheck(lambda *a: layer(*a), inputs)
+
+
+def test_hamnet_forward_equals_naive_reference_to_1e5() -> None:
+    """The whole actor through `ModularLinear` against the same actor evaluated with
+    explicitly built per-sample matrices."""
+    policy = build("hamnet", seed=1)
+    network: HAMNet = policy.network
+    inputs = random_inputs(policy, B, seed=3)
+    captured = {}
+    hook = network.actor.register_forward_hook(lambda m, args, out: captured.update(args=args, out=out))
+    network(inputs)
+    hook.remove()
+    x, weights, bias_weights, gates = captured["args"]
+    layers = network.actor.layers
+    for index, layer in enumerate(layers):
+        x = naive_modular(layer, x, weights[:, index], bias_weights[:, index], gates[index])
+        if index < len(layers) - 1:
+            x = hidden_activation(x)
+    torch.testing.assert_close(x, captured["out"], atol=1e-5, rtol=1e-5)
+
+
+def test_one_module_without_gates_is_a_plain_mlp() -> None:
+    policy = build("hamnet", with_changes("hamnet", num_modules=1, gates=False), seed=2)
+    network: HAMNet = policy.network
+    inputs = random_inputs(policy, B)
+    x = network.object(inputs)
+    dims = [network.actor.layers[0].in_dim] + network.actor.out_dims
+    mlp = MLP(dims)
+    with torch.no_grad():
+        for linear, modular in zip(mlp.layers, network.actor.layers):
+            linear.weight.copy_(modular.weight[0].T)
+            linear.bias.copy_(modular.bias[0])
+    torch.testing.assert_close(network(inputs).mean, mlp(x), atol=1e-6, rtol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["hamnet", "sm", "student"])
+def test_gradients_reach_every_module(name: str) -> None:
+    policy = build(name, seed=0)
+    inputs = random_inputs(policy, 16)
+    if policy.config.recurrent:  # from zero memory the recurrent weights get no gradient
+        memory = policy.act(inputs).memory.detach()
+        inputs = dataclasses.replace(inputs, memory=memory)
+    evaluation = policy.evaluate(inputs, torch.randn(16, 21))
+    (evaluation.log_prob.mean() + evaluation.values.square().mean()).backward()
+    for parameter_name, parameter in policy.named_parameters():
+        assert parameter.grad is not None, parameter_name
+        if parameter.dim() >= 2 and parameter.shape[0] == policy.config.num_modules:
+            per_module = parameter.grad.flatten(1).abs().sum(1)  # (M,)
+            assert (per_module > 0).all(), parameter_name
+        else:
+            assert parameter.grad.abs().sum() > 0, parameter_name
+
+
+def test_absorbed_cross_attention_equals_standard_attention() -> None:
+    torch.manual_seed(0)
+    attention = CrossAttention(query_dim=5, token_dim=12, dim=8, heads=2).double()
+    query, tokens = torch.randn(B, 5).double(), torch.randn(B, 7, 12).double()
+    q = attention.query(query).view(B, 2, 1, 4)  # (B, H, 1, E/H)
+    k = torch.einsum("hed,bnd->bhne", attention.key, tokens)  # (B, H, N, E/H)
+    v = torch.einsum("hed,bnd->bhne", attention.value, tokens)
+    standard = F.scaled_dot_product_attention(q, k, v).reshape(B, 8)
+    torch.testing.assert_close(attention(query, tokens), attention.out(standard))
+
+
+def test_log_prob_and_entropy_match_torch_normal() -> None:
+    policy = build("mlp", seed=0)
+    policy.set_update(100)
+    inputs = random_inputs(policy, B)
+    action = policy.act(inputs, generator=torch.Generator().manual_seed(0))
+    mean = policy.act(inputs, deterministic=True).action
+    normal = torch.distributions.Normal(mean, policy.log_std.exp())
+    torch.testing.assert_close(action.log_prob, normal.log_prob(action.action).sum(-1))
+    evaluation = policy.evaluate(inputs, action.action)
+    torch.testing.assert_close(evaluation.log_prob, action.log_prob)
+    torch.testing.assert_close(evaluation.entropy, normal.entropy().sum(-1))
+
+
+def test_log_std_schedule_decays_to_its_floor() -> None:
+    config = ARCHITECTURES["hamnet"].config.log_std
+    assert log_std_at(0, config) == -0.4
+    assert math.isclose(log_std_at(1000, config), -0.4 - 0.367)
+    assert log_std_at(10**7, config) == config.minimum
+    policy = build("hamnet")
+    policy.set_update(1000)
+    torch.testing.assert_close(policy.log_std, torch.full((21,), -0.767))
+
+
+def test_student_memory_carries_information_between_steps() -> None:
+    policy = build("student", seed=0)
+    first = random_inputs(policy, B, seed=0)
+    step = policy.act(first, deterministic=True)
+    again = random_inputs(policy, B, seed=0)
+    fresh = policy.act(again, deterministic=True).action
+    carried = policy.act(dataclasses.replace(again, memory=step.memory), deterministic=True).action
+    assert not torch.allclose(fresh, carried)
+
+
+def test_teacher_config_refuses_a_recurrent_baseline() -> None:
+    with pytest.raises(ValueError, match="no recurrent variant"):
+        build("mlp", with_changes("mlp", recurrent=True))
