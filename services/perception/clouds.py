@@ -180,7 +180,7 @@ def _points_on(triangles: Triangles, index: torch.Tensor, generator) -> torch.Te
 def sample_surface(
     cuboids: Cuboids,
     num_points: int,
-    grid: int = 8,
+    grid: int = 2,
     tolerance: float = 1e-5,
     generator: torch.Generator | None = None,
 ) -> torch.Tensor:

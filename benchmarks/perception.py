@@ -1,0 +1,115 @@
+"""Perception benchmark: clouds and tokens per second for B environments with and without
+the per-episode caches, and the culling sampler against sampling the boolean mesh union of
+the same scenes (trimesh + manifold3d), in one run.
+
+Scenes come from the sim's own `VectorEnv`. "Cached" is one `Perception.step` (pose the
+object, local cloud, encode it); "uncached" redoes every episode's scene sampling and the
+global and object encodings each step as well. The union baseline builds each scene's
+union mesh with manifold3d and samples it with trimesh, one scene at a time (it does not
+vectorize), against `sample_surface` for all scenes at once. Last line: one JSON object.
+
+    python benchmarks/perception.py [--quick] [--num-envs 64]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+import torch
+import trimesh
+
+from hamnet.perception.clouds import Cuboids, sample_surface
+from hamnet.perception.config import CloudConfig
+from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.unicorn import UniCORN
+from hamnet.sim.config import SimConfig
+from hamnet.sim.env import VectorEnv
+from hamnet.sim.quaternion import to_matrix
+
+
+def timed(fn, repeats: int) -> np.ndarray:
+    """Seconds of each of `repeats` calls after one warm-up call."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return np.array(times)
+
+
+def union_sample(scene: dict[str, np.ndarray], num_points: int) -> np.ndarray:
+    """The baseline: boolean union of one scene's active boxes, then area-weighted samples."""
+    boxes = []
+    for centre, quat, half in zip(scene["centre"], scene["quat"], scene["half_extent"]):
+        transform = np.eye(4)
+        transform[:3, :3], transform[:3, 3] = to_matrix(quat), centre
+        boxes.append(trimesh.creation.box(extents=2 * half, transform=transform))
+    union = trimesh.boolean.union(boxes, engine="manifold")
+    points, _ = trimesh.sample.sample_surface(union, num_points)
+    return points
+
+
+def stats(seconds: np.ndarray) -> dict[str, float]:
+    return {"median_ms": 1e3 * float(np.median(seconds)), "p99_ms": 1e3 * float(np.percentile(seconds, 99))}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="few repeats (under a minute)")
+    parser.add_argument("--num-envs", type=int, default=64)
+    args = parser.parse_args()
+    torch.manual_seed(0)
+    torch.set_num_threads(max(torch.get_num_threads(), 1))
+    b, repeats = args.num_envs, (3 if args.quick else 20)
+    env = VectorEnv(SimConfig(num_envs=b, num_objects=8, nthread=1, seed=0))
+    obs = env.reset(seed=0)
+    s = env.scene_arrays
+    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    cuboids = Cuboids.from_quat(f32(s["centre"]), f32(s["quat"]), f32(s["half_extent"]), torch.as_tensor(s["active"]))
+    scenes = EpisodeScenes(torch.arange(b), torch.as_tensor(obs.episode_ids), cuboids,
+                           f32(env.object_points[env.object_index]))  # fmt: skip
+    pose = f32(obs.object_pose)
+    config = CloudConfig()
+    core = Perception(UniCORN(), b, config)
+    core.start_episodes(scenes)
+
+    def uncached() -> None:
+        core.start_episodes(scenes)
+        core.step(pose)
+
+    cached_s = timed(lambda: core.step(pose), repeats)
+    uncached_s = timed(uncached, repeats)
+    culling_s = timed(lambda: sample_surface(cuboids, config.num_points, config.grid), repeats)
+    union_envs = min(b, 8 if args.quick else b)
+    rows = [{name: s[name][i][s["active"][i]] for name in ("centre", "quat", "half_extent")} for i in range(union_envs)]
+    union_s = timed(lambda: [union_sample(row, config.num_points) for row in rows], max(1, repeats // 3))
+    union_per_env = union_s / union_envs
+    culling_per_env = culling_s / b
+    figures = {
+        "num_envs": b,
+        "device": "cpu",
+        "torch_threads": torch.get_num_threads(),
+        "cached_step": stats(cached_s),
+        "uncached_step": stats(uncached_s),
+        "cached_steps_per_s": 1.0 / float(np.median(cached_s)),
+        "uncached_steps_per_s": 1.0 / float(np.median(uncached_s)),
+        "cached_env_steps_per_s": b / float(np.median(cached_s)),
+        "cache_speedup": float(np.median(uncached_s) / np.median(cached_s)),
+        "culling_sample_512": stats(culling_s),
+        "union_sample_512_per_env_ms": 1e3 * float(np.median(union_per_env)),
+        "culling_sample_512_per_env_ms": 1e3 * float(np.median(culling_per_env)),
+        "union_envs_timed": union_envs,
+        "culling_vs_union_speedup": float(np.median(union_per_env) / np.median(culling_per_env)),
+    }
+    print(f"{b} environments: cached step {figures['cached_step']['median_ms']:.1f} ms, uncached "
+          f"{figures['uncached_step']['median_ms']:.1f} ms ({figures['cache_speedup']:.1f}x); culling sampler "
+          f"{figures['culling_sample_512_per_env_ms']:.2f} ms/env vs union {figures['union_sample_512_per_env_ms']:.2f} ms/env")  # fmt: skip
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,16 @@
+"""`benchmarks/perception.py --quick` runs to the end and reports the figures its issue names."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.benchmarks.quick import run_quick
+
+
+@pytest.mark.slow
+def test_quick_run_ends_with_one_json_line_of_figures() -> None:
+    figures = run_quick("perception.py", timeout=120)
+    assert figures["num_envs"] == 64
+    assert figures["culling_vs_union_speedup"] > 0 and figures["cache_speedup"] > 0
+    for row in ("cached_step", "uncached_step", "culling_sample_512"):
+        assert 0 < figures[row]["median_ms"] <= figures[row]["p99_ms"], row
