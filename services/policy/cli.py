@@ -1,0 +1,77 @@
+"""`hamnet policy`: HAMnet (or a baseline) serving batched actions for every robot state and
+its perception tokens, with hot-reloaded weights from the trainer (see
+`hamnet.policy.shell` for the topics).
+
+Start from a checkpoint (`--checkpoint run/policy.safetensors`, the bytes of a weights
+announcement) or, for tests and demos, from random weights (`--random-init hamnet`: version
+0, and a warning that the actions are meaningless). `--print-params` prints the parameter
+counts of every architecture next to the paper's and exits.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+from hamnet.policy.params import parameter_table
+from hamnet.policy.registry import ARCHITECTURES, build
+from hamnet.policy.shell import PolicyShell, ShellConfig
+from hamnet.policy.weights import WeightsError, policy_from, read_checkpoint
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PolicyServiceConfig:
+    """One policy worker: which weights it starts from and how it infers."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    checkpoint: Path | None = None
+    """safetensors checkpoint written by the trainer (architecture, config and version are
+    in its metadata). Required unless --random-init or --print-params."""
+    random_init: str | None = None
+    """Serve randomly initialised weights of this architecture (version 0), for tests and
+    demos only: one of hamnet, hamnet-nogate, hamnet-envcode, mlp, hyper, sm, student."""
+    print_params: bool = False
+    """Print the parameter counts of every architecture next to the paper's, then exit."""
+    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+
+    def __post_init__(self) -> None:
+        if self.checkpoint is not None and self.random_init is not None:
+            raise ValueError("give either --checkpoint or --random-init, not both")
+        if self.random_init is not None and self.random_init not in ARCHITECTURES:
+            raise ValueError(f"unknown architecture {self.random_init!r}; known: "
+                             f"{', '.join(ARCHITECTURES)}")  # fmt: skip
+
+
+CONFIG = PolicyServiceConfig
+"""The config `hamnet policy` parses (the launcher validates stack files against it)."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet policy` with command-line arguments `argv`; returns the exit status."""
+    config, identity = parse_service(CONFIG, argv, "policy", __doc__)
+    if config.print_params:
+        print(parameter_table())
+        return 0
+    if config.random_init is not None:
+        policy, version = build(config.random_init, seed=config.loop.seed), 0
+        log.warning("serving RANDOM %s weights (version 0): actions are meaningless until the "
+                    "trainer publishes weights", config.random_init)  # fmt: skip
+    elif config.checkpoint is not None:
+        try:
+            weights = read_checkpoint(config.checkpoint)
+            policy, version = policy_from(weights), weights.version
+        except WeightsError as error:
+            log.error("%s", error)
+            return 2
+    else:
+        log.error("hamnet policy needs --checkpoint PATH (or --random-init ARCH for a demo)")
+        return 2
+    with Service(identity, config.common.transport) as service:
+        return PolicyShell(service, policy, version, config.loop).run()

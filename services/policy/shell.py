@@ -1,0 +1,364 @@
+"""The policy service's Zenoh shell: one batch of actions for every paired state and tokens.
+
+Consumes `sim/<w>/state` (RobotState k), `perception/<w>/tokens` (PerceptionTokens k, the
+same step), `sim/<w>/scene` (EnvCode of reset environments, for the EnvCode oracle) and
+`trainer/weights` (WeightsAnnouncement). Produces `policy/<w>/action` (PolicyAction k:
+`header.step` = k, `header.policy_version` = the weights' version, raw action, log-prob,
+values, module weights). State and tokens are paired by step (`Pairing`); a state sent
+again after its answer gets the same answer again.
+
+Hot reload: an announcement is checked (sha256, metadata, architecture, config, tensor
+shapes, finiteness) and loaded into a second copy of the network, which replaces the serving
+one between two batches; a bad one is logged as an error and the old weights keep serving.
+Every batch comes from one version and carries it.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.proto.sim_pb2 import RobotState, Scene
+from hamnet.proto.trainer_pb2 import WeightsAnnouncement
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import RobotObservation, assemble
+from hamnet.policy.pairing import Pairing
+from hamnet.policy.policy import Action, Policy
+from hamnet.policy.registry import build
+from hamnet.policy.weights import WeightsError, from_bytes, load_into, sha256
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+TOKENS = contract.topic("perception/<w>/tokens")
+SCENE = contract.topic("sim/<w>/scene")
+WEIGHTS = contract.topic("trainer/weights")
+ACTION = contract.topic("policy/<w>/action")
+
+J = 7
+"""Joints of the FR3."""
+
+
+# --- decode / encode: pure functions, tested without a session -------------------------
+
+
+@dataclass(frozen=True)
+class StateIn:
+    """What the policy reads of RobotState k."""
+
+    step: int
+    episode_ids: np.ndarray
+    """(B,) int64."""
+    episode_step: np.ndarray
+    """(B,) int32 policy steps since each episode started."""
+    robot: RobotObservation
+
+
+@dataclass(frozen=True)
+class TokensIn:
+    """PerceptionTokens k."""
+
+    step: int
+    episode_ids: np.ndarray
+    """(B,) int64."""
+    tokens: tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+    """Object, local and global tokens, (B, N, D) float32 each."""
+
+
+def _array(owner, name: str, dtype, shape, finite: bool = True) -> np.ndarray:
+    if not owner.HasField(name):
+        raise PayloadError("missing", f"{type(owner).__name__}.{name} is not set")
+    try:
+        return from_tensor(getattr(owner, name), dtype, shape, finite=finite)
+    except PayloadError as error:
+        raise PayloadError(error.reason, f"{type(owner).__name__}.{name}: {error.detail}") from None
+
+
+def _floats(owner, name: str, shape) -> torch.Tensor:
+    """A float32 field as a tensor (one copy out of the read-only wire buffer)."""
+    return torch.tensor(_array(owner, name, np.float32, shape))
+
+
+def decode_state(message: RobotState, privileged: bool) -> StateIn:
+    """RobotState k; the privileged block is required when `privileged` (a teacher).
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
+    """
+    q = _floats(message, "q", (None, J))  # (B, 7)
+    b = len(q)
+    extra: dict[str, torch.Tensor] = {}
+    if privileged:
+        if not message.HasField("privileged"):
+            raise PayloadError("missing", "RobotState.privileged is needed by a teacher policy")
+        block = message.privileged
+        extra = {
+            "object_pose": _floats(block, "object_pose", (b, 7)),
+            "object_velocity": _floats(block, "object_velocity", (b, 6)),
+            "physics_params": _floats(block, "physics_params", (b, 6)),
+        }
+    robot = RobotObservation(
+        q=q,
+        dq=_floats(message, "dq", (b, J)),
+        ee_pose=_floats(message, "ee_pose", (b, 9)),
+        goal_pose=_floats(message, "goal_pose", (b, 7)),
+        **extra,
+    )
+    episode_ids = _array(message, "episode_ids", np.int64, (b,)).copy()
+    episode_step = _array(message, "episode_step", np.int32, (b,)).copy()
+    return StateIn(message.header.step, episode_ids, episode_step, robot)
+
+
+def decode_tokens(message: PerceptionTokens, num_tokens: int, token_dim: int) -> TokensIn:
+    """PerceptionTokens k (object, local and global tokens (B, N, D)).
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
+    """
+    shape = (None, num_tokens, token_dim)
+    obj = _floats(message, "object_tokens", shape)
+    b = len(obj)
+    local = _floats(message, "local_tokens", (b, num_tokens, token_dim))
+    whole = _floats(message, "global_tokens", (b, num_tokens, token_dim))
+    episode_ids = _array(message, "episode_ids", np.int64, (b,)).copy()
+    return TokensIn(message.header.step, episode_ids, (obj, local, whole))
+
+
+def decode_scene(message: Scene, env_code_dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """(env_ids (K,), env_code (K, 25)) of a Scene."""
+    env_ids = _array(message, "env_ids", np.int32, (None,))
+    env_code = _array(message, "env_code", np.float32, (len(env_ids), env_code_dim))
+    return env_ids.copy(), env_code.copy()
+
+
+def encode_action(
+    step: int, version: int, episode_ids: np.ndarray, action: Action, deterministic: bool
+) -> PolicyAction:
+    """PolicyAction k: action (B, 21), log_prob (B,), values (B, R), module weights (B, L, M)."""
+    message = PolicyAction(
+        header=Header(step=step, policy_version=version), deterministic=deterministic
+    )
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
+    for name in ("action", "log_prob", "values", "module_weights"):
+        value = getattr(action, name).detach().to("cpu", torch.float32).numpy()
+        to_tensor(value, getattr(message, name))
+    return message
+
+
+# --- the loop ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ShellConfig:
+    """Inference options of the shell."""
+
+    deterministic: bool = False
+    """Serve the distribution's mean (evaluation) instead of samples (rollouts)."""
+    device: str = "cpu"
+    """torch device for inference: cpu, cuda, cuda:1, ..."""
+    seed: int = 0
+    """Seed of the sampling noise."""
+    pending: int = 8
+    """Steps that may wait for their other half (state or tokens) before the oldest is
+    dropped."""
+    report_period_s: float = 10.0
+    """Seconds between rate lines in the log."""
+
+    def __post_init__(self) -> None:
+        if self.pending < 1:
+            raise ValueError(f"pending must be >= 1, got {self.pending}")
+
+
+class PolicyShell:
+    """One policy worker on the network: pairing, batched inference, hot reload."""
+
+    def __init__(
+        self, service: Service, policy: Policy, version: int, config: ShellConfig | None = None
+    ) -> None:
+        self.service, self.config = service, config if config is not None else ShellConfig()
+        self.device = torch.device(self.config.device)
+        self.policy, self.version = policy.to(self.device).eval(), version
+        self.spare: Policy | None = None
+        """The second copy that the next weights are loaded into."""
+        model = policy.config
+        ns, w = service.namespace, service.identity.worker
+        inbox = service.inbox
+        inbox.subscribe("state", STATE.key(ns, w=w),
+                        decoder=lambda k, p: decode_state(parse(RobotState, p), model.privileged))
+        inbox.subscribe("tokens", TOKENS.key(ns, w=w), decoder=lambda k, p: decode_tokens(
+            parse(PerceptionTokens, p), model.num_tokens, model.token_dim))
+        inbox.subscribe("scene", SCENE.key(ns, w=w),
+                        decoder=lambda k, p: decode_scene(parse(Scene, p), model.env_code_dim))
+        inbox.subscribe("weights", WEIGHTS.key(ns),
+                        decoder=lambda k, p: parse(WeightsAnnouncement, p))  # fmt: skip
+        self.action = service.publisher(ACTION.key(ns, w=w))
+        self.pairing: Pairing[StateIn, TokensIn] = Pairing(self.config.pending)
+        self.generator = torch.Generator(self.device).manual_seed(self.config.seed)
+        self.env_code = np.zeros((0, model.env_code_dim), np.float32)
+        """(B, 25) latest EnvCode of every environment (rows grow as scenes arrive)."""
+        self.memory: torch.Tensor | None = None
+        """(B, H) recurrent state of a student."""
+        self.episode_ids: np.ndarray | None = None
+        self.answered: tuple[int, PolicyAction] | None = None
+        self.counts = dict.fromkeys(("actions", "resent", "stale", "mismatch", "rejected"), 0)
+        self.latencies: list[float] = []
+        self._last_report = time.monotonic()
+
+    def run(self) -> int:
+        """Serve until stopped; returns the exit status."""
+        log.info("serving %s version %d on %s (%s)", self.policy.architecture, self.version,
+                 self.device, "deterministic" if self.config.deterministic else "sampling")  # fmt: skip
+        while self.service.running:
+            received = self.service.receive(timeout=0.1)
+            if received is not None:
+                self._handle(received.name, received.value)
+            self._report()
+        return 0
+
+    def _handle(self, name: str, value: Any) -> None:
+        if name == "weights":
+            self._on_weights(value)
+        elif name == "scene":
+            self._on_scene(*value)
+        elif name == "state":
+            self._on_state(value)
+        elif self._fresh(value.step):
+            self._serve(self.pairing.add_tokens(value.step, value))
+
+    def _fresh(self, step: int) -> bool:
+        """False for a step older than the last answered (counted) or equal to it."""
+        if self.answered is None or step > self.answered[0]:
+            return True
+        self.counts["stale"] += step < self.answered[0]
+        return False
+
+    def _on_state(self, state: StateIn) -> None:
+        if self.answered is not None and state.step == self.answered[0]:
+            self.action.put(self.answered[1])  # the sim sent it again: the same answer
+            self.counts["resent"] += 1
+        elif self._fresh(state.step):
+            self._serve(self.pairing.add_state(state.step, state))
+
+    def _on_scene(self, env_ids: np.ndarray, env_code: np.ndarray) -> None:
+        rows = int(env_ids.max(initial=-1)) + 1
+        if rows > len(self.env_code):
+            grown = np.zeros((rows, self.env_code.shape[1]), np.float32)
+            grown[: len(self.env_code)] = self.env_code
+            self.env_code = grown
+        self.env_code[env_ids] = env_code
+
+    def _serve(self, pair: tuple[StateIn, TokensIn] | None) -> None:
+        if pair is None:
+            return
+        state, tokens = pair
+        if not np.array_equal(state.episode_ids, tokens.episode_ids):
+            self.counts["mismatch"] += 1
+            log.warning("state and tokens of step %d disagree on episode ids: dropped", state.step)
+            return
+        started = time.monotonic()
+        with torch.inference_mode():
+            action = self.policy.act(
+                self._inputs(state, tokens), self.config.deterministic, self.generator
+            )
+        self.memory = action.memory
+        message = encode_action(state.step, self.version, state.episode_ids, action,
+                                self.config.deterministic)  # fmt: skip
+        self.action.put(message)
+        self.answered = (state.step, message)
+        self.counts["actions"] += 1
+        self.latencies.append(time.monotonic() - started)
+
+    def _inputs(self, state: StateIn, tokens: TokensIn) -> PolicyInputs:
+        """The network inputs of a pair, on the device, with memory reset at episode starts."""
+        robot = RobotObservation(**{
+            name: None if value is None else value.to(self.device)
+            for name, value in vars(state.robot).items()
+        })  # fmt: skip
+        b = len(state.episode_ids)
+        obj, local, whole = (t.to(self.device) for t in tokens.tokens)
+        return PolicyInputs(
+            observation=assemble(robot, self.policy.config.privileged),
+            object_tokens=obj,
+            local_tokens=local,
+            global_tokens=whole,
+            env_code=self._env_code(b),
+            memory=self._memory(state),
+        )
+
+    def _env_code(self, b: int) -> torch.Tensor | None:
+        if self.policy.config.scene_input != "env_code":
+            return None
+        if len(self.env_code) < b:
+            log.warning("no scene yet for environments %d..%d: their EnvCode is zero",
+                        len(self.env_code), b - 1)  # fmt: skip
+            self._on_scene(np.arange(b), np.zeros((b, self.env_code.shape[1]), np.float32))
+        return torch.tensor(self.env_code[:b], device=self.device)
+
+    def _memory(self, state: StateIn) -> torch.Tensor | None:
+        """(B, H) recurrent memory, zeroed where an episode starts."""
+        b = len(state.episode_ids)
+        if not self.policy.memory_width:
+            return None
+        if self.memory is None or len(self.memory) != b or self.episode_ids is None:
+            self.memory = self.policy.initial_memory(b)
+        else:
+            starts = (state.episode_step == 0) | (state.episode_ids != self.episode_ids)  # (B,)
+            self.memory[torch.from_numpy(starts).to(self.device)] = 0.0
+        self.episode_ids = state.episode_ids
+        return self.memory
+
+    def _on_weights(self, message: WeightsAnnouncement) -> None:
+        version = message.version
+        try:
+            self._load_spare(message)
+        except WeightsError as error:
+            self.counts["rejected"] += 1
+            log.error("rejected weights version %d: %s; still serving version %d", version,
+                      error, self.version)  # fmt: skip
+            return
+        self.policy, self.spare, self.version = self.spare, self.policy, version
+        log.info("serving weights version %d", version)
+
+    def _load_spare(self, message: WeightsAnnouncement) -> None:
+        """Check an announcement and load it into the spare copy (WeightsError if unfit)."""
+        if message.version <= self.version:
+            raise WeightsError(f"version {message.version} is not newer")
+        if sha256(message.safetensors) != message.sha256:
+            raise WeightsError("sha256 does not match the safetensors bytes")
+        weights = from_bytes(message.safetensors)
+        if (weights.architecture, weights.version) != (message.architecture, message.version):
+            raise WeightsError(f"metadata says {weights.architecture!r} version {weights.version}, "
+                               f"the announcement {message.architecture!r} version {message.version}")  # fmt: skip
+        if self.spare is None:
+            self.spare = build(self.policy.architecture, self.policy.config).to(self.device).eval()
+        load_into(self.spare, weights)
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        elapsed = now - self._last_report
+        if elapsed < self.config.report_period_s:
+            return
+        c = self.counts
+        latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
+        drops = self.pairing.dropped
+        log.info(
+            "%.1f actions/s, inference median %.1f ms, version %d, %d resent, %d stale, "
+            "%d mismatched, %d rejected weights, unpaired halves dropped: %d superseded, "
+            "%d overflow", c["actions"] / elapsed, latency, self.version, c["resent"],
+            c["stale"], c["mismatch"], c["rejected"], drops["superseded"], drops["overflow"],
+        )  # fmt: skip
+        self.counts = dict.fromkeys(self.counts, 0)
+        self.latencies.clear()
+        self._last_report = now
