@@ -4,7 +4,8 @@
 #   bash scripts/setup.sh            # install, then `hamnet up compose/demo.yaml`
 #   bash scripts/setup.sh --no-demo  # install only (CI)
 #
-# Installs the system libraries (libusb-1.0-0 for open3d), a virtual environment in .venv,
+# Installs the system libraries (libusb-1.0-0 for open3d; EGL and Mesa for MuJoCo's offscreen
+# depth rendering of virtual cameras), a virtual environment in .venv,
 # the CPU build of PyTorch and the hamnet package with its dev tools. Safe to rerun.
 # HAMNET_PYTHON picks the interpreter; HAMNET_TORCH the PyTorch requirement.
 set -euo pipefail
@@ -16,7 +17,7 @@ demo=1
 python="${HAMNET_PYTHON:-$(command -v python3.11 || command -v python3)}"
 "$python" -c 'import sys; assert sys.version_info >= (3, 10), "hamnet needs Python >= 3.10"'
 
-system_packages=(libusb-1.0-0)
+system_packages=(libusb-1.0-0 libegl1 libegl-mesa0 libopengl0 libgl1-mesa-dri)
 missing=()
 for package in "${system_packages[@]}"; do
   dpkg -s "$package" >/dev/null 2>&1 || missing+=("$package")

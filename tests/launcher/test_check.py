@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from hamnet.cli import COMMANDS, Command
+from hamnet.launcher import check as check_module
 from hamnet.launcher.check import check, not_built
 from hamnet.launcher.cli import main
 from hamnet.launcher.stack import parse
@@ -48,7 +50,15 @@ def test_a_stack_cannot_run_the_launcher() -> None:
     assert verdicts({"up": {}})["up"] == "error: a stack cannot run `hamnet up`"
 
 
-def test_commands_not_built_yet_are_missing_not_errors() -> None:
+def test_commands_not_built_yet_are_missing_not_errors(monkeypatch) -> None:
+    """A stack naming a command whose service is not built is reported, not rejected; the
+    registry is patched so that this holds whatever is built by now."""
+    unbuilt = (
+        Command("perception", "clouds", None, 6),
+        Command("bridge", "robot", None),
+    )
+    registry = tuple(c for c in COMMANDS if c.name not in ("perception", "bridge")) + unbuilt
+    monkeypatch.setattr(check_module, "COMMANDS", registry)
     stack = parse({"services": {"perception": {"args": {"anything": 1}},
                                 "robot": {"command": "bridge"}, "echo": {}}}, "t")
     result = check(stack, {})
