@@ -41,6 +41,13 @@ class RecordServiceConfig:
     """Stop after this many seconds (0: until stopped)."""
     report_period_s: float = 5.0
     """Seconds between progress lines."""
+    queue_size: int = 1024
+    """Payloads held between Zenoh and the writer; when full, the oldest is dropped and
+    counted (`overflow` in Health): the recorder never blocks the network."""
+
+    def __post_init__(self) -> None:
+        if self.queue_size < 1 or self.duration_s < 0 or not self.report_period_s > 0:
+            raise ValueError("queue_size must be >= 1, duration_s >= 0, report_period_s > 0")
 
 
 CONFIG = RecordServiceConfig
@@ -68,7 +75,7 @@ def main(argv: Sequence[str]) -> int:
         log.error("cannot record: %s", error)
         return 2
     try:
-        with Service(identity, config.common.transport) as service:
+        with Service(identity, config.common.transport, inbox_capacity=config.queue_size) as service:
             shell = RecordShell(service, writer, config.key_exprs, config.duration_s,
                                 config.report_period_s)  # fmt: skip
             return shell.run()

@@ -27,8 +27,10 @@ class RecorderConfig:
     output: Annotated[Path | None, tyro.conf.arg(aliases=("-o",))] = None
     """Recording file. None: runs/record/<UTC date-time>.mcap. With rotation, files are
     <stem>-0000.mcap, <stem>-0001.mcap, ... beside it (replay and info take them all)."""
-    overwrite: bool = False
-    """Replace existing files instead of refusing to start."""
+    overwrite: bool = True
+    """Replace existing files (a rotating recording also removes the numbered files of an
+    earlier one with the same name), as `hamnet up` does when it reruns a stack;
+    --no-overwrite refuses to start instead."""
     compression: Compression = "zstd"
     """Chunk compression: zstd (smaller), lz4 (faster) or none."""
     chunk_mb: float = 1.0

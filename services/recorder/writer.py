@@ -98,6 +98,9 @@ class RecordingWriter:
         self._sequence: dict[str, int] = {}
         self._pending_bytes = 0
         self._chunk_opened_ns: int | None = None
+        if config.overwrite and config.rotates:
+            for stale in self.output.parent.glob(f"{self.output.stem}-[0-9][0-9][0-9][0-9].mcap"):
+                stale.unlink()  # else an earlier, longer recording's tail would mix with this one
         self._file: _OpenFile | None = self._open(start_ns)
 
     def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
@@ -151,7 +154,7 @@ class RecordingWriter:
     def _open(self, now_ns: int) -> _OpenFile:
         path = file_path(self.output, self.config.rotates, len(self.paths))
         if path.exists() and not self.config.overwrite:
-            raise FileExistsError(f"{path} exists (pass --overwrite to replace it)")
+            raise FileExistsError(f"{path} exists (--no-overwrite)")
         path.parent.mkdir(parents=True, exist_ok=True)
         stream = open(path, "wb")  # noqa: SIM115 - closed by _finish
         writer = Writer(stream, chunk_size=NEVER, compression=COMPRESSION[self.config.compression])

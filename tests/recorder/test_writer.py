@@ -111,14 +111,25 @@ def test_a_file_cut_anywhere_reads_up_to_its_last_complete_chunk(tmp_path: Path)
     assert 0 < counts[0] < max(counts) == len(messages)  # the last cuts are in the summary
 
 
-def test_an_existing_file_is_kept_unless_overwrite(tmp_path: Path) -> None:
+def test_existing_files_are_replaced_unless_no_overwrite(tmp_path: Path) -> None:
     path = tmp_path / "a.mcap"
     path.write_bytes(b"keep me")
-    with pytest.raises(FileExistsError, match="--overwrite"):
-        RecordingWriter(RecorderConfig(output=path), {}, T0)
+    with pytest.raises(FileExistsError, match="--no-overwrite"):
+        RecordingWriter(RecorderConfig(output=path, overwrite=False), {}, T0)
     assert path.read_bytes() == b"keep me"
-    RecordingWriter(RecorderConfig(output=path, overwrite=True), {}, T0).close()
+    RecordingWriter(RecorderConfig(output=path), {}, T0).close()
     assert list(read_file(path)) == []
+
+
+def test_a_rotating_recording_replaces_every_file_of_an_earlier_one(tmp_path: Path) -> None:
+    """A shorter rerun under the same name must not leave the earlier run's later files,
+    which `replay run-*.mcap` would mix in."""
+    first = write(tmp_path / "run.mcap", lock_step(STEPS), rotate_s=0.5)
+    other = tmp_path / "run-other.mcap"
+    other.write_bytes(b"not ours")
+    second = write(tmp_path / "run.mcap", lock_step(3), rotate_s=0.5)
+    assert len(first.paths) > len(second.paths) == 1
+    assert sorted(tmp_path.iterdir()) == [second.paths[0], other]
 
 
 def test_file_names_are_predictable() -> None:
