@@ -1,0 +1,142 @@
+"""The policy shell driven by scripted messages (no network): decoding, pairing by step,
+answers equal to the core's, resends, EnvCode from scenes, and hot reload that swaps
+between batches and refuses bad weights while the old ones keep serving."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import assemble
+from hamnet.policy.registry import build
+from hamnet.policy.shell import PolicyShell, ShellConfig, decode_state, decode_tokens
+from hamnet.policy.weights import to_bytes
+from hamnet.runtime.codec import encode
+from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.tensor import PayloadError
+from tests.policy.inputs import random_robot
+from tests.policy.wire import announcement, scene_message, state_message, tokens_message
+from tests.scripted import ScriptedService, wire
+
+B = 3
+
+
+def expected(policy, step: int, env_code: np.ndarray | None = None) -> torch.Tensor:
+    """The deterministic action for step `step` computed by the core directly."""
+    g = torch.Generator().manual_seed(10_000 + step)
+    obj, local, whole = (torch.randn(B, 17, 128, generator=g) for _ in range(3))
+    inputs = PolicyInputs(
+        assemble(random_robot(B, seed=step), policy.config.privileged), obj, local, whole,
+        None if env_code is None else torch.tensor(env_code), policy.initial_memory(B),
+    )  # fmt: skip
+    with torch.no_grad():
+        return policy.act(inputs, deterministic=True).action
+
+
+def run(policy, messages: list[tuple[str, object]]) -> tuple[list, PolicyShell]:
+    """Feed `messages` to a shell serving `policy` (version 0); returns published actions."""
+    items = iter(messages)
+
+    def script(published):
+        item = next(items, None)
+        return "end" if item is None else (item[0], encode(item[1]))
+
+    service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
+    shell = PolicyShell(service, policy, 0, ShellConfig(deterministic=True))
+    shell.run()
+    return [message for topic, message in service.published if topic == "action"], shell
+
+
+def test_state_and_tokens_decode_to_what_was_sent() -> None:
+    state = decode_state(wire(state_message(5, B)), privileged=True)
+    robot = random_robot(B, seed=5)
+    assert state.step == 5 and state.episode_ids.shape == (B,)
+    for name in ("q", "ee_pose", "object_velocity", "physics_params"):
+        torch.testing.assert_close(getattr(state.robot, name), getattr(robot, name))
+    tokens = decode_tokens(wire(tokens_message(5, B)), 17, 128)
+    assert [t.shape for t in tokens.tokens] == [(B, 17, 128)] * 3
+
+
+def test_teacher_refuses_a_state_without_privileged_block() -> None:
+    message = state_message(1, B)
+    message.ClearField("privileged")
+    with pytest.raises(PayloadError, match="privileged"):
+        decode_state(message, privileged=True)
+    assert decode_state(message, privileged=False).robot.object_pose is None
+
+
+def test_pairs_by_step_in_any_order_and_a_lost_half_blocks_nothing() -> None:
+    policy = build("hamnet", seed=0)
+    actions, shell = run(policy, [
+        ("tokens", tokens_message(0, B)), ("state", state_message(0, B)),
+        ("state", state_message(1, B)),  # its tokens never come
+        ("state", state_message(2, B)), ("tokens", tokens_message(2, B)),
+        ("tokens", tokens_message(1, B)),  # too late: step 2 is answered
+    ])  # fmt: skip
+    assert [a.header.step for a in actions] == [0, 2]
+    for message in actions:
+        got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
+        torch.testing.assert_close(got, expected(policy, message.header.step), atol=1e-5, rtol=1e-5)
+        assert message.deterministic and tuple(message.module_weights.shape) == (B, 10, 8)
+        assert tuple(message.values.shape) == (B, 3) and tuple(message.log_prob.shape) == (B,)
+    assert shell.pairing.dropped["superseded"] == 1 and shell.counts["stale"] == 1
+
+
+def test_a_resent_state_gets_the_same_answer_again() -> None:
+    policy = build("mlp", seed=0)
+    actions, _ = run(policy, [("state", state_message(0, B)), ("tokens", tokens_message(0, B)),
+                              ("state", state_message(0, B))])  # fmt: skip
+    assert len(actions) == 2 and actions[0] == actions[1]
+
+
+def test_envcode_oracle_reads_the_scene_of_each_environment() -> None:
+    policy = build("hamnet-envcode", seed=0)
+    code = np.random.default_rng(0).standard_normal((B, 25)).astype(np.float32)
+    actions, _ = run(policy, [("scene", scene_message([2], code[2:])),
+                              ("scene", scene_message([0, 1], code[:2])),
+                              ("state", state_message(0, B)), ("tokens", tokens_message(0, B))])  # fmt: skip
+    got = np.frombuffer(actions[0].action.data, np.float32).reshape(B, 21)
+    torch.testing.assert_close(torch.from_numpy(got.copy()), expected(policy, 0, code), atol=1e-5, rtol=1e-5)
+
+
+def test_hot_reload_swaps_between_batches_and_bad_weights_keep_the_old_ones() -> None:
+    serving, newer = build("hamnet", seed=0), build("hamnet", seed=1)
+    corrupt = announcement(newer, 2)
+    corrupt.sha256 = "0" * 64
+    messages = [
+        ("state", state_message(0, B)), ("tokens", tokens_message(0, B)),
+        ("weights", announcement(newer, 1)),
+        ("state", state_message(1, B)), ("tokens", tokens_message(1, B)),
+        ("weights", corrupt),  # sha256 mismatch
+        ("weights", announcement(build("mlp", seed=0), 3)),  # another architecture
+        ("weights", announcement(newer, 1)),  # not newer
+        ("weights", announcement(newer, 4, data=to_bytes(newer, 5))),  # metadata disagrees
+        ("weights", announcement(newer, 6, data=b"garbage")),
+        ("state", state_message(2, B)), ("tokens", tokens_message(2, B)),
+    ]
+    actions, shell = run(serving, messages)
+    assert [(a.header.step, a.header.policy_version) for a in actions] == [(0, 0), (1, 1), (2, 1)]
+    reference = {0: build("hamnet", seed=0), 1: newer, 2: newer}
+    for message in actions:
+        got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
+        want = expected(reference[message.header.step], message.header.step)
+        torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+    assert shell.counts["rejected"] == 5 and shell.version == 1
+
+
+def test_student_memory_restarts_with_each_episode() -> None:
+    """A new episode id must zero that environment's memory: the student's action for the
+    first state of an episode equals the action of a fresh student."""
+    policy = build("student", seed=0)
+    actions, _ = run(policy, [
+        ("state", state_message(0, B, episode_ids=[0, 0, 0], episode_step=[0, 0, 0])),
+        ("tokens", tokens_message(0, B)),
+        ("state", state_message(1, B, episode_ids=[0, 7, 0], episode_step=[1, 0, 1])),
+        ("tokens", tokens_message(1, B, episode_ids=[0, 7, 0])),
+    ])  # fmt: skip
+    got = np.frombuffer(actions[1].action.data, np.float32).reshape(B, 21)
+    fresh = expected(policy, 1).numpy()
+    np.testing.assert_allclose(got[1], fresh[1], atol=1e-5)
+    assert not np.allclose(got[0], fresh[0], atol=1e-4)
