@@ -1,0 +1,85 @@
+"""`hamnet policy` as a process on real Zenoh, with this test as sim, perception and trainer.
+
+States and tokens stream with several steps in flight while the trainer's weights arrive
+(three good versions and one corrupt announcement). Every step must be answered exactly
+once, versions must never go back, the corrupt version must never be served, and each
+action must equal, to 1e-5, the core's action under the weights of the version it is
+stamped with: a batch computed with mixed or other weights would not.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+
+from hamnet.policy.registry import build
+from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.runtime import contract
+from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.transport import open_session
+from tests.conftest import transport_args
+from tests.policy.test_shell import B, expected
+from tests.policy.wire import announcement, state_message, tokens_message
+
+STEPS = 60
+IN_FLIGHT = 4
+RELOADS = {12: 1, 28: 2, 44: 3}
+"""Step after which a weights version is announced."""
+CORRUPT_AT, CORRUPT_VERSION = 20, 10
+
+
+def test_hot_reload_under_load_serves_every_step_from_one_version(spawn, transport) -> None:
+    process = spawn("policy", "--random-init", "hamnet", "--deterministic",
+                    *transport_args(transport))  # fmt: skip
+    ns, w = transport.namespace, "0"
+    session = open_session(transport)
+    inbox = Inbox(session, DropCounter())
+    inbox.subscribe("action", contract.topic("policy/<w>/action").key(ns, w=w), PolicyAction, finite=False)
+    state = Publisher(session, contract.topic("sim/<w>/state").key(ns, w=w), "sim/0")
+    tokens = Publisher(session, contract.topic("perception/<w>/tokens").key(ns, w=w), "perception/0")
+    weights = Publisher(session, contract.topic("trainer/weights").key(ns), "trainer/0")
+    models = {0: build("hamnet", seed=0), **{v: build("hamnet", seed=v) for v in RELOADS.values()}}
+    answers: dict[int, list[PolicyAction]] = {}
+
+    def send(step: int) -> None:
+        state.put(state_message(step, B))
+        tokens.put(tokens_message(step, B))
+
+    def collect(timeout: float) -> None:
+        received = inbox.get(timeout=timeout)
+        if received is not None:
+            answers.setdefault(received.value.header.step, []).append(received.value)
+
+    try:
+        deadline = time.monotonic() + 30
+        while 0 not in answers:  # until the policy is up and subscribed
+            assert process.poll() is None and time.monotonic() < deadline, process.stdout.read()
+            send(0)
+            collect(0.5)
+        sent = 0
+        while len(answers) < STEPS + 1:
+            assert time.monotonic() < deadline + 30, f"answered {sorted(answers)}"
+            while sent < STEPS and sent - max(answers) < IN_FLIGHT:
+                sent += 1
+                send(sent)
+                if sent in RELOADS:
+                    weights.put(announcement(models[RELOADS[sent]], RELOADS[sent]))
+                if sent == CORRUPT_AT:
+                    corrupt = announcement(models[1], CORRUPT_VERSION)
+                    corrupt.safetensors = corrupt.safetensors[:-8] + b"\x00" * 8
+                    weights.put(corrupt)
+            collect(1.0)
+    finally:
+        inbox.close()
+        session.close()
+    assert sorted(answers) == list(range(STEPS + 1))
+    assert all(len(copies) == 1 for step, copies in answers.items() if step)
+    versions = [answers[step][0].header.policy_version for step in range(STEPS + 1)]
+    assert versions == sorted(versions) and versions[-1] == 3 and CORRUPT_VERSION not in versions
+    for step in range(STEPS + 1):
+        message = answers[step][0]
+        got = np.frombuffer(message.action.data, np.float32).reshape(B, 21)
+        want = expected(models[message.header.policy_version], step)
+        torch.testing.assert_close(torch.from_numpy(got.copy()), want, atol=1e-5, rtol=1e-5)
