@@ -28,6 +28,10 @@ class CapturingPublisher:
     def put(self, message) -> None:
         self.published.append((self.topic, wire(message)))
 
+    def answer(self, query: list, message) -> None:
+        """A scripted query is a list that collects its answers."""
+        query.append(wire(message))
+
 
 class _Queryable:
     def undeclare(self) -> None:
@@ -55,12 +59,21 @@ class ScriptedService:
     drops: DropCounter = field(default_factory=DropCounter)
     session: _Session = field(default_factory=_Session)
     running: bool = True
+    caught_up: list[tuple[str, str]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.inbox, self.decoders = self, {}
 
     def subscribe(self, name: str, key: str, decoder) -> None:
         self.decoders[name] = (key, decoder)
+
+    def catch_up(self, name: str, key: str) -> None:
+        """Recorded in `caught_up`: a scripted network has nobody to answer."""
+        self.caught_up.append((name, key))
+
+    def serve(self, name: str, key: str) -> None:
+        """Queries under `name` are scripted as (name, list): the list collects the answers."""
+        self.decoders[name] = (key, lambda key, query: query)
 
     def publisher(self, key: str) -> CapturingPublisher:
         return CapturingPublisher(key, self.published)

@@ -46,6 +46,8 @@ log = logging.getLogger(__name__)
 
 STATE = contract.topic("sim/<w>/state")
 SCENE = contract.topic("sim/<w>/scene")
+CATCH_UP_PERIOD_S = 1.0
+"""Until the focus environment's scene arrives, the sim is asked for it at most this often, s."""
 TRANSITION = contract.topic("sim/<w>/transition")
 TOKENS = contract.topic("perception/<w>/tokens")
 ACTION = contract.topic("policy/<w>/action")
@@ -83,6 +85,9 @@ class MonitorShell:
         }  # fmt: skip
         self._last_report = (time.monotonic(), 0)
         """(when, steps drawn by then) of the last rate line."""
+        self.scene_seen = False
+        """Whether the focus environment's scene has arrived (else the sim is asked for it)."""
+        self._asked_at = -float("inf")
 
     def run(self) -> int:
         """Draw what arrives until stopped; returns the exit status."""
@@ -92,8 +97,20 @@ class MonitorShell:
             received = self.service.receive(timeout=0.1)
             if received is not None and received.value is not None:  # None: not the focus env
                 self.handlers[received.name](received.value)
+                self.scene_seen |= received.name == "scene"
+                if received.name == "state" and not self.scene_seen:
+                    self._ask_for_scenes()
             self._report()
         return 0
+
+    def _ask_for_scenes(self) -> None:
+        """Started after the focus episode's scene was published: ask the sim for it, at most
+        once per `CATCH_UP_PERIOD_S`."""
+        now = time.monotonic()
+        if now - self._asked_at >= CATCH_UP_PERIOD_S:
+            self._asked_at = now
+            ns, w = self.service.namespace, self.service.identity.worker
+            self.service.inbox.catch_up("scene", SCENE.key(ns, w=w))
 
     def _paced(self, message_type: type[Message], decode: Callable[[Any, int], Any]) -> Decoder:
         """Decoder that drops the message of a step the pacer skips, before decoding it."""

@@ -43,6 +43,9 @@ STATE = contract.topic("sim/<w>/state")
 SCENE = contract.topic("sim/<w>/scene")
 TOKENS = contract.topic("perception/<w>/tokens")
 
+CATCH_UP_PERIOD_S = 1.0
+"""While states wait for their scenes, the sim is asked for them at most this often, s."""
+
 
 # --- decode / encode: pure functions, tested without a session -------------------------
 
@@ -166,6 +169,7 @@ class PerceptionShell:
         self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
         self.seconds: list[float] = []
         self._last_report = time.monotonic()
+        self._asked_at = -np.inf
 
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
@@ -207,6 +211,7 @@ class PerceptionShell:
         if len(waiting):
             self.counts["waiting_for_scene"] += 1
             log.debug("state %d: no scene yet for environments %s", state.step, waiting.tolist())
+            self._ask_for_scenes()
             return
         started = time.perf_counter()
         percepts = self.core.step(torch.from_numpy(state.object_pose))
@@ -215,6 +220,15 @@ class PerceptionShell:
         self.answered = (state.step, message)
         self.counts["published"] += 1
         self.seconds.append(time.perf_counter() - started)
+
+    def _ask_for_scenes(self) -> None:
+        """Ask the sim for every current scene (we started after it published them), at
+        most once per `CATCH_UP_PERIOD_S`."""
+        now = time.monotonic()
+        if now - self._asked_at >= CATCH_UP_PERIOD_S:
+            self._asked_at = now
+            ns, w = self.service.namespace, self.service.identity.worker
+            self.service.inbox.catch_up("scene", SCENE.key(ns, w=w))
 
     def _report(self) -> None:
         now = time.monotonic()

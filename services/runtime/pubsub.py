@@ -4,6 +4,11 @@ Zenoh callbacks run on Zenoh's threads, so they only append the raw payload to a
 inbox; decoding and all real work happen on the service thread that calls `Inbox.get`.
 A payload that fails to decode is counted under (topic, reason), logged once per kind, and
 dropped; when the inbox is full the oldest payload is dropped and counted as `overflow`.
+
+Queries take the same road: `serve` queues incoming Zenoh queries for the service thread
+to answer, and `catch_up` asks the publishers' queryables for their current value, whose
+replies arrive as if they had been published (a service that starts late gets the scenes
+published before it subscribed).
 """
 
 from __future__ import annotations
@@ -70,9 +75,11 @@ class Received(Generic[T]):
 @dataclass
 class _Subscription:
     name: str
-    decode: Callable[[str, bytes], Any]
+    decode: Callable[[str, Any], Any]
     handle: Any = None
     received: int = 0
+    queries: bool = False
+    """Items are Zenoh queries handed over as they are, not payloads to decode."""
 
 
 class Inbox:
@@ -81,7 +88,7 @@ class Inbox:
     def __init__(self, session: zenoh.Session, drops: DropCounter, capacity: int = 1024) -> None:
         self._session = session
         self._drops = drops
-        self._queue: deque[tuple[_Subscription, str, zenoh.ZBytes, int]] = deque()
+        self._queue: deque[tuple[_Subscription, str, zenoh.ZBytes | zenoh.Query, int]] = deque()
         self._capacity = capacity
         self._ready = threading.Condition()
         self._subscriptions: list[_Subscription] = []
@@ -112,8 +119,32 @@ class Inbox:
         )
         self._subscriptions.append(subscription)
 
-    def _push(self, subscription: _Subscription, sample: zenoh.Sample) -> None:
-        item = (subscription, str(sample.key_expr), sample.payload, time.monotonic_ns())
+    def serve(self, name: str, key_expr: str) -> None:
+        """Queue the Zenoh queries on `key_expr` under the local `name`: `get` returns them
+        (value: the `zenoh.Query`) for the service thread to reply to, in order with the
+        messages, so that answers read state only that thread touches."""
+        subscription = _Subscription(name, lambda key, query: query, queries=True)
+        subscription.handle = self._session.declare_queryable(
+            key_expr, lambda query: self._push(subscription, query)
+        )
+        self._subscriptions.append(subscription)
+
+    def catch_up(self, name: str, key_expr: str, timeout_s: float = 5.0) -> None:
+        """Ask the queryables on `key_expr` for their current value; each reply is delivered
+        to the subscription `name` as if it had been published on the reply's key."""
+        subscription = next((s for s in self._subscriptions if s.name == name), None)
+        if subscription is None or subscription.queries:
+            raise ValueError(f"catch_up needs a subscription named {name!r}")
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            if reply.ok is not None:
+                self._push(subscription, reply.ok)
+
+        self._session.get(key_expr, on_reply, timeout=timeout_s)
+
+    def _push(self, subscription: _Subscription, sample: zenoh.Sample | zenoh.Query) -> None:
+        payload = sample if subscription.queries else sample.payload
+        item = (subscription, str(sample.key_expr), payload, time.monotonic_ns())
         with self._ready:
             subscription.received += 1
             if len(self._queue) >= self._capacity:
@@ -133,8 +164,9 @@ class Inbox:
                         return None
                     self._ready.wait(remaining)
                 subscription, key, payload, stamp = self._queue.popleft()
+            data = payload if subscription.queries else payload.to_bytes()
             try:
-                value = subscription.decode(key, payload.to_bytes())
+                value = subscription.decode(key, data)
             except PayloadError as error:
                 self._drops.drop(key, error.reason, error.detail)
                 continue
@@ -166,11 +198,20 @@ class Publisher:
 
         Set fields are kept, so a message forwarded unchanged (echo, replay) stays equal.
         """
+        self.put_encoded(self._stamped(message))
+
+    def answer(self, query: zenoh.Query, message: Message) -> None:
+        """Reply to a query (queued by `Inbox.serve`) with `message` on this key, stamped as
+        `put` would, and finish the query."""
+        query.reply(self.key, self._stamped(message))
+        query.drop()
+
+    def _stamped(self, message: Message) -> bytes:
         if "header" in message.DESCRIPTOR.fields_by_name:
             header = message.header
             header.source = header.source or self.source
             header.stamp_ns = header.stamp_ns or time.time_ns()
-        self.put_encoded(encode(message))
+        return encode(message)
 
     def put_encoded(self, payload: bytes) -> None:
         """Publish an already encoded message unchanged (relays: echo, replay)."""

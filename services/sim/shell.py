@@ -4,7 +4,8 @@ publishes what happened.
 Consumes `safety/<w>/command` (SafeCommand) and `trainer/schedule` (Schedule: the
 curriculum's `p_near_init` and `p_tight`); produces `sim/<w>/state` (RobotState, every
 step), `sim/<w>/transition` (Transition, every step) and `sim/<w>/scene` (Scene, for the
-environments that start a new episode).
+environments that start a new episode). A Zenoh query on `sim/<w>/scene` is answered with
+the scenes of every environment, so services started late catch up (`Inbox.catch_up`).
 
 Steps are numbered: state k (`header.step` = k) is the state after k policy steps; the
 command answering it carries `header.step` = k; transition k is its outcome, published just
@@ -211,6 +212,7 @@ class SimShell:
         service.inbox.subscribe("schedule", SCHEDULE.key(ns), decoder=_decode_schedule_payload)
         self.state = service.publisher(STATE.key(ns, w=w))
         self.scene = service.publisher(SCENE.key(ns, w=w))
+        service.inbox.serve("scene_query", SCENE.key(ns, w=w))
         self.transition = service.publisher(TRANSITION.key(ns, w=w))
         self.names = [asset.name for asset in env.library.objects]
         self.step = 0
@@ -284,10 +286,13 @@ class SimShell:
                 tick = time.monotonic()
 
     def _handle(self, received: Received) -> tuple[int, Command] | None:
-        """A command to consider, or None after applying a schedule."""
+        """A command to consider, or None after applying a schedule or answering a query."""
         if received.name == "schedule":
             self.env.set_schedule(dataclasses.replace(self.env.schedule, **received.value))
             log.debug("curriculum: %s", self.env.schedule)
+            return None
+        if received.name == "scene_query":
+            self.scene.answer(received.value, self._scene_of(np.arange(self.env.num_envs)))
             return None
         return received.value
 
@@ -307,11 +312,15 @@ class SimShell:
         self.state.put(encode_state(self.observation, self.step))
 
     def _publish_scene(self, env_ids: np.ndarray) -> None:
+        self.scene.put(self._scene_of(env_ids))
+
+    def _scene_of(self, env_ids: np.ndarray) -> Scene:
+        """The Scene message of the current episodes of `env_ids` (K,)."""
         object_ids = [self.names[i] for i in self.env.object_index]  # (B,)
         points = self.env.object_points[self.env.object_index]  # (B, P, 3)
-        self.scene.put(encode_scene(
+        return encode_scene(
             self.observation, self.env.scene_arrays, object_ids, points, env_ids, self.step
-        ))  # fmt: skip
+        )
 
     def _stale(self, step: int) -> None:
         self.stale += 1

@@ -79,7 +79,8 @@ def test_encode_tokens_round_trip() -> None:
 def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     """Scene + state 0 -> tokens 0; state 0 again -> the same message; a malformed scene and
     a state without object pose are counted drops; after a reset of environment 1 its state
-    waits for the new scene, then is answered with the new episode ids."""
+    waits for the new scene (asking the sim for it), then is answered with the new episode
+    ids."""
     obs = env.observe()
     no_pose = encode_state(obs, 1)
     no_pose.ClearField("privileged")
@@ -116,3 +117,4 @@ def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     reasons = {reason for (_, reason) in service.drops.counts}
     assert reasons == {"decode", "missing"}
     assert shell.counts["waiting_for_scene"] == 1
+    assert service.caught_up == [("scene", "hamnet/t/sim/0/scene")]  # asked the sim once

@@ -104,3 +104,30 @@ def test_get_returns_none_after_its_timeout(sessions, transport) -> None:
     started = time.monotonic()
     assert inbox.get(timeout=0.1) is None
     assert time.monotonic() - started >= 0.1
+
+
+def test_a_late_subscriber_catches_up_through_the_publishers_queryable(sessions, transport) -> None:
+    """The publisher's side queues the query for its own thread (`serve`) and answers with
+    its current value; the late side receives that reply decoded under its subscription, as
+    if it had been published (what a perception service started after the sim relies on)."""
+    publisher_side, late_side = sessions
+    key = STATE.key(transport.namespace, w="0")
+    served = Inbox(publisher_side, DropCounter())
+    served.serve("state_query", key)
+    late = Inbox(late_side, DropCounter())
+    late.subscribe("state", key, sim_pb2.RobotState)
+    deadline = time.monotonic() + 10
+    answered = None
+    while answered is None and time.monotonic() < deadline:
+        late.catch_up("state", key, timeout_s=0.5)
+        query = served.get(timeout=0.5)
+        if query is None:
+            continue
+        assert query.name == "state_query" and isinstance(query.value, zenoh.Query)
+        query.value.reply(key, state_message(value=7.0).SerializeToString())
+        query.value.drop()
+        answered = late.get(timeout=5)
+    assert answered is not None and answered.name == "state" and answered.key == key
+    assert answered.value.q.data == np.full((4, 7), 7.0, np.float32).tobytes()
+    with pytest.raises(ValueError, match="subscription named"):
+        late.catch_up("nothing", key)

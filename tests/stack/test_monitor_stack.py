@@ -1,8 +1,10 @@
 """`hamnet monitor --save` beside a real free-running `hamnet sim`, both as processes on
-real Zenoh (the monitor first: a free-running sim publishes scenes only at resets): after a few seconds the monitor is stopped (SIGTERM, as `hamnet up` stops it)
+real Zenoh. The monitor starts after the sim has published its scenes (a free-running sim
+publishes them only at resets), so it has to ask the sim for them. After a few seconds the
+monitor is stopped (SIGTERM, as `hamnet up` stops it)
 and its .rrd file holds the FR3, posed at each drawn step where the sim's own state puts
 its end effector, the focus environment's scene cuboids, object and goal, and the reward
-terms; its Health reports what it received and that it dropped nothing at 10 Hz."""
+terms; its Health reports what it received and that it dropped (almost) nothing at 10 Hz."""
 
 from __future__ import annotations
 
@@ -32,19 +34,19 @@ def test_monitor_saves_the_robot_and_scene_of_a_running_sim(spawn, transport: Tr
     try:
         health_key = contract.topic("health/<service>/<w>").key(ns, service="monitor", w="0")
         inbox.subscribe("health", health_key, Health)
-        # The monitor first: a free-running sim publishes its scenes only at resets.
-        monitor = spawn("monitor", "--save", str(path), "--env", str(ENV), *transport_args(transport))
-        health = Health()
-        deadline = time.monotonic() + 30
-        while health.state != ServiceState.RUNNING:  # subscribed: its loop runs
-            assert monitor.poll() is None, monitor.stdout.read()
-            assert time.monotonic() < deadline, "the monitor did not start"
-            received = inbox.get(timeout=0.5)
-            health = received.value if received is not None else health
         sim = spawn("sim", "--num-envs", str(B), "--num-objects", "2", "--nthread", "1", "--realtime",
                     *transport_args(transport))  # fmt: skip
         inbox.subscribe("state", contract.topic("sim/<w>/state").key(ns, w="0"), RobotState)
         states: dict[int, RobotState] = {}
+        deadline = time.monotonic() + 30
+        while len(states) < 3:  # the sim runs: its first scenes are gone
+            assert sim.poll() is None, sim.stdout.read()
+            assert time.monotonic() < deadline, "the sim did not start"
+            received = inbox.get(timeout=0.5)
+            if received is not None and received.name == "state":
+                states[received.value.header.step] = received.value
+        monitor = spawn("monitor", "--save", str(path), "--env", str(ENV), *transport_args(transport))
+        health = Health()
         while health.received.get("state", 0) < 20:
             assert monitor.poll() is None, monitor.stdout.read()
             assert sim.poll() is None, sim.stdout.read()
@@ -58,7 +60,10 @@ def test_monitor_saves_the_robot_and_scene_of_a_running_sim(spawn, transport: Tr
                 health = received.value
     finally:
         session.close()
-    assert not health.drops, health.drops
+    # At 10 Hz under the 30 Hz cap nothing is dropped, but for a state or two that a busy
+    # machine delivers within 1/30 s of the previous one while the monitor starts up.
+    assert all(d.reason == "rate" for d in health.drops), health.drops
+    assert sum(d.count for d in health.drops) <= 2, health.drops
     os.killpg(monitor.pid, signal.SIGTERM)
     assert monitor.wait(timeout=10) == 0, monitor.stdout.read()
 

@@ -115,6 +115,44 @@ def test_sim_steps_in_lock_step_with_its_commands_and_drops_malformed_ones(
     assert ids == [[0, 1], [2, 3], [4, 5]]
 
 
+def test_a_service_started_late_gets_every_scene_by_asking(spawn, transport) -> None:
+    """A free-running sim publishes scenes only at resets: a subscriber that starts after
+    them would wait a whole episode. Its query is answered with the scenes of every
+    environment, stamped with the current step (so not a resend of the first ones)."""
+    process = spawn(
+        "sim", "--num-envs", str(B), "--num-objects", "2", "--nthread", "1", "--realtime",
+        "--task.timeout", "1000", *transport_args(transport),
+    )  # fmt: skip
+    ns = transport.namespace
+    session = open_session(transport)
+    inbox = Inbox(session, DropCounter())
+    inbox.subscribe("state", contract.topic("sim/<w>/state").key(ns, w="0"), RobotState)
+    scene_key = contract.topic("sim/<w>/scene").key(ns, w="0")
+    inbox.subscribe("scene", scene_key, Scene)
+    deadline = time.monotonic() + 30
+    latest, scene, asked = None, None, False
+    try:
+        while scene is None:
+            assert process.poll() is None, process.stdout.read()
+            assert time.monotonic() < deadline, f"no scene answer; latest state {latest}"
+            received = inbox.get(timeout=0.5)
+            if received is None:
+                continue
+            if received.name == "state":
+                latest = received.value
+                if latest.header.step >= 3 and not asked:
+                    inbox.catch_up("scene", scene_key)
+                    asked = True
+            elif asked and received.value.header.step >= 3:
+                scene = received.value
+    finally:
+        session.close()
+    assert from_tensor(scene.env_ids).tolist() == list(range(B))
+    np.testing.assert_array_equal(from_tensor(scene.episode_ids), from_tensor(latest.episode_ids))
+    assert scene.header.source == "sim/0" and len(scene.object_ids) == B
+    assert from_tensor(scene.object_points, np.float32).shape == (B, 512, 3)
+
+
 def run_sim(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "hamnet", "sim", *args], capture_output=True, text=True, timeout=60
