@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from hamnet.proto.health_pb2 import Health, ServiceState
+from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox
