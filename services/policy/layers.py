@@ -75,9 +75,9 @@ class CrossAttention(nn.Module):
 
 
 class _ModuleMixture(torch.autograd.Function):
-    """y = (w (x) x) @ W_stacked: the contraction over modules, with a backward that reads
-    the (B, M*J) input gradient once per operand (two batched mat-vecs) instead of letting
-    autograd materialise two more (B, M, J) products and reduce them."""
+    """y = (w (x) x) @ W_stacked: the contraction over modules, with a hand-written backward
+    (autograd's reduces two materialised (B, M, J) products; here the input gradient is a
+    batched mat-vec, measured faster on the CPU)."""
 
     @staticmethod
     def forward(ctx, x: Tensor, weights: Tensor, stacked: Tensor) -> Tensor:
@@ -95,7 +95,7 @@ class _ModuleMixture(torch.autograd.Function):
         if ctx.needs_input_grad[0] or ctx.needs_input_grad[1]:
             grad_scaled = (grad @ stacked.T).view(len(x), weights.shape[1], -1)  # (B, M, J)
             grad_x = (weights.unsqueeze(1) @ grad_scaled).squeeze(1)  # (B, J)
-            grad_weights = (grad_scaled @ x.unsqueeze(2)).squeeze(2)  # (B, M)
+            grad_weights = (grad_scaled * x.unsqueeze(1)).sum(2)  # (B, M); bmm is slower here
         return grad_x, grad_weights, grad_stacked
 
 
