@@ -84,7 +84,7 @@ class ReplayConfig:
     topics: tuple[str, ...] = ()
     """Replay only recorded keys matching one of these key expressions (e.g.
     'hamnet/*/sim/**'); empty: every key."""
-    start_delay_s: float = 0.5
+    start_delay_s: float = 1.0
     """Wait this long after declaring the publishers before the first message, so that
     subscribers already running have their routes to it."""
     progress_s: float = 2.0
