@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
+import tyro
+
 from hamnet.policy.params import parameter_table
 from hamnet.policy.registry import ARCHITECTURES, build
 from hamnet.policy.shell import PolicyShell, ShellConfig
@@ -31,7 +33,7 @@ class PolicyServiceConfig:
     """One policy worker: which weights it starts from and how it infers."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
-    checkpoint: Path | None = None
+    checkpoint: Annotated[Path | None, tyro.conf.arg(aliases=("--weights",))] = None
     """safetensors checkpoint written by the trainer (architecture, config and version are
     in its metadata). Required unless --random-init or --print-params."""
     random_init: str | None = None

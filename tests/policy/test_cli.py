@@ -1,0 +1,29 @@
+"""`hamnet policy` start-up: the parameter table, and clear errors before any network use."""
+
+from __future__ import annotations
+
+import pytest
+
+from hamnet.policy.cli import main
+from hamnet.policy.registry import ARCHITECTURES
+
+
+def test_print_params_lists_every_architecture_next_to_the_paper(capsys) -> None:
+    assert main(["--print-params"]) == 0
+    out = capsys.readouterr().out
+    assert all(f"\n{name} " in out for name in ARCHITECTURES) and "1.76 M" in out
+
+
+def test_missing_or_bad_checkpoint_stops_at_start(tmp_path, capfd) -> None:
+    assert main(["--checkpoint", str(tmp_path / "absent.safetensors")]) == 2
+    (tmp_path / "bad.safetensors").write_bytes(b"not weights")
+    assert main(["--weights", str(tmp_path / "bad.safetensors")]) == 2
+    assert main([]) == 2
+    logged = capfd.readouterr().err
+    assert "cannot read checkpoint" in logged and "not safetensors" in logged
+    assert "needs --checkpoint" in logged
+
+
+def test_unknown_random_init_architecture_is_refused() -> None:
+    with pytest.raises(SystemExit):
+        main(["--random-init", "resnet"])
