@@ -27,7 +27,11 @@ import torch
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import RobotObservation, assemble
 from hamnet.policy.policy import Policy
-from hamnet.policy.registry import ARCHITECTURES, build
+from hamnet.policy.registry import ARCHITECTURES, build, with_changes
+
+PAPER_MLP = "mlp-paper-widths"
+"""The MLP with the paper's exact widths (768, 384, 384, 192): fewer parameters than our
+HAMnet (the registered `mlp` is scaled to match it), timed as a second reference."""
 
 PAPER_TRAIN_VS_MLP = {"hamnet": 1.19, "sm": 1.64, "hyper": 4.7}
 """Per-epoch training time relative to the MLP, paper Fig. dt_bar_plot (1.33 s, 1.84 s,
@@ -68,7 +72,10 @@ def timers(policy: Policy, batch: int):
 
 def measure(names: list[str], batch: int, repetitions: int, warmup: int) -> dict[str, dict]:
     """Interleaved timings (s) of every architecture at `batch`."""
-    policies = {name: build(name, seed=0) for name in names}
+    policies = {name: build(name, seed=0) for name in names if name != PAPER_MLP}
+    if PAPER_MLP in names:
+        paper_widths = with_changes("mlp", mlp_hidden=(768, 384, 384, 192))
+        policies[PAPER_MLP] = build("mlp", paper_widths, seed=0)
     closures = {name: timers(policy, batch) for name, policy in policies.items()}
     samples: dict[str, dict[str, list[float]]] = {n: {"infer": [], "train": []} for n in names}
     for repetition in range(warmup + repetitions):
@@ -104,7 +111,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     batches = (64, 1024) if args.quick else (64, 1024, 8192)
-    names = list(ARCHITECTURES)
+    names = [*ARCHITECTURES, PAPER_MLP]
     results = []
     for batch in batches:
         repetitions = 5 if args.quick else (30 if batch < 8192 else 10)
@@ -118,6 +125,9 @@ def main() -> None:
     figures = {
         "hamnet_vs_mlp_train": at_1024["hamnet"]["train_vs_mlp"],
         "hamnet_vs_mlp_infer": at_1024["hamnet"]["infer_vs_mlp"],
+        "hamnet_vs_paper_width_mlp_train": (
+            at_1024["hamnet"]["train_ms"] / at_1024[PAPER_MLP]["train_ms"]
+        ),
         "sm_vs_mlp_train": at_1024["sm"]["train_vs_mlp"],
         "hyper_vs_mlp_train": at_1024["hyper"]["train_vs_mlp"],
         "paper_train_vs_mlp": PAPER_TRAIN_VS_MLP,

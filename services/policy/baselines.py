@@ -1,7 +1,8 @@
 """The paper's baseline architectures (Sec. baseline-arch), on the same inputs as HAMnet.
 
 - `MonolithicMLP` (UniCORN-MONO): the same cross-attentions, every summary concatenated
-  with the state, actor and critic MLPs (768, 384, 384, 192) sized to match HAMnet.
+  with the state, actor and critic MLPs sized to match HAMnet's parameter count (the paper's
+  768-384-384-192, scaled; see `ModelConfig.mlp_hidden`).
 - `HyperNetwork` (UniCORN-HYPER): an MLP (256, 256) on the context predicts, per layer,
   low-rank factors W = W_l W_r (rank 16) and the bias; W x is computed as W_l (W_r x).
 - `SoftModularization` (UniCORN-SM, Yang et al. 2020): M modules per layer with the base

@@ -75,8 +75,11 @@ class ModelConfig:
     bias_weights: bool = False
     """Give biases their own softmax over modules, as the authors' code does (every
     parameter tensor gets one); False: one softmax per layer, as the paper writes."""
-    mlp_hidden: tuple[int, ...] = (768, 384, 384, 192)
-    """Monolithic baseline widths, scaled to match HAMnet's parameters (Table tab:mlp-scale)."""
+    mlp_hidden: tuple[int, ...] = (844, 422, 422, 211)
+    """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.099 so that
+    the MLP has as many parameters as our HAMnet (1.965 M), as the paper sized its MLP "to
+    match the number of trainable parameters" (Appendix baseline-arch). Our inputs are
+    narrower than the paper's, so its exact widths would give 1.69 M here."""
     hyper_rank: int = 16
     """Rank k of the hypernetwork baseline's generated weights W = W_l W_r."""
     routing_dim: int = 128

@@ -5,7 +5,8 @@ The paper reports counts only for the MLP scaling study (Table tab:mlp-scale): t
 (768, 384, 384, 192) has 1.76 M parameters, sized "to approximately match" HAMnet with
 M = 8, and the base-size MLP (256, 128, 128, 64) 0.36 M. Both of the paper's numbers fit an
 actor and a critic MLP on a ~465-wide input and nothing else, so the table shows our base
-networks (actor + critic, whatever builds their weights) beside the total.
+networks (actor + critic, whatever builds their weights) beside the total. Our MLP's widths
+are the paper's scaled so that its total matches our HAMnet's (`ModelConfig.mlp_hidden`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ def parameter_table() -> str:
         "total: everything trained, from tokens to actions (cross-attentions, modulation or",
         "hyper/routing networks, base networks). actor+critic: the base networks' own weights",
         "(HAMnet: its module banks; hyper: the heads that generate them). The paper gives",
-        "counts only in Table tab:mlp-scale (MLP 768-384-384-192: 1.76 M, matched to HAMnet).",
+        "counts only in Table tab:mlp-scale (MLP 768-384-384-192: 1.76 M, matched to HAMnet);",
+        "our MLP is those widths x 1.099, matched to our HAMnet's total the same way.",
     ]
     return "\n".join(lines)

@@ -48,8 +48,9 @@ register("hamnet", HAMNet, "UniCORN-HAMnet teacher (modules + gates)",
 register("hamnet-nogate", HAMNet, "HAMnet without gates (ablation)", "not reported", gates=False)
 register("hamnet-envcode", HAMNet, "EnvCode-HAMnet: oracle scene code instead of scene tokens",
          "not reported", scene_input="env_code")  # fmt: skip
-register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (768, 384, 384, 192)",
-         "1.76 M (Table tab:mlp-scale)")  # fmt: skip
+register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (844, 422, 422, 211), the paper's "
+         "(768, 384, 384, 192) scaled to HAMnet's parameter count",
+         "1.76 M (Table tab:mlp-scale), matched to HAMnet")  # fmt: skip
 register("hyper", HyperNetwork, "UniCORN-HYPER: low-rank hypernetwork (rank 16)", "not reported")
 register("sm", SoftModularization, "UniCORN-SM: soft modularization", "not reported")
 register("student", HAMNet, "student: HAMnet with GRUs, real-robot inputs only",

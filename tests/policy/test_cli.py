@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from hamnet.policy.cli import main
+from hamnet.policy.params import counts
 from hamnet.policy.registry import ARCHITECTURES
 
 
@@ -12,6 +13,14 @@ def test_print_params_lists_every_architecture_next_to_the_paper(capsys) -> None
     assert main(["--print-params"]) == 0
     out = capsys.readouterr().out
     assert all(f"\n{name} " in out for name in ARCHITECTURES) and "1.76 M" in out
+
+
+def test_the_mlp_baseline_has_as_many_parameters_as_hamnet() -> None:
+    """The paper sizes its MLP to match HAMnet's trainable parameters; a change to either
+    network that breaks the match (and the fairness of the speed and success comparisons)
+    fails here."""
+    hamnet, mlp = counts("hamnet")[0], counts("mlp")[0]
+    assert abs(mlp / hamnet - 1.0) < 0.01, (hamnet, mlp)
 
 
 def test_missing_or_bad_checkpoint_stops_at_start(tmp_path, capfd) -> None:
