@@ -42,6 +42,10 @@ class PerceptionServiceConfig:
     """Environment, object and local cloud sampling."""
     loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
 
+    def __post_init__(self) -> None:
+        if self.write_random_checkpoint is None and self.random_init == (self.checkpoint is not None):
+            raise ValueError("give exactly one of --checkpoint PATH and --random-init (tests only)")
+
 
 CONFIG = PerceptionServiceConfig
 """The config `hamnet perception` parses (the launcher validates stack files against it)."""
@@ -51,10 +55,8 @@ def encoder_from(config: PerceptionServiceConfig) -> tuple[UniCORN, int]:
     """The encoder and its version, from the checkpoint or random (`--random-init`).
 
     Raises:
-        CheckpointError: no weights were given, both were, or the checkpoint is unusable.
+        CheckpointError: the checkpoint is unusable.
     """
-    if config.random_init == (config.checkpoint is not None):
-        raise CheckpointError("give exactly one of --checkpoint PATH and --random-init (tests only)")
     if config.random_init:
         torch.manual_seed(config.loop.seed)
         return UniCORN(config.encoder), RANDOM_VERSION

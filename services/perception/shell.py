@@ -9,8 +9,10 @@ state's step and episode ids, so the policy pairs them by step) for all B enviro
 (`--random-init` or a random checkpoint), so a consumer can tell untrained tokens apart.
 
 A state is answered only when every environment's cached scene belongs to its current
-episode; otherwise it waits (counted as `waiting_for_scene`) until the scene arrives (the
-sim republishes scenes and state while it waits). A state sent again gets the same answer.
+episode; otherwise it waits (counted as `waiting_for_scene`) and is answered as soon as the
+scene arrives (Zenoh orders messages per key, not across keys, so a scene may follow its
+state); meanwhile the sim is asked for its scenes (a service started late missed them). A
+state sent again gets the same answer.
 A state without the privileged object pose (the real bridge) is dropped and counted: the
 object cloud must then come from the depth cameras (`hamnet.perception.cameras`), which have
 no topic in the contract yet.
@@ -30,6 +32,7 @@ from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.perception.clouds import Cuboids
@@ -133,6 +136,8 @@ class ShellConfig:
     """B, environments per state; 0 takes it from the first state."""
     device: str = "cpu"
     """Torch device of the clouds and the encoder (cpu, cuda, cuda:1...)."""
+    threads: int = 1
+    """torch CPU threads (1: the services of a stack share the machine's cores)."""
     seed: int = 0
     """Seed of the cloud sampling."""
     report_period_s: float = 10.0
@@ -157,6 +162,7 @@ class PerceptionShell:
         self.service, self.encoder, self.version = service, encoder, version
         self.config = config if config is not None else ShellConfig()
         self.clouds = clouds if clouds is not None else CloudConfig()
+        self.device = torch_device(self.config.device, self.config.threads)
         ns, w = service.namespace, service.identity.worker
         self.num_envs: int | None = self.config.num_envs or None
         service.inbox.subscribe("scene", SCENE.key(ns, w=w), decoder=self._decode_scene)
@@ -165,6 +171,9 @@ class PerceptionShell:
         self.core: Perception | None = None
         self.pending: list[EpisodeScenes] = []
         """Scenes received before the first state (which fixes B)."""
+        self.waiting: StateIn | None = None
+        """The newest state whose scenes have not all arrived: answered when they do (Zenoh
+        does not order messages across keys, so a scene may follow its state)."""
         self.answered: tuple[int, PerceptionTokens] | None = None
         self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
         self.seconds: list[float] = []
@@ -174,7 +183,7 @@ class PerceptionShell:
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
         random = " (random weights)" if self.version == 0 else ""
-        log.info("encoder version %d%s on %s", self.version, random, self.config.device)
+        log.info("encoder version %d%s on %s", self.version, random, self.device)
         while self.service.running:
             received = self.service.receive(timeout=0.1)
             if received is not None:
@@ -188,8 +197,11 @@ class PerceptionShell:
     def _on_scene(self, scenes: EpisodeScenes) -> None:
         if self.core is None:
             self.pending.append(scenes)
-        else:
-            self.core.start_episodes(scenes)
+            return
+        self.core.start_episodes(scenes)
+        if self.waiting is not None:  # the state came first: answer it now that it can be
+            state, self.waiting = self.waiting, None
+            self._on_state(state)
 
     def _on_state(self, state: StateIn) -> None:
         if self.answered is not None and self.answered[0] == state.step:
@@ -198,7 +210,7 @@ class PerceptionShell:
             return
         if self.core is None:
             self.num_envs = len(state.episode_ids)
-            self.core = Perception(self.encoder, self.num_envs, self.clouds, self.config.device, self.config.seed)
+            self.core = Perception(self.encoder, self.num_envs, self.clouds, self.device, self.config.seed)
             log.info("%d environments, first state %d", self.num_envs, state.step)
             for scenes in self.pending:
                 if len(scenes.env_ids) and int(scenes.env_ids.max()) >= self.num_envs:
@@ -211,8 +223,10 @@ class PerceptionShell:
         if len(waiting):
             self.counts["waiting_for_scene"] += 1
             log.debug("state %d: no scene yet for environments %s", state.step, waiting.tolist())
+            self.waiting = state
             self._ask_for_scenes()
             return
+        self.waiting = None
         started = time.perf_counter()
         percepts = self.core.step(torch.from_numpy(state.object_pose))
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)

@@ -46,6 +46,8 @@ class PolicyServiceConfig:
     def __post_init__(self) -> None:
         if self.checkpoint is not None and self.random_init is not None:
             raise ValueError("give either --checkpoint or --random-init, not both")
+        if self.checkpoint is None and self.random_init is None and not self.print_params:
+            raise ValueError("hamnet policy needs --checkpoint PATH (or --random-init ARCH for a demo)")
         if self.random_init is not None and self.random_init not in ARCHITECTURES:
             raise ValueError(f"unknown architecture {self.random_init!r}; known: "
                              f"{', '.join(ARCHITECTURES)}")  # fmt: skip
@@ -65,15 +67,12 @@ def main(argv: Sequence[str]) -> int:
         policy, version = build(config.random_init, seed=config.loop.seed), 0
         log.warning("serving RANDOM %s weights (version 0): actions are meaningless until the "
                     "trainer publishes weights", config.random_init)  # fmt: skip
-    elif config.checkpoint is not None:
+    else:
         try:
             weights = read_checkpoint(config.checkpoint)
             policy, version = policy_from(weights), weights.version
         except WeightsError as error:
             log.error("%s", error)
             return 2
-    else:
-        log.error("hamnet policy needs --checkpoint PATH (or --random-init ARCH for a demo)")
-        return 2
     with Service(identity, config.common.transport) as service:
         return PolicyShell(service, policy, version, config.loop).run()

@@ -30,6 +30,7 @@ from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.proto.trainer_pb2 import WeightsAnnouncement
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.policy.networks import PolicyInputs
@@ -168,6 +169,8 @@ class ShellConfig:
     """Serve the distribution's mean (evaluation) instead of samples (rollouts)."""
     device: str = "cpu"
     """torch device for inference: cpu, cuda, cuda:1, ..."""
+    threads: int = 1
+    """torch CPU threads (1: the services of a stack share the machine's cores)."""
     seed: int = 0
     """Seed of the sampling noise."""
     pending: int = 8
@@ -188,7 +191,7 @@ class PolicyShell:
         self, service: Service, policy: Policy, version: int, config: ShellConfig | None = None
     ) -> None:
         self.service, self.config = service, config if config is not None else ShellConfig()
-        self.device = torch.device(self.config.device)
+        self.device = torch_device(self.config.device, self.config.threads)
         self.policy, self.version = policy.to(self.device).eval(), version
         self.spare: Policy | None = None
         """The second copy that the next weights are loaded into."""

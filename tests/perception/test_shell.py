@@ -79,8 +79,8 @@ def test_encode_tokens_round_trip() -> None:
 def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     """Scene + state 0 -> tokens 0; state 0 again -> the same message; a malformed scene and
     a state without object pose are counted drops; after a reset of environment 1 its state
-    waits for the new scene (asking the sim for it), then is answered with the new episode
-    ids."""
+    waits for the new scene (asking the sim for it) and is answered, with the new episode
+    ids, as soon as it arrives; the state sent again gets the same answer."""
     obs = env.observe()
     no_pose = encode_state(obs, 1)
     no_pose.ClearField("privileged")
@@ -106,7 +106,7 @@ def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     shell = PerceptionShell(service, UniCORN(ENCODER), 3, ShellConfig(report_period_s=1e9), CLOUDS)
     assert shell.run() == 0
     tokens: list[PerceptionTokens] = [m for t, m in service.published if t == "tokens"]
-    assert [m.header.step for m in tokens] == [0, 0, 2]
+    assert [m.header.step for m in tokens] == [0, 0, 2, 2]  # state 2 answered on its scene
     assert tokens[0] == tokens[1] and all(m.encoder_version == 3 for m in tokens)
     np.testing.assert_array_equal(from_tensor(tokens[2].episode_ids, np.int64, (B,)), new_ids)
     for m in tokens:

@@ -27,10 +27,12 @@ def test_missing_or_bad_checkpoint_stops_at_start(tmp_path, capfd) -> None:
     assert main(["--checkpoint", str(tmp_path / "absent.safetensors")]) == 2
     (tmp_path / "bad.safetensors").write_bytes(b"not weights")
     assert main(["--weights", str(tmp_path / "bad.safetensors")]) == 2
-    assert main([]) == 2
-    logged = capfd.readouterr().err
-    assert "cannot read checkpoint" in logged and "not safetensors" in logged
-    assert "needs --checkpoint" in logged
+    with pytest.raises(SystemExit) as exited:  # refused while parsing: `hamnet up --check` too
+        main([])
+    assert exited.value.code == 2
+    logged = capfd.readouterr()
+    assert "cannot read checkpoint" in logged.err and "not safetensors" in logged.err
+    assert "needs --checkpoint" in logged.out + logged.err
 
 
 def test_unknown_random_init_architecture_is_refused() -> None:
