@@ -5,7 +5,9 @@ possible, or one step per line read on stdin.
 Consumes `RecordedMessage`s in log-time order (`hamnet.recorder.reading`); produces each
 payload unchanged on `remap_key(key, namespace)`, so a monitor or perception service cannot
 tell a replay from the live stack. In stepped replay a step starts at each robot state
-(`sim/<w>/state`) with a new header step (see `pacing.group_steps`).
+(`sim/<w>/state`) with a new header step (see `pacing.group_steps`). Like the live sim, a
+replay answers queries on `sim/<w>/scene` with the latest replayed scene of every
+environment, so services that join halfway catch up (`hamnet.recorder.scenes`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from hamnet.recorder.config import ReplayConfig
 from hamnet.recorder.headers import header_of
 from hamnet.recorder.pacing import ReplayClock, group_steps, remap_key
 from hamnet.recorder.reading import RecordedMessage
+from hamnet.recorder.scenes import LatestScenes
 from hamnet.runtime import contract
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError
@@ -32,6 +35,7 @@ log = logging.getLogger(__name__)
 
 STEP_TOPIC = contract.topic("sim/<w>/state")
 """Messages of this topic mark the steps of stepped replay."""
+SCENE = contract.topic("sim/<w>/scene")
 
 QUIT = 0
 """Step request that ends a stepped replay (`q` or end of stdin)."""
@@ -100,6 +104,8 @@ class ReplayShell:
         self.published = 0
         self._last_progress = time.monotonic()
         self._position_ns = 0
+        self.scenes = LatestScenes()
+        service.inbox.serve("scene_query", SCENE.pattern_in(service.namespace))
 
     def run(self) -> int:
         """Replay to the end (or until stopped)."""
@@ -121,7 +127,7 @@ class ReplayShell:
                     clock = ReplayClock(message.log_time_ns, time.monotonic(), self.config.speed)
                 self._wait(clock.due_s(message.log_time_ns))
             else:
-                self.service.receive(timeout=0)  # health reports stay on time
+                self._receive(timeout=0)  # health reports and queries stay on time
             self._publish(message)
 
     def _run_stepped(self) -> None:
@@ -133,7 +139,7 @@ class ReplayShell:
             try:
                 wanted = requests.get(timeout=0.1)
             except queue.Empty:
-                self.service.receive(timeout=0)
+                self._receive(timeout=0)
                 continue
             if wanted == QUIT:
                 return
@@ -162,6 +168,11 @@ class ReplayShell:
     def _publish(self, message: RecordedMessage) -> None:
         key = remap_key(message.key, self.service.namespace)
         self.service.publisher(key).put_encoded(message.payload)
+        if SCENE.matches(key):
+            try:
+                self.scenes.add(key, message.payload)
+            except PayloadError:  # replayed as recorded, but it answers no query
+                pass
         self.published += 1
         self._position_ns = message.log_time_ns
         now = time.monotonic()
@@ -184,4 +195,13 @@ class ReplayShell:
             remaining = until_s - time.monotonic()
             if remaining <= 0:
                 return
-            self.service.receive(timeout=min(remaining, 0.1))
+            self._receive(timeout=min(remaining, 0.1))
+
+    def _receive(self, timeout: float) -> None:
+        """Let the service report health, and answer a scene query if one came."""
+        received = self.service.receive(timeout=timeout)
+        if received is not None and received.name == "scene_query":
+            query = received.value
+            for key, payload in self.scenes.answers(str(query.key_expr)):
+                query.reply(key, payload)
+            query.drop()

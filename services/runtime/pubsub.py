@@ -140,7 +140,10 @@ class Inbox:
             if reply.ok is not None:
                 self._push(subscription, reply.ok)
 
-        self._session.get(key_expr, on_reply, timeout=timeout_s)
+        # Every reply counts: a replay answers with several scenes on one key, which Zenoh's
+        # default consolidation would reduce to one.
+        self._session.get(key_expr, on_reply, timeout=timeout_s,
+                          consolidation=zenoh.ConsolidationMode.NONE)  # fmt: skip
 
     def _push(self, subscription: _Subscription, sample: zenoh.Sample | zenoh.Query) -> None:
         payload = sample if subscription.queries else sample.payload

@@ -30,7 +30,8 @@ from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import to_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
 from tests.conftest import transport_args
-from tests.recorder.recordings import lock_step, write
+from tests.recorder.recordings import NS, STATE, T0, lock_step, state, write
+from tests.recorder.test_scenes import scene
 
 STEPS = 12
 BURST = 300
@@ -268,3 +269,47 @@ def test_a_burst_beyond_the_queue_is_recorded_or_counted_as_overflow_in_health(
     assert len(recorded) + sum(overflow.values()) == final.received["record0"]
     numbers = [int.from_bytes(m.payload[:4], "little") for m in recorded if m.key == key]
     assert numbers == sorted(numbers) and numbers  # what was kept is in order
+
+
+def test_a_service_joining_a_replay_halfway_gets_the_latest_scenes_by_asking(
+    transport: TransportConfig, tmp_path: Path
+) -> None:
+    """Scenes are replayed at the start only (as a free-running sim publishes them); a
+    subscriber that joins later asks for them and gets, from the replay, the recorded
+    payloads still current for some environment: byte for byte, superseded ones left out."""
+    first, second, third = scene(0, [0, 1]), scene(1, [1]), scene(2, [1])
+    scene_key = f"hamnet/{NS}/sim/0/scene"
+    messages = [(scene_key, first, T0), (scene_key, second, T0 + 1000), (scene_key, third, T0 + 2000)]
+    messages += [(STATE, state(k, T0 + k * 100_000_000), T0 + k * 100_000_000 + 5000) for k in range(60)]
+    path = tmp_path / "scenes.mcap"
+    write(path, messages)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hamnet", "replay", str(path), "--start-delay-s", "0.5",
+         *transport_args(transport)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )  # fmt: skip
+    session = open_session(transport)
+    inbox = Inbox(session, DropCounter())
+    ns = transport.namespace
+    inbox.subscribe("state", contract.topic("sim/<w>/state").key(ns, w="0"), RobotState)
+    replayed_key = contract.topic("sim/<w>/scene").key(ns, w="0")
+    inbox.subscribe("scene", replayed_key, decoder=lambda key, payload: payload)
+    answers: list[bytes] = []
+    try:
+        deadline = time.monotonic() + 20
+        states = 0
+        while states < 5:  # the scenes went by before we listened to them
+            assert process.poll() is None and time.monotonic() < deadline, process.stdout.read()
+            received = inbox.get(timeout=0.5)
+            states += received is not None and received.name == "state"
+        inbox.catch_up("scene", replayed_key)
+        settled = deadline
+        while time.monotonic() < settled:  # the answers, then 1 s more to see nothing else
+            received = inbox.get(timeout=0.1)
+            if received is not None and received.name == "scene":
+                answers.append(received.value)
+                settled = time.monotonic() + 1.0
+    finally:
+        stop(process, signal.SIGKILL)
+        session.close()
+    assert answers == [first, third]
