@@ -1,16 +1,30 @@
 """The README's first command: `hamnet up compose/demo.yaml` runs the whole loop (sim ->
 perception -> policy -> safety -> sim, monitored and recorded), ends by itself, and says
-which services are not built yet."""
+which services are not built yet. Its recording then replays into a monitor and a
+perception service started for it, which work on it as on the live stack."""
 
 from __future__ import annotations
 
+import signal
+import time
+import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+import pytest
 from mcap.reader import make_reader
 
 from hamnet.cli import COMMANDS
-from hamnet.launcher.stack import load
+from hamnet.launcher.stack import Stack, load
+from hamnet.proto.health_pb2 import Health, ServiceState
+from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.runtime import contract
+from hamnet.runtime.pubsub import DropCounter, Inbox
+from hamnet.runtime.tensor import from_tensor
+from hamnet.runtime.transport import TransportConfig, open_session
+from tests.conftest import free_port, transport_args
+from tests.monitor.recorded import Rrd
 from tests.stack.up import alive, up
 
 DEMO = Path(__file__).resolve().parents[2] / "compose" / "demo.yaml"
@@ -19,13 +33,40 @@ LOOP = ("sim/<w>/state", "sim/<w>/scene", "perception/<w>/tokens", "policy/<w>/a
 """The topics of one turn of the control loop, all in the recording."""
 
 
-def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(tmp_path, transport):
-    with up(DEMO, transport, "--duration-s", "12", cwd=tmp_path) as run:
+def isolated() -> TransportConfig:
+    """A namespace and rendezvous of its own (the `transport` fixture, for module scope)."""
+    return TransportConfig(namespace=f"test{uuid.uuid4().hex[:10]}",
+                           rendezvous=f"tcp/127.0.0.1:{free_port()}")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class DemoRun:
+    stack: Stack
+    transport: TransportConfig
+    summary: dict
+    folder: Path
+
+    def key(self, path: str) -> str:
+        return contract.topic(path).key(self.transport.namespace, w="0")
+
+    def output(self, suffix: str) -> Path:
+        namespace = self.transport.namespace
+        declared = (path.replace("<namespace>", namespace) for path in self.stack.outputs)
+        return self.folder / next(path for path in declared if path.endswith(suffix))
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> DemoRun:
+    folder, transport = tmp_path_factory.mktemp("demo"), isolated()
+    with up(DEMO, transport, "--duration-s", "12", cwd=folder) as run:
         assert run.wait(timeout=60) == 0, run.output
-    summary = run.summary()
+    return DemoRun(load(DEMO), transport, run.summary(), folder)
+
+
+def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(demo: DemoRun):
+    summary, stack = demo.summary, demo.stack
     assert summary["ended"] == "duration of 12 s reached"
     commands = {c.name: c for c in COMMANDS}
-    stack = load(DEMO)
     built = {name for name, spec in stack.services.items() if commands[spec.command].module}
     for name in set(stack.services) - built:
         issue = commands[stack.services[name].command].issue
@@ -36,19 +77,63 @@ def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(tmp_path
     assert not any(alive(pid) for p in processes.values() for pid in p["pids"])
 
     # The loop turned: every service in it answered the previous one, step after step.
-    ns = transport.namespace
-    key = lambda path: contract.topic(path).key(ns, w="0")  # noqa: E731
-    steps = processes["sim"]["published"][key("sim/<w>/state")]
+    steps = processes["sim"]["published"][demo.key("sim/<w>/state")]
     assert steps >= 20, processes["sim"]
     assert processes["sim"]["received"]["command"] >= steps - 2
     for service, path in (("perception", "perception/<w>/tokens"), ("policy", "policy/<w>/action"),
                           ("safety", "safety/<w>/command")):  # fmt: skip
-        assert processes[service]["published"][key(path)] >= steps - 3, processes[service]
+        assert processes[service]["published"][demo.key(path)] >= steps - 3, processes[service]
     assert not processes["policy"]["drops"] and not processes["safety"]["drops"]
 
-    declared = {path.replace("<namespace>", ns) for path in stack.outputs}
+    declared = {path.replace("<namespace>", demo.transport.namespace) for path in stack.outputs}
     assert set(summary["outputs"]) == declared and not summary["outputs_missing"]
-    recording = next(tmp_path / path for path in declared if path.endswith(".mcap"))
-    with recording.open("rb") as stream:
+    with demo.output(".mcap").open("rb") as stream:
         channels = make_reader(stream).get_summary().channels.values()
-    assert {key(path) for path in LOOP} <= {channel.topic for channel in channels}
+    assert {demo.key(path) for path in LOOP} <= {channel.topic for channel in channels}
+
+
+def test_the_recording_replays_into_a_monitor_and_a_perception_service(demo: DemoRun, spawn, tmp_path):
+    """Replay the demo's sim, policy and safety topics into a fresh namespace, where a
+    perception service computes tokens from the replayed states and scenes (joining after
+    the first scenes: it asks the replay for them) and a monitor draws it all."""
+    transport = isolated()
+    rrd_path = tmp_path / "replay.rrd"
+    session = open_session(transport)
+    inbox = Inbox(session, DropCounter())
+    ns = transport.namespace
+    inbox.subscribe("health", contract.topic("health/<service>/<w>").pattern_in(ns), Health)
+    inbox.subscribe("tokens", contract.topic("perception/<w>/tokens").key(ns, w="0"), PerceptionTokens)
+    monitor = spawn("monitor", "--save", str(rrd_path), *transport_args(transport))
+    replay = spawn("replay", str(demo.output(".mcap")), "--speed", "3",
+                   "--topics", "hamnet/*/sim/**", "hamnet/*/policy/**", "hamnet/*/safety/**",
+                   *transport_args(transport))  # fmt: skip
+    perception = None
+    tokens: list[PerceptionTokens] = []
+    running: set[str] = set()
+    deadline = time.monotonic() + 40
+    try:
+        while replay.poll() is None or perception is None:
+            assert time.monotonic() < deadline, f"running {running}, {len(tokens)} tokens"
+            received = inbox.get(timeout=0.2)
+            if received is not None and received.name == "health":
+                if received.value.state == ServiceState.RUNNING:
+                    running.add(received.value.service)
+            elif received is not None:
+                tokens.append(received.value)
+            if perception is None and {"monitor", "replay"} <= running:
+                time.sleep(1.0)  # the replay is under way: the first scenes went by
+                perception = spawn("perception", "--random-init", *transport_args(transport))
+        assert replay.returncode == 0, replay.stdout.read()
+    finally:
+        session.close()
+    for process in (monitor, perception):
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=15) == 0, process.stdout.read()
+
+    assert len(tokens) >= 10, f"perception answered {len(tokens)} replayed states"
+    cloud = from_tensor(tokens[-1].object_cloud, np.float32, (None, 512, 3))
+    assert np.isfinite(cloud).all() and tokens[-1].encoder_version == 0
+    rrd = Rrd(rrd_path)
+    drawn = {"/robot/fr3_paddle/boxes", "/scene/base", "/object/surface", "/goal",
+             "/clouds/object", "/clouds/local", "/policy/module_weights"}  # fmt: skip
+    assert drawn <= rrd.entities, sorted(rrd.entities)
