@@ -9,10 +9,8 @@ must have the sim's C = 16 cuboid slots: the view colours and names them by slot
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 
 import numpy as np
-from google.protobuf.message import Message
 
 from hamnet.monitor.frames import (
     ActionFrame,
@@ -29,32 +27,11 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
-from hamnet.runtime.tensor import PayloadError, from_tensor
+from hamnet.runtime.tensor import PayloadError, field_array
 from hamnet.sim.scene import NUM_CUBOIDS
 
 J = 7
 """Joints of the FR3."""
-
-
-def tensor(
-    message: Message,
-    name: str,
-    dtype: type,
-    shape: Sequence[int | None],
-    finite: bool = True,
-) -> np.ndarray:
-    """Field `name` of `message` as an array of `dtype` and `shape` (None: any size).
-
-    Raises:
-        PayloadError: `missing`, or the runtime's dtype/shape/nonfinite, naming the field.
-    """
-    where = f"{message.DESCRIPTOR.name}.{name}"
-    if not message.HasField(name):
-        raise PayloadError("missing", f"{where} is not set")
-    try:
-        return from_tensor(getattr(message, name), dtype, shape, finite)
-    except PayloadError as error:
-        raise PayloadError(error.reason, f"{where}: {error.detail}") from None
 
 
 def focus_row(array: np.ndarray, env: int) -> np.ndarray:
@@ -70,13 +47,13 @@ def focus_row(array: np.ndarray, env: int) -> np.ndarray:
 
 def decode_state(message: RobotState, env: int) -> StateFrame:
     """StateFrame of environment `env` from a RobotState of B environments."""
-    q = tensor(message, "q", np.float32, (None, J))  # (B, J)
+    q = field_array(message, "q", np.float32, (None, J))  # (B, J)
     b = len(q)
-    goal = tensor(message, "goal_pose", np.float32, (b, 7))
-    ids = tensor(message, "episode_ids", np.int64, (b,))
+    goal = field_array(message, "goal_pose", np.float32, (b, 7))
+    ids = field_array(message, "episode_ids", np.int64, (b,))
     object_pose = None
     if message.HasField("privileged") and message.privileged.HasField("object_pose"):
-        object_pose = focus_row(tensor(message.privileged, "object_pose", np.float32, (b, 7)), env)
+        object_pose = focus_row(field_array(message.privileged, "object_pose", np.float32, (b, 7)), env)
     return StateFrame(
         step=message.header.step,
         stamp_ns=message.header.stamp_ns,
@@ -89,18 +66,18 @@ def decode_state(message: RobotState, env: int) -> StateFrame:
 
 def decode_scene(message: Scene, env: int) -> SceneFrame | None:
     """SceneFrame of environment `env`, or None when the Scene does not describe it."""
-    env_ids = tensor(message, "env_ids", np.int32, (None,))  # (K,)
+    env_ids = field_array(message, "env_ids", np.int32, (None,))  # (K,)
     k = len(env_ids)
     arrays = {
-        "centre": tensor(message, "cuboid_pos", np.float32, (k, NUM_CUBOIDS, 3)),  # (K, C, 3)
-        "quat": tensor(message, "cuboid_quat", np.float32, (k, NUM_CUBOIDS, 4)),
-        "half_extent": tensor(message, "cuboid_half_size", np.float32, (k, NUM_CUBOIDS, 3)),
-        "active": tensor(message, "cuboid_active", np.bool_, (k, NUM_CUBOIDS)),
-        "object_points": tensor(message, "object_points", np.float32, (k, None, 3)),  # (K, P, 3)
-        "start_pose": tensor(message, "start_pose", np.float32, (k, 7)),
-        "goal_pose": tensor(message, "goal_pose", np.float32, (k, 7)),
+        "centre": field_array(message, "cuboid_pos", np.float32, (k, NUM_CUBOIDS, 3)),  # (K, C, 3)
+        "quat": field_array(message, "cuboid_quat", np.float32, (k, NUM_CUBOIDS, 4)),
+        "half_extent": field_array(message, "cuboid_half_size", np.float32, (k, NUM_CUBOIDS, 3)),
+        "active": field_array(message, "cuboid_active", np.bool_, (k, NUM_CUBOIDS)),
+        "object_points": field_array(message, "object_points", np.float32, (k, None, 3)),  # (K, P, 3)
+        "start_pose": field_array(message, "start_pose", np.float32, (k, 7)),
+        "goal_pose": field_array(message, "goal_pose", np.float32, (k, 7)),
     }
-    ids = tensor(message, "episode_ids", np.int64, (k,))
+    ids = field_array(message, "episode_ids", np.int64, (k,))
     if len(message.object_ids) != k:
         raise PayloadError("shape", f"Scene.object_ids: {len(message.object_ids)} names for {k} envs")
     rows = np.flatnonzero(env_ids == env)
@@ -121,7 +98,7 @@ def decode_tokens(message: PerceptionTokens, env: int) -> CloudsFrame:
     clouds = {}
     b = None
     for name in ("object", "environment", "local"):
-        cloud = tensor(message, f"{name}_cloud", np.float32, (b, None, 3))  # (B, P, 3)
+        cloud = field_array(message, f"{name}_cloud", np.float32, (b, None, 3))  # (B, P, 3)
         b = len(cloud)
         clouds[name] = focus_row(cloud, env)
     return CloudsFrame(step=message.header.step, stamp_ns=message.header.stamp_ns, **clouds)
@@ -132,10 +109,10 @@ def decode_action(message: PolicyAction, env: int) -> ActionFrame:
     safety service rejects them; the view shows them)."""
     weights = values = None
     if message.HasField("module_weights"):
-        weights = focus_row(tensor(message, "module_weights", np.float32, (None, None, None),
+        weights = focus_row(field_array(message, "module_weights", np.float32, (None, None, None),
                                    finite=False), env)  # fmt: skip
     if message.HasField("values"):
-        values = focus_row(tensor(message, "values", np.float32, (None, None), finite=False), env)
+        values = focus_row(field_array(message, "values", np.float32, (None, None), finite=False), env)
     return ActionFrame(
         step=message.header.step,
         stamp_ns=message.header.stamp_ns,
@@ -148,10 +125,10 @@ def decode_action(message: PolicyAction, env: int) -> ActionFrame:
 def decode_transition(message: Transition, env: int, drawn: bool) -> TransitionFrame:
     """TransitionFrame: `env`'s reward terms and every environment's episode ends."""
     names = tuple(message.reward_names)
-    terms = tensor(message, "reward_terms", np.float32, (None, len(names)))  # (B, R)
+    terms = field_array(message, "reward_terms", np.float32, (None, len(names)))  # (B, R)
     b = len(terms)
     terminated, truncated, success = (
-        tensor(message, name, np.bool_, (b,)) for name in ("terminated", "truncated", "success")
+        field_array(message, name, np.bool_, (b,)) for name in ("terminated", "truncated", "success")
     )
     return TransitionFrame(
         step=message.header.step,
@@ -171,7 +148,7 @@ def decode_event(message: SafetyEvent) -> EventFrame:
         kind = SafetyEventKind.Name(message.kind)
     except ValueError:
         raise PayloadError("decode", f"SafetyEvent.kind {message.kind} is unknown") from None
-    env_ids = tensor(message, "env_ids", np.int32, (None,)) if message.HasField("env_ids") else (
+    env_ids = field_array(message, "env_ids", np.int32, (None,)) if message.HasField("env_ids") else (
         np.zeros(0, dtype=np.int32))  # fmt: skip
     stages = tuple(
         StageFigures(s.stage, s.commands, s.clipped, s.mean_excess, s.max_excess)

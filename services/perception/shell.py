@@ -34,7 +34,7 @@ from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
 from hamnet.perception.clouds import Cuboids
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception, Percepts
@@ -62,16 +62,6 @@ class StateIn:
     object_pose: np.ndarray  # (B, 7) float32: position (m) + quaternion wxyz
 
 
-def _field(message, name: str, dtype, shape, finite: bool = False) -> np.ndarray:
-    owner = type(message).__name__
-    if not message.HasField(name):
-        raise PayloadError("missing", f"{owner}.{name} is not set")
-    try:
-        return from_tensor(getattr(message, name), dtype, shape, finite=finite)
-    except PayloadError as error:
-        raise PayloadError(error.reason, f"{owner}.{name}: {error.detail}") from None
-
-
 def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
     """RobotState k; `num_envs` None accepts any batch size.
 
@@ -79,14 +69,14 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
         PayloadError: `missing` (no episode ids, or no privileged object pose: a real robot
             needs the camera path), `dtype`, `shape`, `nonfinite`.
     """
-    episode_ids = _field(message, "episode_ids", np.int64, (num_envs,))  # (B,)
+    episode_ids = field_array(message, "episode_ids", np.int64, (num_envs,))  # (B,)
     if not message.privileged.HasField("object_pose"):
         raise PayloadError(
             "missing",
             "RobotState.privileged.object_pose is not set: without the sim's object pose the "
             "object cloud must come from depth cameras, which have no topic yet",
         )
-    pose = _field(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
+    pose = field_array(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
     return StateIn(message.header.step, episode_ids.copy(), pose.copy())
 
 
@@ -97,17 +87,17 @@ def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> Episo
         PayloadError: `missing`, `dtype`, `shape` (counts disagree, object points not
             (K, num_points, 3)), `nonfinite`, `range` (an environment index outside [0, B)).
     """
-    env_ids = _field(message, "env_ids", np.int32, (None,))  # (K,)
+    env_ids = field_array(message, "env_ids", np.int32, (None,))  # (K,)
     k = len(env_ids)
     if num_envs is not None and len(env_ids) and (env_ids.min() < 0 or env_ids.max() >= num_envs):
         raise PayloadError("range", f"Scene.env_ids {env_ids.tolist()} outside [0, {num_envs})")
-    episode_ids = _field(message, "episode_ids", np.int64, (k,))
-    centre = _field(message, "cuboid_pos", np.float32, (k, None, 3), finite=True)  # (K, C, 3)
+    episode_ids = field_array(message, "episode_ids", np.int64, (k,))
+    centre = field_array(message, "cuboid_pos", np.float32, (k, None, 3), finite=True)  # (K, C, 3)
     c = centre.shape[1]
-    quat = _field(message, "cuboid_quat", np.float32, (k, c, 4), finite=True)
-    half = _field(message, "cuboid_half_size", np.float32, (k, c, 3), finite=True)
-    active = _field(message, "cuboid_active", np.bool_, (k, c))
-    points = _field(message, "object_points", np.float32, (k, num_points, 3), finite=True)
+    quat = field_array(message, "cuboid_quat", np.float32, (k, c, 4), finite=True)
+    half = field_array(message, "cuboid_half_size", np.float32, (k, c, 3), finite=True)
+    active = field_array(message, "cuboid_active", np.bool_, (k, c))
+    points = field_array(message, "object_points", np.float32, (k, num_points, 3), finite=True)
     if k and not active.any(1).all():
         raise PayloadError("range", "Scene holds a scene without any active cuboid")
     tensor = lambda a: torch.from_numpy(np.array(a))  # noqa: E731  (writable copies)

@@ -32,7 +32,7 @@ from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import RobotObservation, assemble
 from hamnet.policy.pairing import Pairing
@@ -78,18 +78,9 @@ class TokensIn:
     """Object, local and global tokens, (B, N, D) float32 each."""
 
 
-def _array(owner, name: str, dtype, shape, finite: bool = True) -> np.ndarray:
-    if not owner.HasField(name):
-        raise PayloadError("missing", f"{type(owner).__name__}.{name} is not set")
-    try:
-        return from_tensor(getattr(owner, name), dtype, shape, finite=finite)
-    except PayloadError as error:
-        raise PayloadError(error.reason, f"{type(owner).__name__}.{name}: {error.detail}") from None
-
-
 def _floats(owner, name: str, shape) -> torch.Tensor:
     """A float32 field as a tensor (one copy out of the read-only wire buffer)."""
-    return torch.tensor(_array(owner, name, np.float32, shape))
+    return torch.tensor(field_array(owner, name, np.float32, shape))
 
 
 def decode_state(message: RobotState, privileged: bool) -> StateIn:
@@ -117,8 +108,8 @@ def decode_state(message: RobotState, privileged: bool) -> StateIn:
         goal_pose=_floats(message, "goal_pose", (b, 7)),
         **extra,
     )
-    episode_ids = _array(message, "episode_ids", np.int64, (b,)).copy()
-    episode_step = _array(message, "episode_step", np.int32, (b,)).copy()
+    episode_ids = field_array(message, "episode_ids", np.int64, (b,)).copy()
+    episode_step = field_array(message, "episode_step", np.int32, (b,)).copy()
     return StateIn(message.header.step, episode_ids, episode_step, robot)
 
 
@@ -133,14 +124,14 @@ def decode_tokens(message: PerceptionTokens, num_tokens: int, token_dim: int) ->
     b = len(obj)
     local = _floats(message, "local_tokens", (b, num_tokens, token_dim))
     whole = _floats(message, "global_tokens", (b, num_tokens, token_dim))
-    episode_ids = _array(message, "episode_ids", np.int64, (b,)).copy()
+    episode_ids = field_array(message, "episode_ids", np.int64, (b,)).copy()
     return TokensIn(message.header.step, episode_ids, (obj, local, whole))
 
 
 def decode_scene(message: Scene, env_code_dim: int) -> tuple[np.ndarray, np.ndarray]:
     """(env_ids (K,), env_code (K, 25)) of a Scene."""
-    env_ids = _array(message, "env_ids", np.int32, (None,))
-    env_code = _array(message, "env_code", np.float32, (len(env_ids), env_code_dim))
+    env_ids = field_array(message, "env_ids", np.int32, (None,))
+    env_code = field_array(message, "env_code", np.float32, (len(env_ids), env_code_dim))
     return env_ids.copy(), env_code.copy()
 
 

@@ -12,6 +12,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from google.protobuf.message import Message
 
 from hamnet.proto.common_pb2 import DType, Tensor
 
@@ -96,6 +97,36 @@ def from_tensor(
     if finite and not all_finite(array):
         raise PayloadError("nonfinite", f"NaN or Inf in a {dims} {np_dtype} tensor")
     return array
+
+
+def field_array(
+    message: Message,
+    name: str,
+    dtype: np.dtype | type | None,
+    shape: Sequence[int | None] | None,
+    finite: bool = True,
+) -> np.ndarray:
+    """Tensor field `name` of a message as a read-only array (see `from_tensor`), with
+    errors that name the field (`RobotState.q: expected shape ...`).
+
+    Args:
+        message: a protobuf message with a Tensor field `name`.
+        dtype: required element type; None takes float32 or float64, as sent.
+        shape: required shape (None entries: any size).
+        finite: reject NaN and Inf.
+    Raises:
+        PayloadError: `missing` when the field is not set, else dtype, shape or nonfinite.
+    """
+    where = f"{message.DESCRIPTOR.name}.{name}"
+    if not message.HasField(name):
+        raise PayloadError("missing", f"{where} is not set")
+    tensor = getattr(message, name)
+    if dtype is None:
+        dtype = np.float64 if tensor.dtype == DType.FLOAT64 else np.float32
+    try:
+        return from_tensor(tensor, dtype, shape, finite)
+    except PayloadError as error:
+        raise PayloadError(error.reason, f"{where}: {error.detail}") from None
 
 
 def all_finite(array: np.ndarray) -> bool:

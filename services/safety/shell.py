@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.proto.common_pb2 import DType, Header
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import (
     CommandMode,
@@ -44,7 +44,7 @@ from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.filter import SafeOutput, SafetyFilter
@@ -116,28 +116,15 @@ class StateIn:
     """(B,) policy steps since each episode started (0: it starts in this state)."""
 
 
-def _floats(message, name: str, shape: tuple[int | None, ...], finite: bool) -> np.ndarray:
-    """Field `name` as a float64 array of `shape` (float32 or float64 on the wire)."""
-    owner = type(message).__name__
-    if not message.HasField(name):
-        raise PayloadError("missing", f"{owner}.{name} is not set")
-    tensor = getattr(message, name)
-    dtype = np.float64 if tensor.dtype == DType.FLOAT64 else np.float32
-    try:
-        return from_tensor(tensor, dtype, shape, finite=finite).astype(np.float64)
-    except PayloadError as error:
-        raise PayloadError(error.reason, f"{owner}.{name}: {error.detail}") from None
-
-
 def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
     """RobotState k as arrays; `num_envs` None accepts any batch size.
 
     Raises:
         PayloadError: `missing`, `dtype`, `shape` (batch or joint count), `nonfinite`.
     """
-    q = _floats(message, "q", (num_envs, J), finite=True)  # (B, J)
+    q = field_array(message, "q", None, (num_envs, J)).astype(np.float64)  # (B, J)
     b = len(q)
-    dq = _floats(message, "dq", (b, J), finite=True)  # (B, J)
+    dq = field_array(message, "dq", None, (b, J)).astype(np.float64)  # (B, J)
     for name in ("episode_ids", "episode_step"):
         if not message.HasField(name):
             raise PayloadError("missing", f"RobotState.{name} is not set")

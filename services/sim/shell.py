@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.proto.common_pb2 import DType, Header
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule
@@ -36,7 +36,7 @@ from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import SCHEDULE_NAMES
 from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
@@ -117,18 +117,6 @@ def encode_transition(result: StepResult, reward_names: Sequence[str], step: int
     return message
 
 
-def _floats(message: SafeCommand, name: str, shape: tuple[int, ...]) -> np.ndarray:
-    """Field `name` as a finite float array of `shape` (float32 or float64 on the wire)."""
-    if not message.HasField(name):
-        raise PayloadError("missing", f"SafeCommand.{name} is not set")
-    tensor = getattr(message, name)
-    dtype = np.float64 if tensor.dtype == DType.FLOAT64 else np.float32
-    try:
-        return from_tensor(tensor, dtype, shape, finite=True)
-    except PayloadError as error:
-        raise PayloadError(error.reason, f"SafeCommand.{name}: {error.detail}") from None
-
-
 def decode_command(
     message: SafeCommand, num_envs: int, control_samples: int, control_dt: float
 ) -> tuple[int, Command]:
@@ -145,10 +133,10 @@ def decode_command(
             `control_dt` (a sample period other than the sim's).
     """
     b, s, j = num_envs, control_samples, NUM_JOINTS
-    q_ref = _floats(message, "q_ref", (b, s, j))
-    gains = {name: _floats(message, name, (b, j)) for name in ("kp", "kd", "tau_limit")}
+    q_ref = field_array(message, "q_ref", None, (b, s, j))
+    gains = {name: field_array(message, name, None, (b, j)) for name in ("kp", "kd", "tau_limit")}
     if message.HasField("dq_ref"):  # checked, unused: the impedance law damps towards rest
-        _floats(message, "dq_ref", (b, s, j))
+        field_array(message, "dq_ref", None, (b, s, j))
     if message.HasField("episode_ids"):
         from_tensor(message.episode_ids, np.int64, (b,))
     negative = [name for name, value in gains.items() if (value < 0).any()]

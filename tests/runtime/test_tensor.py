@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from hamnet.proto.common_pb2 import DType, Tensor
-from hamnet.runtime.tensor import PayloadError, all_finite, from_tensor, to_tensor
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime.tensor import PayloadError, all_finite, field_array, from_tensor, to_tensor
 
 DTYPES = [np.float32, np.float64, np.float16, np.int8, np.int16, np.int32, np.int64,
           np.uint8, np.uint16, np.uint32, np.uint64, np.bool_]
@@ -81,3 +82,19 @@ def test_all_finite_ignores_integers_and_empty_arrays() -> None:
     assert all_finite(np.array([2**62], np.int64))
     assert all_finite(np.array([np.finfo(np.float32).max, -np.finfo(np.float32).max], np.float32))
     assert not all_finite(np.array([1.0, np.nan], np.float64))
+
+
+def test_field_array_names_the_field_in_every_error() -> None:
+    """Shells decode fields with `field_array`: a missing field is its own reason, and the
+    message says which field of which message broke, whatever the reason."""
+    message = RobotState()
+    with pytest.raises(PayloadError) as error:
+        field_array(message, "q", np.float32, (None, 7))
+    assert error.value.reason == "missing" and "RobotState.q" in error.value.detail
+    to_tensor(np.array([[np.nan] * 7]), message.q)  # float64 on the wire
+    assert field_array(message, "q", None, (1, 7), finite=False).dtype == np.float64
+    for dtype, shape, reason in ((np.float32, (1, 7), "dtype"), (None, (2, 7), "shape"),
+                                 (None, (1, 7), "nonfinite")):  # fmt: skip
+        with pytest.raises(PayloadError) as error:
+            field_array(message, "q", dtype, shape)
+        assert error.value.reason == reason and error.value.detail.startswith("RobotState.q: ")
