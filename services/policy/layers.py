@@ -74,29 +74,50 @@ class CrossAttention(nn.Module):
         return self.out(heads)
 
 
+MIXTURE_CHUNK = 1024
+"""Rows of the batch mixed at a time. The (rows, M*J) scaled inputs of a whole large batch
+(67 MB per layer at 8192) fall out of the CPU caches; chunks of 512-1024 rows trained 15-20%
+faster at batch 8192 and the same at 1024 (measured on the 2-core CPU)."""
+
+
+def _scaled(x: Tensor, weights: Tensor) -> Tensor:
+    """(rows, M*J): each sample's input copied once per module and scaled by its weight."""
+    return (weights.unsqueeze(2) * x.unsqueeze(1)).reshape(len(x), -1)
+
+
 class _ModuleMixture(torch.autograd.Function):
     """y = (w (x) x) @ W_stacked: the contraction over modules, with a hand-written backward
     (autograd's reduces two materialised (B, M, J) products; here the input gradient is a
-    batched mat-vec, measured faster on the CPU)."""
+    batched mat-vec, measured faster on the CPU). Works `MIXTURE_CHUNK` rows at a time and
+    recomputes the scaled inputs in the backward instead of keeping them."""
 
     @staticmethod
     def forward(ctx, x: Tensor, weights: Tensor, stacked: Tensor) -> Tensor:
-        b, m = weights.shape
-        scaled = (weights.unsqueeze(2) * x.unsqueeze(1)).reshape(b, -1)  # (B, M*J)
-        ctx.save_for_backward(x, weights, stacked, scaled)
-        return scaled @ stacked  # (B, I)
+        ctx.save_for_backward(x, weights, stacked)
+        out = x.new_empty(len(x), stacked.shape[1])  # (B, I)
+        for rows in _chunks(len(x)):
+            torch.mm(_scaled(x[rows], weights[rows]), stacked, out=out[rows])
+        return out
 
     @staticmethod
     def backward(ctx, grad: Tensor) -> tuple[Tensor | None, ...]:
-        x, weights, stacked, scaled = ctx.saved_tensors
-        grad_x = grad_weights = grad_stacked = None
-        if ctx.needs_input_grad[2]:
-            grad_stacked = scaled.T @ grad  # (M*J, I)
-        if ctx.needs_input_grad[0] or ctx.needs_input_grad[1]:
-            grad_scaled = (grad @ stacked.T).view(len(x), weights.shape[1], -1)  # (B, M, J)
-            grad_x = (weights.unsqueeze(1) @ grad_scaled).squeeze(1)  # (B, J)
-            grad_weights = (grad_scaled * x.unsqueeze(1)).sum(2)  # (B, M); bmm is slower here
+        x, weights, stacked = ctx.saved_tensors
+        inputs = ctx.needs_input_grad[0] or ctx.needs_input_grad[1]
+        grad_x = torch.empty_like(x) if inputs else None  # (B, J)
+        grad_weights = torch.empty_like(weights) if inputs else None  # (B, M)
+        grad_stacked = torch.zeros_like(stacked) if ctx.needs_input_grad[2] else None  # (M*J, I)
+        for rows in _chunks(len(x)):
+            if grad_stacked is not None:
+                grad_stacked.addmm_(_scaled(x[rows], weights[rows]).T, grad[rows])
+            if inputs:
+                grad_scaled = (grad[rows] @ stacked.T).view(-1, weights.shape[1], x.shape[1])
+                grad_x[rows] = (weights[rows].unsqueeze(1) @ grad_scaled).squeeze(1)
+                grad_weights[rows] = (grad_scaled * x[rows].unsqueeze(1)).sum(2)  # bmm: slower
         return grad_x, grad_weights, grad_stacked
+
+
+def _chunks(batch: int) -> list[slice]:
+    return [slice(start, start + MIXTURE_CHUNK) for start in range(0, batch, MIXTURE_CHUNK)]
 
 
 class ModularLinear(nn.Module):

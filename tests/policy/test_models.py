@@ -11,6 +11,7 @@ import pytest
 import torch
 from torch.nn import functional as F
 
+from hamnet.policy import layers
 from hamnet.policy.layers import MLP, CrossAttention, ModularLinear, hidden_activation
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import log_std_at
@@ -48,7 +49,10 @@ def naive_modular(layer: ModularLinear, x, weights, bias_weights, gate):
     return y * gate
 
 
-def test_module_contraction_equals_per_sample_weight_matrices() -> None:
+@pytest.mark.parametrize("chunk", [1024, 3])
+def test_module_contraction_equals_per_sample_weight_matrices(chunk: int, monkeypatch) -> None:
+    """Also with the batch mixed 3 rows at a time (B = 4: a full and a partial chunk)."""
+    monkeypatch.setattr(layers, "MIXTURE_CHUNK", chunk)
     torch.manual_seed(0)
     layer = ModularLinear(13, 11, 8)
     x = torch.randn(B, 13, dtype=torch.float64)
