@@ -293,6 +293,9 @@ class SafetyShell:
         self.last_command_at = -np.inf
         """When the last command was published (time.monotonic())."""
         self.action: ActionIn | None = None
+        self.policy_heard = False
+        """Whether any action has arrived yet (before that, a stop is the expected wait for
+        a policy still starting, not a policy gone silent)."""
         """The newest action not used yet."""
         self.stopped_by: str | None = None
         """None (following the policy), "watchdog" or "estop"."""
@@ -394,6 +397,7 @@ class SafetyShell:
                 self.filter.stop(env_ids)
 
     def _on_action(self, action: ActionIn) -> None:
+        self.policy_heard = True
         if self.estop.latched:
             self.counts["ignored"] += 1
             return
@@ -456,8 +460,12 @@ class SafetyShell:
         if time.monotonic() < self.deadline:
             return
         step = self.pending.step
-        log.warning("no action for state %d within %.2f s: braking every environment", step,
-                    self.config.watchdog_s)  # fmt: skip
+        if self.policy_heard:
+            log.warning("no action for state %d within %.2f s: braking every environment", step,
+                        self.config.watchdog_s)  # fmt: skip
+        else:
+            log.info("no action from the policy yet (state %d): holding every environment until "
+                     "its first action", step)  # fmt: skip
         self.stopped_by = "watchdog"
         self.counts["watchdog"] += 1
         self.filter.stop(np.arange(self.num_envs))
