@@ -12,9 +12,12 @@ from tests.benchmarks.quick import run_quick
 def test_quick_run_ends_with_one_json_line_of_figures() -> None:
     figures = run_quick("policy.py", timeout=120)
     rows = {(row["architecture"], row["batch"]): row for row in figures["results"]}
-    assert set(rows) == {(name, batch) for name in ARCHITECTURES for batch in (64, 1024)}
+    names = [*ARCHITECTURES, "mlp-paper-widths"]
+    assert set(rows) == {(name, batch) for name in names for batch in (64, 1024)}
     for row in rows.values():
         assert 0 < row["infer_ms"] <= row["infer_p99_ms"] and 0 < row["train_ms"] <= row["train_p99_ms"]
     assert rows[("mlp", 1024)]["train_vs_mlp"] == 1.0
     assert figures["hamnet_vs_mlp_train"] == rows[("hamnet", 1024)]["train_vs_mlp"]
     assert figures["hamnet_vs_mlp_infer"] == rows[("hamnet", 1024)]["infer_vs_mlp"]
+    paper_widths = rows[("hamnet", 1024)]["train_ms"] / rows[("mlp-paper-widths", 1024)]["train_ms"]
+    assert figures["hamnet_vs_paper_width_mlp_train"] == paper_widths
