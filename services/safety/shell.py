@@ -172,9 +172,15 @@ def decode_schedule(message: Schedule) -> int:
     return int(message.global_step)
 
 
-def command_mode(stopping: np.ndarray) -> CommandMode.ValueType:
-    """STOP when every environment is braking or holding (watchdog, e-stop), else TRACK."""
-    return CommandMode.STOP if stopping.all() else CommandMode.TRACK
+def command_mode(output: SafeOutput) -> CommandMode.ValueType:
+    """STOP when every environment is braking or holding (watchdog, e-stop); HOLD when every
+    environment's action was rejected (each holds its last safe target); else TRACK. The
+    mode sums up the batch: per-environment rejections and stops are in the events."""
+    if output.stopping.all():
+        return CommandMode.STOP
+    if output.filtered is not None and (output.filtered.reason != Rejection.ACCEPTED).all():
+        return CommandMode.HOLD
+    return CommandMode.TRACK
 
 
 def encode_command(
@@ -182,7 +188,7 @@ def encode_command(
 ) -> SafeCommand:
     """SafeCommand k: references (B, S, J) and gains (B, J) in float64, control_dt in s."""
     message = SafeCommand(
-        header=Header(step=step), mode=command_mode(output.stopping), control_dt=control_dt
+        header=Header(step=step), mode=command_mode(output), control_dt=control_dt
     )
     to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
     for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):  # (B, S, J) x2, (B, J) x3

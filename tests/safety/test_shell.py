@@ -162,6 +162,20 @@ def test_command_round_trips_through_the_sims_decoder() -> None:
     assert braking.mode == CommandMode.STOP
 
 
+def test_mode_is_hold_only_when_every_action_was_rejected() -> None:
+    """One NaN row: the batch still tracks (the event names the row); NaN everywhere: every
+    environment holds its last safe target, and the command says HOLD."""
+    q = np.tile(Q_HOME, (B, 1))
+    safety = SafetyFilter(q)
+    action = np.zeros((B, 21))
+    action[0, 3] = np.nan
+    one = safety.command(action, q, np.zeros((B, J)), 0)
+    assert wire(encode_command(one, 1, np.arange(B), CONTROL_DT)).mode == CommandMode.TRACK
+    every = safety.command(np.full((B, 21), np.nan), q, np.zeros((B, J)), 0)
+    assert wire(encode_command(every, 2, np.arange(B), CONTROL_DT)).mode == CommandMode.HOLD
+    np.testing.assert_allclose(every.q_ref[:, -1], q, atol=1e-9)
+
+
 def test_event_and_schedule_round_trip() -> None:
     stats = (StageStats("joint_limits", 10, 2, 0.5, 0.75),)
     event = wire(encode_event(SafetyEventKind.CLIPPED_JOINT_LIMIT, 9, np.array([0, 1]),
