@@ -138,9 +138,10 @@ def draw_episodes(
     physics.set_object(env_ids, entry, draws["mass"], draws["friction"], solref)
     near = rng.random(count) < p_near_init  # (K,)
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
+    cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
     q = _arm_starts(
         rng, physics, kinematics, env_ids, near, placement.start_pos, placement.start_quat,
-        radius, config,
+        radius, cuboids, config,
     )  # fmt: skip
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
     robot_friction = np.full(count, 1.0)  # MuJoCo's default for the arm's geoms
@@ -234,6 +235,7 @@ def _arm_starts(
     object_pos: np.ndarray,
     object_quat: np.ndarray,
     object_radius: np.ndarray,
+    cuboids: robot_init.Cuboids,
     config: SimConfig,
 ) -> np.ndarray:
     """(K, J) collision-free arm starts: near or random draws, then the fallbacks."""
@@ -241,7 +243,7 @@ def _arm_starts(
     q = np.tile(robot_init.RETRACTED, (len(env_ids), 1))
     pending = np.ones(len(env_ids), dtype=bool)
     draws = [None] * init.rounds + [robot_init.RETRACTED, Q_HOME]
-    for fallback in draws:
+    for round_index, fallback in enumerate(draws):
         rows = np.flatnonzero(pending)
         if len(rows) == 0:
             break
@@ -250,10 +252,13 @@ def _arm_starts(
             reached = np.ones(len(rows), dtype=bool)
             is_near = np.flatnonzero(near[rows])
             if len(is_near):
+                chosen = rows[is_near]
+                scene = robot_init.Cuboids(*(field[chosen] for field in vars(cuboids).values()))
                 targets = robot_init.near_targets(
-                    rng, object_pos[rows[is_near]], object_radius[rows[is_near]], init
+                    rng, object_pos[chosen], object_radius[chosen], scene, init
                 )
-                start = np.tile(Q_HOME, (len(is_near), 1))
+                spread = init.ik_seed_spread if round_index else 0.0  # home first
+                start = robot_init.ik_seeds(rng, len(is_near), spread, init.range_fraction)
                 candidate[is_near], distance = robot_init.solve_ik(kinematics, start, targets, init)
                 reached[is_near] = distance <= init.ik_tolerance
         else:
