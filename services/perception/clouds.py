@@ -56,6 +56,10 @@ class Cuboids:
         """From centres (B, C, 3), wxyz quaternions (B, C, 4), half extents and active mask."""
         return cls(centre, quaternion_matrix(quat), half_extent, active.bool())
 
+    def rows(self, envs: slice) -> Cuboids:
+        """The scenes `envs` of the batch."""
+        return Cuboids(self.centre[envs], self.rotation[envs], self.half_extent[envs], self.active[envs])
+
 
 @dataclass(frozen=True)
 class Triangles:
@@ -197,6 +201,17 @@ def sample_surface(
     """
     if not bool(cuboids.active.any(-1).all()):
         raise ValueError("every scene needs at least one active cuboid")
+    return torch.cat([
+        _sample_visible(cuboids.rows(envs), num_points, grid, tolerance, generator)
+        for envs in _env_chunks(len(cuboids.active))
+    ])  # fmt: skip
+
+
+def _sample_visible(
+    cuboids: Cuboids, num_points: int, grid: int, tolerance: float, generator: torch.Generator | None
+) -> torch.Tensor:
+    """`sample_surface` for a few environments at once (its point-in-box tests build
+    (B, M, C, 3) tensors that stay in the CPU caches only for a few environments)."""
     triangles = visible_triangles(cuboids, grid, tolerance)
     b = cuboids.active.shape[0]
     draws = num_points + num_points // 4  # most points survive: culling removed the hidden parts
@@ -268,9 +283,24 @@ def local_cloud(scene: torch.Tensor, keypoints: torch.Tensor, num_points: int) -
     Returns:
         (B, L, 3) the L scene points with the smallest distance to their nearest keypoint.
     """
-    nearest = torch.cdist(scene, keypoints).min(-1).values  # (B, S)
+    nearest = torch.cat([
+        torch.cdist(scene[rows], keypoints[rows]).amin(-1)  # (b, S)
+        for rows in _env_chunks(len(scene))
+    ])  # (B, S)
     index = nearest.topk(num_points, dim=1, largest=False, sorted=True).indices  # (B, L)
     return gather(scene, index)
+
+
+ENV_CHUNK = 4
+"""Environments processed at once by the local cloud and the surface sampler. Their
+(B, S, K) distances and (B, M, C, 3) point-in-box tests of a whole batch (tens to hundreds
+of MB at 64 environments) fall out of the CPU caches. Measured at 64 environments, one
+thread: the local cloud 66 -> 19 ms (the same points), the 4096-point scene pools
+1007 -> 453 ms (8 at a time: 18 ms and 532 ms)."""
+
+
+def _env_chunks(batch: int) -> list[slice]:
+    return [slice(start, start + ENV_CHUNK) for start in range(0, batch, ENV_CHUNK)]
 
 
 def corrupt(

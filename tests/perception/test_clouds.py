@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from hamnet.perception import clouds
 from hamnet.perception.clouds import (
     Cuboids,
     corrupt,
@@ -117,11 +118,14 @@ def test_pose_points_rotates_then_translates() -> None:
     np.testing.assert_allclose(pose_points(points, pose).numpy(), [[[-0.5, 0.5, 0.5]]], atol=1e-6)
 
 
-def test_local_cloud_matches_brute_force() -> None:
+@pytest.mark.parametrize("chunk", [8, 2])
+def test_local_cloud_matches_brute_force(chunk: int, monkeypatch) -> None:
+    """Also with environments taken 2 at a time (3 environments: a full and a partial chunk)."""
+    monkeypatch.setattr(clouds, "ENV_CHUNK", chunk)
     g = torch.Generator().manual_seed(3)
-    scene, keypoints = torch.rand(2, 300, 3, generator=g), torch.rand(2, 7, 3, generator=g)
+    scene, keypoints = torch.rand(3, 300, 3, generator=g), torch.rand(3, 7, 3, generator=g)
     local = local_cloud(scene, keypoints, 40)
-    for b in range(2):
+    for b in range(3):
         distance = [min(float(torch.linalg.norm(p - k)) for k in keypoints[b]) for p in scene[b]]
         expected = scene[b][np.argsort(distance)[:40]]
         np.testing.assert_allclose(local[b].numpy(), expected.numpy())
