@@ -46,8 +46,6 @@ log = logging.getLogger(__name__)
 
 STATE = contract.topic("sim/<w>/state")
 SCENE = contract.topic("sim/<w>/scene")
-CATCH_UP_PERIOD_S = 1.0
-"""Until the focus environment's scene arrives, the sim is asked for it at most this often, s."""
 TRANSITION = contract.topic("sim/<w>/transition")
 TOKENS = contract.topic("perception/<w>/tokens")
 ACTION = contract.topic("policy/<w>/action")
@@ -67,12 +65,13 @@ class MonitorShell:
         self.pacer = FramePacer(view.config.min_frame_interval_s)
         ns, w = service.namespace, service.identity.worker
         env = self.env
+        self.scene_key = SCENE.key(ns, w=w)
         subscriptions: dict[str, tuple[str, Decoder]] = {
             "state": (STATE.key(ns, w=w), self._paced(RobotState, decode_state)),
             "tokens": (TOKENS.key(ns, w=w), self._paced(PerceptionTokens, decode_tokens)),
             "action": (ACTION.key(ns, w=w), self._paced(PolicyAction, decode_action)),
             "transition": (TRANSITION.key(ns, w=w), self._decode_transition),
-            "scene": (SCENE.key(ns, w=w), lambda key, p: decode_scene(parse(Scene, p), env)),
+            "scene": (self.scene_key, lambda key, p: decode_scene(parse(Scene, p), env)),
             "event": (EVENT.key(ns, w=w), lambda key, p: decode_event(parse(SafetyEvent, p))),
             "metrics": (METRICS.key(ns), lambda key, p: decode_metrics(parse(Metrics, p))),
         }
@@ -87,7 +86,6 @@ class MonitorShell:
         """(when, steps drawn by then) of the last rate line."""
         self.scene_seen = False
         """Whether the focus environment's scene has arrived (else the sim is asked for it)."""
-        self._asked_at = -float("inf")
 
     def run(self) -> int:
         """Draw what arrives until stopped; returns the exit status."""
@@ -99,18 +97,9 @@ class MonitorShell:
                 self.handlers[received.name](received.value)
                 self.scene_seen |= received.name == "scene"
                 if received.name == "state" and not self.scene_seen:
-                    self._ask_for_scenes()
+                    self.service.inbox.catch_up("scene", self.scene_key)  # started late
             self._report()
         return 0
-
-    def _ask_for_scenes(self) -> None:
-        """Started after the focus episode's scene was published: ask the sim for it, at most
-        once per `CATCH_UP_PERIOD_S`."""
-        now = time.monotonic()
-        if now - self._asked_at >= CATCH_UP_PERIOD_S:
-            self._asked_at = now
-            ns, w = self.service.namespace, self.service.identity.worker
-            self.service.inbox.catch_up("scene", SCENE.key(ns, w=w))
 
     def _paced(self, message_type: type[Message], decode: Callable[[Any, int], Any]) -> Decoder:
         """Decoder that drops the message of a step the pacer skips, before decoding it."""

@@ -46,9 +46,6 @@ STATE = contract.topic("sim/<w>/state")
 SCENE = contract.topic("sim/<w>/scene")
 TOKENS = contract.topic("perception/<w>/tokens")
 
-CATCH_UP_PERIOD_S = 1.0
-"""While states wait for their scenes, the sim is asked for them at most this often, s."""
-
 
 # --- decode / encode: pure functions, tested without a session -------------------------
 
@@ -155,7 +152,8 @@ class PerceptionShell:
         self.device = torch_device(self.config.device, self.config.threads)
         ns, w = service.namespace, service.identity.worker
         self.num_envs: int | None = self.config.num_envs or None
-        service.inbox.subscribe("scene", SCENE.key(ns, w=w), decoder=self._decode_scene)
+        self.scene_key = SCENE.key(ns, w=w)
+        service.inbox.subscribe("scene", self.scene_key, decoder=self._decode_scene)
         service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
         self.tokens = service.publisher(TOKENS.key(ns, w=w))
         self.core: Perception | None = None
@@ -168,7 +166,6 @@ class PerceptionShell:
         self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
         self.seconds: list[float] = []
         self._last_report = time.monotonic()
-        self._asked_at = -np.inf
 
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
@@ -204,7 +201,7 @@ class PerceptionShell:
             log.info("%d environments, first state %d", self.num_envs, state.step)
             for scenes in self.pending:
                 if len(scenes.env_ids) and int(scenes.env_ids.max()) >= self.num_envs:
-                    self.service.drops.drop(SCENE.key(self.service.namespace, w=self.service.identity.worker),
+                    self.service.drops.drop(self.scene_key,
                                             "range", "scene for an environment beyond the first state's batch")  # fmt: skip
                     continue
                 self.core.start_episodes(scenes)
@@ -214,7 +211,7 @@ class PerceptionShell:
             self.counts["waiting_for_scene"] += 1
             log.debug("state %d: no scene yet for environments %s", state.step, waiting.tolist())
             self.waiting = state
-            self._ask_for_scenes()
+            self.service.inbox.catch_up("scene", self.scene_key)  # we may have started late
             return
         self.waiting = None
         started = time.perf_counter()
@@ -224,15 +221,6 @@ class PerceptionShell:
         self.answered = (state.step, message)
         self.counts["published"] += 1
         self.seconds.append(time.perf_counter() - started)
-
-    def _ask_for_scenes(self) -> None:
-        """Ask the sim for every current scene (we started after it published them), at
-        most once per `CATCH_UP_PERIOD_S`."""
-        now = time.monotonic()
-        if now - self._asked_at >= CATCH_UP_PERIOD_S:
-            self._asked_at = now
-            ns, w = self.service.namespace, self.service.identity.worker
-            self.service.inbox.catch_up("scene", SCENE.key(ns, w=w))
 
     def _report(self) -> None:
         now = time.monotonic()

@@ -14,6 +14,7 @@ published before it subscribed).
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections import Counter, deque
@@ -30,6 +31,9 @@ from hamnet.runtime.tensor import PayloadError
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+
+CATCH_UP_PERIOD_S = 1.0
+"""`Inbox.catch_up` asks the same key at most this often, s (and waits this long for replies)."""
 
 
 class DropCounter:
@@ -92,6 +96,8 @@ class Inbox:
         self._capacity = capacity
         self._ready = threading.Condition()
         self._subscriptions: list[_Subscription] = []
+        self._asked: dict[tuple[str, str], float] = {}
+        """When each (subscription, key expression) last asked to catch up (monotonic s)."""
 
     def subscribe(
         self,
@@ -129,12 +135,18 @@ class Inbox:
         )
         self._subscriptions.append(subscription)
 
-    def catch_up(self, name: str, key_expr: str, timeout_s: float = 5.0) -> None:
+    def catch_up(self, name: str, key_expr: str, timeout_s: float = CATCH_UP_PERIOD_S) -> None:
         """Ask the queryables on `key_expr` for their current value; each reply is delivered
-        to the subscription `name` as if it had been published on the reply's key."""
+        to the subscription `name` as if it had been published on the reply's key. Asked
+        again before `CATCH_UP_PERIOD_S` has passed, it does nothing: callers ask whenever
+        something is missing, and the answer is already on its way."""
         subscription = next((s for s in self._subscriptions if s.name == name), None)
         if subscription is None or subscription.queries:
             raise ValueError(f"catch_up needs a subscription named {name!r}")
+        now = time.monotonic()
+        if now - self._asked.get((name, key_expr), -math.inf) < CATCH_UP_PERIOD_S:
+            return
+        self._asked[(name, key_expr)] = now
 
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:

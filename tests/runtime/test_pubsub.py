@@ -11,7 +11,7 @@ import zenoh
 
 from hamnet.proto import sim_pb2
 from hamnet.runtime import contract
-from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.pubsub import CATCH_UP_PERIOD_S, DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import to_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
 
@@ -131,3 +131,26 @@ def test_a_late_subscriber_catches_up_through_the_publishers_queryable(sessions,
     assert answered.value.q.data == np.full((4, 7), 7.0, np.float32).tobytes()
     with pytest.raises(ValueError, match="subscription named"):
         late.catch_up("nothing", key)
+
+
+def test_catching_up_again_within_the_period_asks_nothing(sessions, transport) -> None:
+    """Shells ask whenever a state misses its scene, up to every message: the inbox sends
+    one query per `CATCH_UP_PERIOD_S`, not one per call."""
+    publisher_side, late_side = sessions
+    key = STATE.key(transport.namespace, w="0")
+    served = Inbox(publisher_side, DropCounter())
+    served.serve("state_query", key)
+    late = Inbox(late_side, DropCounter())
+    late.subscribe("state", key, sim_pb2.RobotState)
+    deadline = time.monotonic() + 10
+    first = None
+    while first is None:  # discovery: ask until the queryable is reached
+        assert time.monotonic() < deadline, "the queryable was never reached"
+        late.catch_up("state", key)
+        first = served.get(timeout=0.2)
+        if first is None:
+            time.sleep(CATCH_UP_PERIOD_S)
+    first.value.drop()
+    for _ in range(5):
+        late.catch_up("state", key)
+    assert served.get(timeout=0.3) is None
