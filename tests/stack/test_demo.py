@@ -76,13 +76,15 @@ def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(demo: De
     assert all(p["announced"] >= 1 and p["restarts"] == 0 for p in processes.values()), processes
     assert not any(alive(pid) for p in processes.values() for pid in p["pids"])
 
-    # The loop turned: every service in it answered the previous one, step after step.
-    steps = processes["sim"]["published"][demo.key("sim/<w>/state")]
+    # The loop turned: every service in it answered the previous one, step after step. The
+    # sim's steps are its transitions; a few states (the first ones, sent again while the
+    # others start) are braked by safety before the policy is up.
+    steps = processes["sim"]["published"][demo.key("sim/<w>/transition")]
     assert steps >= 20, processes["sim"]
-    assert processes["sim"]["received"]["command"] >= steps - 2
+    assert processes["sim"]["received"]["command"] >= steps
     for service, path in (("perception", "perception/<w>/tokens"), ("policy", "policy/<w>/action"),
                           ("safety", "safety/<w>/command")):  # fmt: skip
-        assert processes[service]["published"][demo.key(path)] >= steps - 3, processes[service]
+        assert processes[service]["published"][demo.key(path)] >= 0.97 * steps, processes[service]
     assert not processes["policy"]["drops"] and not processes["safety"]["drops"]
 
     declared = {path.replace("<namespace>", demo.transport.namespace) for path in stack.outputs}
@@ -104,7 +106,7 @@ def test_the_recording_replays_into_a_monitor_and_a_perception_service(demo: Dem
     inbox.subscribe("health", contract.topic("health/<service>/<w>").pattern_in(ns), Health)
     inbox.subscribe("tokens", contract.topic("perception/<w>/tokens").key(ns, w="0"), PerceptionTokens)
     monitor = spawn("monitor", "--save", str(rrd_path), *transport_args(transport))
-    replay = spawn("replay", str(demo.output(".mcap")), "--speed", "3",
+    replay = spawn("replay", str(demo.output(".mcap")), "--speed", "1.5",
                    "--topics", "hamnet/*/sim/**", "hamnet/*/policy/**", "hamnet/*/safety/**",
                    *transport_args(transport))  # fmt: skip
     perception = None

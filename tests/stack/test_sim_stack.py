@@ -103,7 +103,8 @@ def test_sim_steps_in_lock_step_with_its_commands_and_drops_malformed_ones(
     # reset environments, with the episode ids of the state they start in.
     first = [s for s in scenes if s.header.step == 0]
     assert first and all(from_tensor(s.env_ids).tolist() == [0, 1] for s in first)
-    later = [s for s in scenes if s.header.step > 0]
+    # A scene sent just before the test stopped listening may have no state here yet.
+    later = [s for s in scenes if 0 < s.header.step <= max(states)]
     assert [s.header.step for s in later][:2] == [TIMEOUT, 2 * TIMEOUT]
     for scene in later:
         new = from_tensor(scene.episode_ids, np.int64, (B,))
