@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
+from hamnet.fr3.limits import Q_HOME
 from hamnet.monitor.decode import decode_action, decode_state, decode_tokens, decode_transition
 from hamnet.monitor.view import MonitorView
 from hamnet.proto.common_pb2 import Header
@@ -36,7 +37,6 @@ from hamnet.proto.sim_pb2 import RobotState, Transition
 from hamnet.runtime.codec import encode, parse
 from hamnet.runtime.tensor import to_tensor
 from hamnet.sim.env import Observation
-from hamnet.sim.robot import Q_HOME
 from hamnet.sim.shell import encode_state
 
 J, P, N, D, L, M = 7, 512, 17, 128, 5, 8

@@ -46,13 +46,13 @@ import numpy as np
 import ruckig
 import tyro
 
+from hamnet.fr3.limits import Q_HOME
 from hamnet.safety import stages
 from hamnet.safety.cartesian import cartesian_clip
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.pipeline import target_bounds, tau_limit
 from hamnet.safety.schedule import per_joint, schedule_values
 from hamnet.safety.trajectory import TrajectoryConfig, TrajectoryGenerator
-from hamnet.sim.robot import Q_HOME
 
 POLICY_PERIOD_S = 0.1
 """10 Hz policy."""

@@ -19,8 +19,10 @@ import time
 import mujoco
 import numpy as np
 
+from hamnet.fr3 import model as fr3_model
+from hamnet.fr3.limits import Q_HOME
 from hamnet.sim import robot
-from hamnet.sim.robot import Q_HOME, impedance_torque
+from hamnet.sim.robot import impedance_torque
 
 TIMESTEPS = (0.001, 0.002, 0.0025, 0.003125, 0.005, 0.00625, 0.01, 0.0125)
 """Candidates, s; 2.5, 3.125 and 6.25 ms divide both the 80 Hz tick and the 10 Hz action."""
@@ -35,7 +37,7 @@ SWEEP_START = np.array([-0.5, -0.1, 0.0, -2.3, 0.0, 2.2, np.pi / 4])
 
 def scene(timestep: float, integrator: int, box_pos: list[float], top: float) -> mujoco.MjModel:
     """FR3 + a 0.6 x 1.0 m table with its top at `top` + a free 5 cm, 0.1 kg box."""
-    spec = mujoco.MjSpec.from_file(str(robot.model_path()))
+    spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
     spec.option.timestep, spec.option.integrator = timestep, integrator
     spec.worldbody.add_geom(
         type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0.55, 0, top / 2], size=[0.3, 0.5, top / 2]
@@ -48,7 +50,7 @@ def scene(timestep: float, integrator: int, box_pos: list[float], top: float) ->
 
 def step_error(timestep: float, kp: float, rho: float, armature: float, hold: int) -> float:
     """Worst joint error (rad) over the last 0.5 s of a 3 s, 0.2 rad step on every joint."""
-    model = robot.load_mujoco()
+    model = fr3_model.load_mujoco()
     model.opt.timestep = timestep
     model.dof_armature[:] *= armature
     data = mujoco.MjData(model)

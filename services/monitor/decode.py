@@ -9,9 +9,9 @@ must have the sim's C = 16 cuboid slots: the view colours and names them by slot
 
 from __future__ import annotations
 
-
 import numpy as np
 
+from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.monitor.frames import (
     ActionFrame,
     CloudsFrame,
@@ -29,9 +29,6 @@ from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
 from hamnet.runtime.tensor import PayloadError, field_array
 from hamnet.sim.scene import NUM_CUBOIDS
-
-J = 7
-"""Joints of the FR3."""
 
 
 def focus_row(array: np.ndarray, env: int) -> np.ndarray:

@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 import rerun as rr
 
+from hamnet.fr3.model import load_mujoco, robot_qpos_index
 from hamnet.sim import quaternion
-from hamnet.sim.robot import load_mujoco, robot_qpos_index
 
 ROOT = "robot"
 """Entity path of the robot; bodies are `robot/<body name>`."""

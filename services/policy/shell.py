@@ -23,6 +23,13 @@ from typing import Any
 import numpy as np
 import torch
 
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import RobotObservation, assemble
+from hamnet.policy.pairing import Pairing
+from hamnet.policy.policy import Action, Policy
+from hamnet.policy.registry import build
+from hamnet.policy.weights import WeightsError, from_bytes, load_into, sha256
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -33,12 +40,6 @@ from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
-from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import RobotObservation, assemble
-from hamnet.policy.pairing import Pairing
-from hamnet.policy.policy import Action, Policy
-from hamnet.policy.registry import build
-from hamnet.policy.weights import WeightsError, from_bytes, load_into, sha256
 
 log = logging.getLogger(__name__)
 
@@ -48,8 +49,6 @@ SCENE = contract.topic("sim/<w>/scene")
 WEIGHTS = contract.topic("trainer/weights")
 ACTION = contract.topic("policy/<w>/action")
 
-J = 7
-"""Joints of the FR3."""
 
 
 # --- decode / encode: pure functions, tested without a session -------------------------

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from hamnet.fr3.model import EE_SITE
 from hamnet.safety.config import CartesianRows
-from hamnet.sim.robot import EE_SITE
 
 JACOBIAN_ROWS: dict[str, slice] = {"linear": slice(0, 3), "full": slice(0, 6)}
 """Rows of the (6, J) world-aligned Jacobian [linear; angular] kept for Delta x."""

@@ -9,7 +9,7 @@ under libfranka's `franka::Errors` names. A robot in reflex refuses every comman
 The FCI differentiates the commanded signal with backward differences at its control period and
 stops the motion when a result leaves Franka's published limits (libfranka docs, "Motion stopped
 due to discontinuities"). Checks, per tick k and joint, with dt = 1 ms and the limits of
-`hamnet.sim.robot.FR3` (Franka's FR3 control-parameter table):
+`hamnet.fr3.limits.FR3` (Franka's FR3 control-parameter table):
 
 - `non_finite_command`: q_k or tau_k is NaN or infinite (libfranka rejects such a command
   with `std::invalid_argument` before it reaches the robot; here it is a reflex like the rest).
@@ -37,10 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hamnet.sim.robot import FR3Limits
-
-J = 7
-"""Joints of the FR3."""
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.fr3.limits import FR3Limits
 
 NON_FINITE = "non_finite_command"
 """A commanded value is NaN or infinite."""

@@ -23,12 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.fr3.limits import FR3, NUM_JOINTS, Q_HOME
+from hamnet.fr3.model import load_pinocchio
 from hamnet.safety import stages
 from hamnet.safety.cartesian import cartesian_clip, ee_jacobians
 from hamnet.safety.config import SafetyConfig
-from hamnet.safety.schedule import NUM_JOINTS, ScheduleValues, per_joint, schedule_values
+from hamnet.safety.schedule import ScheduleValues, per_joint, schedule_values
 from hamnet.safety.stats import StageReport, StageStats, StatsAccumulator, stage_report, summarize
-from hamnet.sim.robot import FR3, Q_HOME, load_pinocchio
 
 Jacobians = Callable[[np.ndarray], np.ndarray]
 """q (N, J) -> end-effector Jacobians (N, R, J) at those configurations."""

@@ -13,10 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.safety.config import ActionMagnitudeConfig, AnnealingConfig, CartesianClipConfig
-
-NUM_JOINTS = 7
-"""J, joints of the FR3."""
 
 SCHEDULE_NAMES = ("xi_large", "xi_small", "eps_x")
 """Stable names of the annealed values on the schedule topic."""

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.fr3.limits import ACTION_DIM
+from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import (
@@ -37,6 +39,8 @@ from hamnet.proto.safety_pb2 import (
     SafeCommand,
     SafetyEvent,
     SafetyEventKind,
+)
+from hamnet.proto.safety_pb2 import (
     StageStats as StageStatsMessage,
 )
 from hamnet.proto.sim_pb2 import RobotState
@@ -69,11 +73,6 @@ COMMAND = contract.topic("safety/<w>/command")
 EVENT = contract.topic("safety/<w>/event")
 ESTOP = contract.topic("safety/<w>/estop")
 
-J = 7
-"""Joints of the FR3."""
-ACTION_WIDTH = 21
-"""Raw action components: dq, kp and rho for each joint."""
-
 CLIP_KINDS = {
     "action_magnitude": SafetyEventKind.CLIPPED_MAGNITUDE,
     "cartesian_clip": SafetyEventKind.CLIPPED_CARTESIAN,
@@ -84,7 +83,7 @@ CLIP_KINDS = {
 
 REJECTIONS = {
     Rejection.NONFINITE: (SafetyEventKind.REJECTED_NONFINITE, "the action holds NaN or Inf"),
-    Rejection.SHAPE: (SafetyEventKind.REJECTED_SHAPE, f"the action is not (B, {ACTION_WIDTH})"),
+    Rejection.SHAPE: (SafetyEventKind.REJECTED_SHAPE, f"the action is not (B, {ACTION_DIM})"),
     Rejection.STATE: (SafetyEventKind.REJECTED_NONFINITE, "the robot state holds NaN or Inf"),
     Rejection.EPISODE: (SafetyEventKind.REJECTED_EPISODE, "the action was computed for an "
                         "episode that has ended (the environment was reset)"),

@@ -20,12 +20,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from hamnet.fr3.limits import ACTION_DIM, FR3, NUM_JOINTS
 from hamnet.safety.config import ActionMagnitudeConfig
-from hamnet.safety.schedule import NUM_JOINTS
-from hamnet.sim.robot import FR3
-
-ACTION_DIM = 3 * NUM_JOINTS
-"""Width of the raw policy action: joint residual, stiffness, damping ratio (7 each)."""
 
 
 class Rejection(IntEnum):

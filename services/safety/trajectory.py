@@ -30,10 +30,8 @@ from enum import IntEnum
 import numpy as np
 import ruckig
 
-from hamnet.sim.robot import FR3Limits
-
-J = 7
-"""Joints of the FR3."""
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.fr3.limits import FR3Limits
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,11 @@ from typing import Annotated
 
 import tyro
 
+from hamnet.fr3.model import model_path
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.robot import model_path
 from hamnet.sim.shell import LoopConfig, SimShell
 
 OwnPrefix = tyro.conf.arg(name="")

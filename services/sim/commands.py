@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hamnet.fr3.limits import FR3
 from hamnet.sim.env import Command
-from hamnet.sim.robot import FR3
 
 HOLD_KP = 100.0
 """Stiffness of a hold, N m/rad."""

@@ -16,6 +16,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from hamnet.fr3.limits import Q_HOME
 from hamnet.sim import quaternion, robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
@@ -23,7 +24,6 @@ from hamnet.sim.objects.randomization import ObjectRandomization
 from hamnet.sim.objects.spec import restitution_solref
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.placement import Placement, sample_placements
-from hamnet.sim.robot import Q_HOME
 from hamnet.sim.scene import SceneBatch, sample_scenes
 from hamnet.sim.scene_config import SceneConfig
 

@@ -1,10 +1,6 @@
-"""The project's Franka Research 3: limits, home pose, model loading and end-effector maths.
+"""How the sim drives the FR3: physics timestep, integrator and the joint impedance law.
 
-One MJCF file (`assets/fr3.xml`, written from published facts, see its header) feeds both
-MuJoCo (simulation) and Pinocchio (safety's Cartesian clipping), so the two agree on the
-end-effector pose and Jacobian by construction; tests/sim/test_robot.py checks that they do.
-The limits are Franka's FR3 control-parameter table; the joint ranges and torque limits in the
-model file must equal them (also checked).
+The robot itself (limits, model file, kinematics) is `hamnet.fr3`.
 
 Physics timestep: 2.5 ms with MuJoCo's `implicitfast` integrator. The control design is a
 joint impedance `tau = kp*(q_ref - q) - kd*qdot`, kp in [10, 200], kd = rho*sqrt(kp),
@@ -37,166 +33,14 @@ impedance loop, whose torque stays fixed over a step (0.1x armature: 0.42 rad at
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
-
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 TIMESTEP = 0.0025
 """MuJoCo physics timestep in s (the model file's `<option timestep>`; see module docstring)."""
 
 INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 """MuJoCo integrator (the model file's `<option integrator>`)."""
-
-JOINT_NAMES = tuple(f"fr3_joint{i}" for i in range(1, 8))
-"""Joint names in the model, in the order of every joint-space array (J = 7)."""
-
-ACTUATOR_NAMES = tuple(f"fr3_motor{i}" for i in range(1, 8))
-"""Torque motors, one per joint, same order as JOINT_NAMES."""
-
-EE_SITE = "ee"
-"""Site (MuJoCo) and frame (Pinocchio) at the centre of the paddle's contact face."""
-
-ROBOT_CONTYPE = 2
-"""contype of every robot geom: scene geoms (contype 1) do not match it..."""
-
-ROBOT_CONAFFINITY = 1
-"""...but robot geoms accept contype 1, so robot-scene pairs collide and robot-robot do not."""
-
-
-def _frozen(values: list[float]) -> np.ndarray:
-    array = np.array(values, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-@dataclass(frozen=True)
-class FR3Limits:
-    """Franka's FR3 control-parameter table (docs: Facts about the dependencies)."""
-
-    q_min: np.ndarray = field(
-        default_factory=lambda: _frozen(
-            [-2.9007, -1.8361, -2.9007, -3.0770, -2.8763, 0.4398, -3.0508]
-        )
-    )
-    """Lower joint position limits, (J,), rad."""
-    q_max: np.ndarray = field(
-        default_factory=lambda: _frozen([2.9007, 1.8361, 2.9007, -0.1169, 2.8763, 4.6216, 3.0508])
-    )
-    """Upper joint position limits, (J,), rad."""
-    dq_max: np.ndarray = field(
-        default_factory=lambda: _frozen([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26])
-    )
-    """Joint speed limits, (J,), rad/s."""
-    ddq_max: np.ndarray = field(default_factory=lambda: _frozen([10.0] * 7))
-    """Joint acceleration limits, (J,), rad/s^2."""
-    jerk_max: np.ndarray = field(default_factory=lambda: _frozen([5000.0] * 7))
-    """Joint jerk limits, (J,), rad/s^3."""
-    tau_max: np.ndarray = field(default_factory=lambda: _frozen([87.0] * 4 + [12.0] * 3))
-    """Joint torque limits, (J,), N m (symmetric: the model's ctrlrange is +-tau_max)."""
-    dtau_max: np.ndarray = field(default_factory=lambda: _frozen([1000.0] * 7))
-    """Joint torque rate limits, (J,), N m/s."""
-    ee_speed_max: float = 3.0
-    """End-effector translational speed limit, m/s."""
-    ee_acc_max: float = 9.0
-    """End-effector translational acceleration limit, m/s^2."""
-    ee_jerk_max: float = 4500.0
-    """End-effector translational jerk limit, m/s^3."""
-    ee_ang_speed_max: float = 2.5
-    """End-effector angular speed limit, rad/s."""
-    ee_ang_acc_max: float = 17.0
-    """End-effector angular acceleration limit, rad/s^2."""
-    ee_ang_jerk_max: float = 8500.0
-    """End-effector angular jerk limit, rad/s^3."""
-
-
-FR3 = FR3Limits()
-"""The FR3's limits; arrays are read-only."""
-
-Q_HOME = _frozen([0.0, -0.2, 0.0, -2.0, 0.0, 1.8, np.pi / 4])
-"""Home configuration, (J,), rad: paddle face down, about (0.50, 0.00, 0.455) m, above a
-table in front of the robot; q6 = q2 - q4 keeps the paddle level, q7 = pi/4 aligns its
-edges with the world axes."""
-
-
-def model_path() -> Path:
-    """Path of the FR3 MJCF file, shipped as package data of `hamnet.sim`."""
-    return Path(__file__).resolve().parent / "assets" / "fr3.xml"
-
-
-def load_mujoco() -> mujoco.MjModel:
-    """The FR3 as a MuJoCo model (robot only; scenes add their geoms through MjSpec)."""
-    return mujoco.MjModel.from_xml_path(str(model_path()))
-
-
-def load_pinocchio() -> tuple[pin.Model, pin.Data]:
-    """The FR3 as a Pinocchio model and a matching data, from the same file."""
-    model = pin.buildModelFromMJCF(str(model_path()))
-    return model, model.createData()
-
-
-def robot_qpos_index(model: mujoco.MjModel) -> np.ndarray:
-    """qpos addresses of the robot joints, (J,), also in a model with scene bodies added."""
-    return np.array([model.joint(name).qposadr[0] for name in JOINT_NAMES])
-
-
-def robot_dof_index(model: mujoco.MjModel) -> np.ndarray:
-    """qvel (dof) addresses of the robot joints, (J,)."""
-    return np.array([model.joint(name).dofadr[0] for name in JOINT_NAMES])
-
-
-def mujoco_ee_pose(
-    model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """End-effector pose in the world by MuJoCo.
-
-    Args:
-        model: a model holding the FR3 (alone or in a scene).
-        data: scratch data for `model`; its robot qpos is overwritten with `q`.
-        q: joint positions, (J,), rad.
-    Returns:
-        position (3,) in m and rotation matrix (3, 3) of site `ee`.
-    """
-    data.qpos[robot_qpos_index(model)] = q
-    mujoco.mj_kinematics(model, data)
-    site = model.site(EE_SITE).id
-    return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
-
-
-def mujoco_ee_jacobian(model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray) -> np.ndarray:
-    """End-effector Jacobian by MuJoCo, world-aligned at site `ee`.
-
-    Args:
-        model, data: as in `mujoco_ee_pose` (data is scratch).
-        q: joint positions, (J,), rad.
-    Returns:
-        (6, J): rows 0-2 linear velocity (m/s), rows 3-5 angular velocity (rad/s) per rad/s.
-    """
-    data.qpos[robot_qpos_index(model)] = q
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
-    jacp = np.zeros((3, model.nv))
-    jacr = np.zeros((3, model.nv))
-    mujoco.mj_jacSite(model, data, jacp, jacr, model.site(EE_SITE).id)
-    return np.vstack([jacp, jacr])[:, robot_dof_index(model)]
-
-
-def pinocchio_ee_pose(
-    model: pin.Model, data: pin.Data, q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """End-effector pose in the world by Pinocchio: position (3,) m, rotation (3, 3)."""
-    pin.framesForwardKinematics(model, data, q)
-    placement = data.oMf[model.getFrameId(EE_SITE)]
-    return placement.translation.copy(), placement.rotation.copy()
-
-
-def pinocchio_ee_jacobian(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
-    """End-effector Jacobian by Pinocchio, (6, J), same convention as `mujoco_ee_jacobian`."""
-    frame = model.getFrameId(EE_SITE)
-    return pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED).copy()
-
 
 def impedance_torque(
     q: np.ndarray, qdot: np.ndarray, q_ref: np.ndarray, kp: np.ndarray, rho: np.ndarray

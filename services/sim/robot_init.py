@@ -19,7 +19,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hamnet.sim import quaternion, robot
+from hamnet.fr3 import limits as fr3_limits
+from hamnet.fr3 import model as fr3_model
+from hamnet.sim import quaternion
 from hamnet.sim.physics import BatchPhysics
 
 
@@ -67,8 +69,8 @@ RETRACTED = np.array([0.0, -1.5, 0.0, -2.8, 0.0, 1.5, np.pi / 4])
 
 def joint_bounds(fraction: float) -> tuple[np.ndarray, np.ndarray]:
     """The central `fraction` of each joint range, (J,) each, rad."""
-    centre = (robot.FR3.q_min + robot.FR3.q_max) / 2
-    half = (robot.FR3.q_max - robot.FR3.q_min) / 2 * fraction
+    centre = (fr3_limits.FR3.q_min + fr3_limits.FR3.q_max) / 2
+    half = (fr3_limits.FR3.q_max - fr3_limits.FR3.q_min) / 2 * fraction
     return centre - half, centre + half
 
 
@@ -83,7 +85,7 @@ def ik_seeds(rng: np.random.Generator, count: int, spread: float, fraction: floa
     central `fraction` of each joint range."""
     low, high = joint_bounds(fraction)
     noise = rng.normal(0.0, spread, size=(count, len(low))) if spread > 0 else 0.0
-    return np.clip(np.tile(robot.Q_HOME, (count, 1)) + noise, low, high)
+    return np.clip(np.tile(fr3_limits.Q_HOME, (count, 1)) + noise, low, high)
 
 
 def near_targets(
@@ -132,11 +134,11 @@ class ArmKinematics:
     without the contacts and constraint solve a full forward pass of the world would run."""
 
     def __init__(self) -> None:
-        self.model = robot.load_mujoco()
+        self.model = fr3_model.load_mujoco()
         self.data = mujoco.MjData(self.model)
-        self.site = self.model.site(robot.EE_SITE).id
-        self.qpos = robot.robot_qpos_index(self.model)
-        self.dof = robot.robot_dof_index(self.model)
+        self.site = self.model.site(fr3_model.EE_SITE).id
+        self.qpos = fr3_model.robot_qpos_index(self.model)
+        self.dof = fr3_model.robot_dof_index(self.model)
         self._jacp = np.zeros((3, self.model.nv))
 
     def paddle(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

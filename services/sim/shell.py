@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.fr3.limits import JOINT_NAMES
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
@@ -40,7 +41,6 @@ from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_ten
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import SCHEDULE_NAMES
 from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
-from hamnet.sim.robot import JOINT_NAMES
 
 log = logging.getLogger(__name__)
 

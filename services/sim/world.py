@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from hamnet.sim import robot
+from hamnet.fr3 import limits as fr3_limits
+from hamnet.fr3 import model as fr3_model
 from hamnet.sim.objects.asset import ObjectAsset
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.scene import CUBOID_NAMES
@@ -110,7 +111,7 @@ def _impedance_actuators(spec: mujoco.MjSpec) -> None:
     """
     kp = 100.0  # placeholder gains until the first command sets them
     for actuator, q_min, q_max, tau_max in zip(
-        spec.actuators, robot.FR3.q_min, robot.FR3.q_max, robot.FR3.tau_max, strict=True
+        spec.actuators, fr3_limits.FR3.q_min, fr3_limits.FR3.q_max, fr3_limits.FR3.tau_max, strict=True
     ):
         actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         actuator.gainprm[0] = kp
@@ -166,7 +167,7 @@ def _padded(meshes: list[str]) -> list[str]:
 
 def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
     """The world's spec: robot, scene slots, floor, live object and catalogue."""
-    spec = mujoco.MjSpec.from_file(str(robot.model_path()))
+    spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
     spec.modelname = "hamnet_world"
     _impedance_actuators(spec)
     world = spec.worldbody
@@ -231,7 +232,7 @@ def _loosen_bounding_volumes(model: mujoco.MjModel, bodies: list[int]) -> None:
 
 def _moving_robot_bodies(model: mujoco.MjModel) -> np.ndarray:
     """Bodies of the arm that move: those below a joint of the FR3 (link0 is fixed)."""
-    first = model.jnt_bodyid[model.joint(robot.JOINT_NAMES[0]).id]
+    first = model.jnt_bodyid[model.joint(fr3_limits.JOINT_NAMES[0]).id]
     return np.array([b for b in range(first, model.nbody) if model.body(b).name.startswith("fr3_")])
 
 
@@ -270,8 +271,8 @@ def build_world(objects: ObjectSet) -> World:
         object_geoms=object_geoms,
         object_qpos=np.arange(joint.qposadr[0], joint.qposadr[0] + 7),
         object_dof=object_dof,
-        robot_qpos=robot.robot_qpos_index(model),
-        robot_dof=robot.robot_dof_index(model),
+        robot_qpos=fr3_model.robot_qpos_index(model),
+        robot_dof=fr3_model.robot_dof_index(model),
         robot_bodies=_moving_robot_bodies(model),
-        ee_site=model.site(robot.EE_SITE).id,
+        ee_site=model.site(fr3_model.EE_SITE).id,
     )

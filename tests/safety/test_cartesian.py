@@ -11,19 +11,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from hamnet.fr3 import limits as fr3_limits
+from hamnet.fr3 import model as fr3_model
+from hamnet.fr3.limits import FR3
 from hamnet.safety.cartesian import cartesian_clip, damped_least_squares, ee_jacobians
-from hamnet.sim import robot
-from hamnet.sim.robot import FR3
 
 B, J = 4, 7
-PIN_MODEL, PIN_DATA = robot.load_pinocchio()
-MJ_MODEL = robot.load_mujoco()
+PIN_MODEL, PIN_DATA = fr3_model.load_pinocchio()
+MJ_MODEL = fr3_model.load_mujoco()
 MJ_DATA = mujoco.MjData(MJ_MODEL)
 
 
 def mujoco_jacobians(q: np.ndarray) -> np.ndarray:
     """(B, 6, J) MuJoCo Jacobians, the independent reference."""
-    return np.stack([robot.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q_env) for q_env in q])
+    return np.stack([fr3_model.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q_env) for q_env in q])
 
 
 def selector_jacobian() -> np.ndarray:
@@ -127,7 +128,7 @@ def test_more_passes_close_the_damping_gap(q: np.ndarray, dq: np.ndarray) -> Non
 
 def test_home_pose_clamp_is_a_small_change() -> None:
     """At home a 0.26 rad push of joints 1-4 moves the paddle ~0.3 m; clamped to 0.12 m."""
-    q = np.tile(robot.Q_HOME, (B, 1))
+    q = np.tile(fr3_limits.Q_HOME, (B, 1))
     dq = np.zeros((B, J))
     dq[:, :4] = [0.26, 0.26, 0.26, -0.26]
     clamped, excess = cartesian_clip(dq, ee_jacobians(PIN_MODEL, PIN_DATA, q), 0.12, 0.01)

@@ -14,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.safety.fake_fr3 import (
     ACCELERATION_DISCONTINUITY,
     NON_FINITE,
@@ -28,7 +29,6 @@ from hamnet.safety.fake_fr3 import (
     ReflexError,
 )
 from hamnet.safety.trajectory import Plan, TrajectoryConfig, TrajectoryGenerator
-from hamnet.sim.robot import FR3, Q_HOME
 
 DT = 1e-3
 J = 7

@@ -18,6 +18,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hamnet.fr3 import model as fr3_model
+from hamnet.fr3.limits import FR3, Q_HOME, FR3Limits
 from hamnet.safety import stages
 from hamnet.safety.config import ResidualSmoothingConfig, SafetyConfig
 from hamnet.safety.fake_fr3 import FakeFR3, FakeFR3Config
@@ -25,8 +27,6 @@ from hamnet.safety.filter import SafeOutput, SafetyFilter
 from hamnet.safety.pipeline import target_bounds
 from hamnet.safety.schedule import per_joint
 from hamnet.safety.trajectory import TrajectoryConfig
-from hamnet.sim import robot
-from hamnet.sim.robot import FR3, FR3Limits, Q_HOME
 
 B, J = 4, 7
 KHZ = TrajectoryConfig(control_rate_hz=1000.0)
@@ -34,7 +34,7 @@ KHZ = TrajectoryConfig(control_rate_hz=1000.0)
 DT = KHZ.control_period_s
 SCALED = FR3Limits(dq_max=KHZ.dq_max, ddq_max=KHZ.ddq_max, jerk_max=KHZ.jerk_max)
 """The limits stage 6 plans with (FR3's scaled by the dynamics factor)."""
-MJ_MODEL = robot.load_mujoco()
+MJ_MODEL = fr3_model.load_mujoco()
 MJ_DATA = mujoco.MjData(MJ_MODEL)
 ROUNDING = 1 + 1e-9
 
@@ -120,7 +120,7 @@ def assert_within_eps_x(
     tolerance = config.cartesian_clip.damping / 2 * np.linalg.norm(xi) + 1e-9
     for env in np.flatnonzero(~filtered.rejected):
         clamped = (filtered.dq[env] - (1.0 - alpha) * memory[env]) / alpha  # (J,)
-        jacobian = robot.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q[env])[:3]  # (3, J)
+        jacobian = fr3_model.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q[env])[:3]  # (3, J)
         assert np.linalg.norm(jacobian @ clamped) <= filtered.schedule.eps_x + tolerance
 
 

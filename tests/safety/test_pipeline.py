@@ -14,6 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from hamnet.fr3 import model as fr3_model
+from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.safety import stages
 from hamnet.safety.cartesian import ee_jacobians
 from hamnet.safety.config import CartesianClipConfig, SafetyConfig
@@ -26,13 +28,11 @@ from hamnet.safety.pipeline import (
 )
 from hamnet.safety.stages import Rejection
 from hamnet.safety.stats import STAGE_NAMES
-from hamnet.sim import robot
-from hamnet.sim.robot import FR3, Q_HOME
 
 B, J = 4, 7
 NAN, INF = float("nan"), float("inf")
-PIN_MODEL, PIN_DATA = robot.load_pinocchio()
-MJ_MODEL = robot.load_mujoco()
+PIN_MODEL, PIN_DATA = fr3_model.load_pinocchio()
+MJ_MODEL = fr3_model.load_mujoco()
 MJ_DATA = mujoco.MjData(MJ_MODEL)
 LO, HI = target_bounds(SafetyConfig())
 TAU_LIMIT = 0.9 * FR3.tau_max
@@ -292,7 +292,7 @@ def test_pipeline_residual_meets_eps_x_by_mujocos_jacobian(
     result, _ = filter_action(config, state, action, q, np.zeros((B, J)), step, jacobians)
     damping = config.cartesian_clip.damping
     for env in np.flatnonzero(~result.rejected):
-        jacobian = robot.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q[env])[:3]
+        jacobian = fr3_model.mujoco_ee_jacobian(MJ_MODEL, MJ_DATA, q[env])[:3]
         motion = np.linalg.norm(jacobian @ result.dq[env])
         tolerance = damping / 2 * np.linalg.norm(result.dq[env]) + 1e-9
         assert motion <= result.schedule.eps_x + tolerance

@@ -13,12 +13,14 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from hamnet.fr3.limits import Q_HOME
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode, parse
+from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.shell import (
@@ -34,9 +36,7 @@ from hamnet.safety.shell import (
     rejection_events,
 )
 from hamnet.safety.stats import StageStats
-from hamnet.sim.robot import Q_HOME
 from hamnet.sim.shell import decode_command
-from hamnet.runtime.service import ServiceIdentity
 from tests.scripted import ScriptedService, wire
 
 B, S, J = 2, 8, 7

@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from hamnet.fr3.limits import FR3
 from hamnet.safety import stages
 from hamnet.safety.config import (
     ActionMagnitudeConfig,
@@ -38,7 +39,6 @@ from hamnet.safety.stats import (
     stage_report,
     summarize,
 )
-from hamnet.sim.robot import FR3
 
 B, J = 4, 7
 NAN, INF = float("nan"), float("inf")

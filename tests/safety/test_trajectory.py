@@ -16,11 +16,11 @@ import math
 
 import numpy as np
 import pytest
+import ruckig
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import ruckig
-
+from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.safety.trajectory import (
     Plan,
     References,
@@ -28,7 +28,6 @@ from hamnet.safety.trajectory import (
     TrajectoryGenerator,
     position_extrema,
 )
-from hamnet.sim.robot import FR3, Q_HOME
 
 FD_RTOL = 1e-6
 """Allowed excess of a finite difference over its limit, as a fraction (module docstring)."""

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hamnet.sim import robot
+from hamnet.fr3 import limits as fr3_limits
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues
 from hamnet.sim.env import OBJECT_POINTS, Command, VectorEnv
@@ -31,7 +31,7 @@ def hold(observation, kp: float = 100.0) -> Command:
         q_ref=np.repeat(q[:, None, :], 8, axis=1),
         kp=gains,
         kd=2.0 * np.sqrt(gains),
-        tau_limit=np.tile(robot.FR3.tau_max, (len(q), 1)),
+        tau_limit=np.tile(fr3_limits.FR3.tau_max, (len(q), 1)),
     )
 
 
@@ -169,7 +169,7 @@ def test_near_starts_put_the_paddle_beside_the_object_without_touching_anything(
         data = near.physics.batch.get_data(env_index)
         bodies = near.world.model.geom_bodyid[[data.contact.geom1, data.contact.geom2]]
         arm_contacts = np.isin(bodies, near.world.robot_bodies).any(axis=0).sum()
-        assert arm_contacts == 0 or (observation.q[env_index] == robot.Q_HOME.astype(np.float32)).all()
+        assert arm_contacts == 0 or (observation.q[env_index] == fr3_limits.Q_HOME.astype(np.float32)).all()
     assert ncon.shape == (B,)
 
 

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from hamnet.sim import robot
+from hamnet.fr3 import limits as fr3_limits
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.scene import sample_scenes
@@ -33,7 +33,7 @@ def physics_with_scenes(world, num_envs: int, seed: int = 0):
     objects = envs % len(world.objects)
     physics.set_object(envs, objects, np.full(num_envs, 0.3), np.full(num_envs, 0.7), solref)
     kp = np.full((num_envs, 7), 200.0)
-    physics.set_gains(kp, 2.0 * np.sqrt(kp), np.tile(robot.FR3.tau_max, (num_envs, 1)))
+    physics.set_gains(kp, 2.0 * np.sqrt(kp), np.tile(fr3_limits.FR3.tau_max, (num_envs, 1)))
     return physics, scenes, envs
 
 
@@ -96,7 +96,7 @@ def test_batch_matches_each_environment_simulated_alone(world) -> None:
     physics, scenes, envs = physics_with_scenes(world, num_envs, seed=3)
     above = np.stack([scenes.centre[:, 0, 0], scenes.centre[:, 0, 1], scenes.table_top + 0.2], 1)
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (num_envs, 1))
-    start = np.tile(robot.Q_HOME, (num_envs, 1))
+    start = np.tile(fr3_limits.Q_HOME, (num_envs, 1))
     physics.set_state(envs, start, above, quat)
     q_ref = start + 0.1  # (B, J)
     hold(physics, q_ref, 3)
@@ -120,7 +120,7 @@ def test_gains_and_torque_clip_are_per_environment(world) -> None:
     quat = np.tile([1.0, 0, 0, 0], (num_envs, 1))
     physics.set_state(envs, np.tile(FOLDED, (num_envs, 1)), lifted, quat)
     kp = np.full((num_envs, 7), 200.0)
-    tau_limit = np.array([robot.FR3.tau_max, np.full(7, 2.0)])
+    tau_limit = np.array([fr3_limits.FR3.tau_max, np.full(7, 2.0)])
     physics.set_gains(kp, 2.0 * np.sqrt(kp), tau_limit)
     target = np.tile(FOLDED, (num_envs, 1))
     target[:, 0] += 0.3  # turn about the base: free motion, no gravity load

@@ -4,8 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from hamnet.sim import robot
-from hamnet.sim.robot_init import Cuboids, RobotInitConfig, ik_seeds, inside_cuboids, joint_bounds, near_targets
+from hamnet.fr3 import limits as fr3_limits
+from hamnet.sim.robot_init import (
+    Cuboids,
+    RobotInitConfig,
+    ik_seeds,
+    inside_cuboids,
+    joint_bounds,
+    near_targets,
+)
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -48,7 +55,7 @@ def test_near_targets_avoid_a_wall_beside_the_object() -> None:
 
 def test_ik_seeds_start_at_home_then_spread_within_the_joint_ranges() -> None:
     rng = np.random.default_rng(1)
-    np.testing.assert_array_equal(ik_seeds(rng, 3, 0.0, 0.9), np.tile(robot.Q_HOME, (3, 1)))
+    np.testing.assert_array_equal(ik_seeds(rng, 3, 0.0, 0.9), np.tile(fr3_limits.Q_HOME, (3, 1)))
     seeds = ik_seeds(rng, 500, 0.6, 0.9)  # (500, J)
     low, high = joint_bounds(0.9)
     assert ((seeds >= low) & (seeds <= high)).all()

@@ -6,17 +6,20 @@ from __future__ import annotations
 import fnmatch
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+import tomllib
 
-import hamnet.sim
+import hamnet.fr3
+from hamnet.fr3 import limits as fr3_limits
+from hamnet.fr3 import model as fr3_model
+from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.sim import robot
-from hamnet.sim.robot import FR3, Q_HOME, impedance_torque
+from hamnet.sim.robot import impedance_torque
 
 ROOT = Path(__file__).resolve().parents[2]
 TOLERANCE = 1e-9
@@ -25,12 +28,12 @@ TOLERANCE = 1e-9
 
 @pytest.fixture(scope="module")
 def mj_model() -> mujoco.MjModel:
-    return robot.load_mujoco()
+    return fr3_model.load_mujoco()
 
 
 @pytest.fixture(scope="module")
 def pin_model() -> tuple[pin.Model, pin.Data]:
-    return robot.load_pinocchio()
+    return fr3_model.load_pinocchio()
 
 
 def random_configurations(count: int, seed: int = 0) -> np.ndarray:
@@ -56,8 +59,8 @@ def add_table_and_box(spec: mujoco.MjSpec, top: float, box_pos: list[float]) -> 
 def test_mujoco_and_pinocchio_give_the_same_ee_pose(mj_model, pin_model) -> None:
     data = mujoco.MjData(mj_model)
     for q in random_configurations(50):
-        mj_pos, mj_rot = robot.mujoco_ee_pose(mj_model, data, q)
-        pin_pos, pin_rot = robot.pinocchio_ee_pose(*pin_model, q)
+        mj_pos, mj_rot = fr3_model.mujoco_ee_pose(mj_model, data, q)
+        pin_pos, pin_rot = fr3_model.pinocchio_ee_pose(*pin_model, q)
         np.testing.assert_allclose(mj_pos, pin_pos, atol=TOLERANCE)
         np.testing.assert_allclose(mj_rot, pin_rot, atol=TOLERANCE)
 
@@ -65,9 +68,9 @@ def test_mujoco_and_pinocchio_give_the_same_ee_pose(mj_model, pin_model) -> None
 def test_mujoco_and_pinocchio_give_the_same_ee_jacobian(mj_model, pin_model) -> None:
     data = mujoco.MjData(mj_model)
     for q in random_configurations(50, seed=1):
-        mj_jac = robot.mujoco_ee_jacobian(mj_model, data, q)
+        mj_jac = fr3_model.mujoco_ee_jacobian(mj_model, data, q)
         assert mj_jac.shape == (6, 7)
-        pin_jac = robot.pinocchio_ee_jacobian(*pin_model, q)
+        pin_jac = fr3_model.pinocchio_ee_jacobian(*pin_model, q)
         np.testing.assert_allclose(mj_jac, pin_jac, atol=TOLERANCE)
 
 
@@ -77,13 +80,13 @@ def test_jacobian_is_the_derivative_of_the_pose(mj_model) -> None:
     data = mujoco.MjData(mj_model)
     eps = 1e-6
     for q in random_configurations(5, seed=2):
-        jac = robot.mujoco_ee_jacobian(mj_model, data, q)
-        _, rot = robot.mujoco_ee_pose(mj_model, data, q)
+        jac = fr3_model.mujoco_ee_jacobian(mj_model, data, q)
+        _, rot = fr3_model.mujoco_ee_pose(mj_model, data, q)
         for joint in range(7):
             step = np.zeros(7)
             step[joint] = eps
-            pos_plus, rot_plus = robot.mujoco_ee_pose(mj_model, data, q + step)
-            pos_minus, rot_minus = robot.mujoco_ee_pose(mj_model, data, q - step)
+            pos_plus, rot_plus = fr3_model.mujoco_ee_pose(mj_model, data, q + step)
+            pos_minus, rot_minus = fr3_model.mujoco_ee_pose(mj_model, data, q - step)
             skew = (rot_plus - rot_minus) @ rot.T / (2 * eps)  # dR/dq R^T = [omega]x
             angular = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
             linear = (pos_plus - pos_minus) / (2 * eps)
@@ -109,7 +112,7 @@ def test_mujoco_and_pinocchio_give_the_same_dynamics(mj_model, pin_model) -> Non
 def test_zero_configuration_matches_published_kinematics(mj_model) -> None:
     """At q = 0 the flange is at (a7, 0, d1 + d3 + d5 - d_flange) pointing down, and the
     paddle face 0.09 m further."""
-    pos, rot = robot.mujoco_ee_pose(mj_model, mujoco.MjData(mj_model), np.zeros(7))
+    pos, rot = fr3_model.mujoco_ee_pose(mj_model, mujoco.MjData(mj_model), np.zeros(7))
     np.testing.assert_allclose(pos, [0.088, 0.0, 0.333 + 0.316 + 0.384 - 0.107 - 0.09], atol=1e-12)
     np.testing.assert_allclose(rot[:, 2], [0.0, 0.0, -1.0], atol=1e-12)
 
@@ -118,7 +121,7 @@ def test_zero_configuration_matches_published_kinematics(mj_model) -> None:
 
 
 def test_joint_ranges_equal_the_fr3_limits(mj_model, pin_model) -> None:
-    ranges = np.array([mj_model.joint(name).range for name in robot.JOINT_NAMES])
+    ranges = np.array([mj_model.joint(name).range for name in fr3_limits.JOINT_NAMES])
     np.testing.assert_array_equal(ranges[:, 0], FR3.q_min)
     np.testing.assert_array_equal(ranges[:, 1], FR3.q_max)
     assert mj_model.jnt_limited.all()
@@ -128,7 +131,7 @@ def test_joint_ranges_equal_the_fr3_limits(mj_model, pin_model) -> None:
 
 def test_actuators_are_joint_motors_clipped_at_tau_max(mj_model, pin_model) -> None:
     for joint_name, actuator_name, tau_max in zip(
-        robot.JOINT_NAMES, robot.ACTUATOR_NAMES, FR3.tau_max, strict=True
+        fr3_limits.JOINT_NAMES, fr3_model.ACTUATOR_NAMES, FR3.tau_max, strict=True
     ):
         actuator = mj_model.actuator(actuator_name)
         assert actuator.trnid[0] == mj_model.joint(joint_name).id
@@ -158,7 +161,7 @@ def test_limit_arrays_are_read_only() -> None:
 def test_home_is_inside_the_limits_with_the_paddle_down_in_front(mj_model) -> None:
     assert np.all(Q_HOME > FR3.q_min) and np.all(Q_HOME < FR3.q_max)
     data = mujoco.MjData(mj_model)
-    pos, rot = robot.mujoco_ee_pose(mj_model, data, Q_HOME)
+    pos, rot = fr3_model.mujoco_ee_pose(mj_model, data, Q_HOME)
     assert 0.4 < pos[0] < 0.6 and abs(pos[1]) < 1e-9 and 0.35 < pos[2] < 0.6
     np.testing.assert_allclose(rot[:, 2], [0.0, 0.0, -1.0], atol=1e-9)
     mujoco.mj_forward(mj_model, data)
@@ -170,11 +173,11 @@ def test_home_is_inside_the_limits_with_the_paddle_down_in_front(mj_model) -> No
 
 def test_robot_geoms_collide_with_the_scene_but_not_with_each_other(mj_model) -> None:
     robot_geoms = range(mj_model.ngeom)
-    assert all(mj_model.geom_contype[g] == robot.ROBOT_CONTYPE for g in robot_geoms)
-    assert all(mj_model.geom_conaffinity[g] == robot.ROBOT_CONAFFINITY for g in robot_geoms)
+    assert all(mj_model.geom_contype[g] == fr3_model.ROBOT_CONTYPE for g in robot_geoms)
+    assert all(mj_model.geom_conaffinity[g] == fr3_model.ROBOT_CONAFFINITY for g in robot_geoms)
     scene_contype, scene_conaffinity = 1, 1  # MuJoCo's defaults
-    assert not robot.ROBOT_CONTYPE & robot.ROBOT_CONAFFINITY
-    assert robot.ROBOT_CONTYPE & scene_conaffinity or scene_contype & robot.ROBOT_CONAFFINITY
+    assert not fr3_model.ROBOT_CONTYPE & fr3_model.ROBOT_CONAFFINITY
+    assert fr3_model.ROBOT_CONTYPE & scene_conaffinity or scene_contype & fr3_model.ROBOT_CONAFFINITY
 
 
 def test_explicit_self_collision_pairs_never_join_adjacent_links(mj_model) -> None:
@@ -185,10 +188,10 @@ def test_explicit_self_collision_pairs_never_join_adjacent_links(mj_model) -> No
 
 
 def test_paddle_touches_a_scene_box() -> None:
-    spec = mujoco.MjSpec.from_file(str(robot.model_path()))
-    model = robot.load_mujoco()
+    spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
+    model = fr3_model.load_mujoco()
     data = mujoco.MjData(model)
-    ee, _ = robot.mujoco_ee_pose(model, data, Q_HOME)
+    ee, _ = fr3_model.mujoco_ee_pose(model, data, Q_HOME)
     add_table_and_box(spec, top=0.2, box_pos=[ee[0], ee[1], ee[2] - 0.02])
     model = spec.compile()
     data = mujoco.MjData(model)
@@ -242,11 +245,11 @@ def test_step_of_the_reference_is_tracked_stably(
 def test_box_dropped_on_a_table_comes_to_rest() -> None:
     """A 5 cm box dropped from 5 cm onto a table beside the holding robot settles on the
     top: slow, at the right height, upright, after 1.5 s."""
-    spec = mujoco.MjSpec.from_file(str(robot.model_path()))
+    spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
     add_table_and_box(spec, top=0.3, box_pos=[0.55, 0.2, 0.3 + 0.025 + 0.05])
     model = spec.compile()
     data = mujoco.MjData(model)
-    qpos, dofs = robot.robot_qpos_index(model), robot.robot_dof_index(model)
+    qpos, dofs = fr3_model.robot_qpos_index(model), fr3_model.robot_dof_index(model)
     data.qpos[qpos] = Q_HOME
     box = model.joint("box").qposadr[0], model.joint("box").dofadr[0]
     for _ in range(round(1.5 / model.opt.timestep)):
@@ -264,20 +267,20 @@ def test_model_file_is_declared_package_data() -> None:
     """Without the package-data entry a wheel or Docker image would ship robot.py but not
     fr3.xml; the editable install used here would not notice."""
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())
-    patterns = config["tool"]["setuptools"]["package-data"]["hamnet.sim"]
-    relative = robot.model_path().relative_to(Path(hamnet.sim.__file__).parent).as_posix()
+    patterns = config["tool"]["setuptools"]["package-data"]["hamnet.fr3"]
+    relative = fr3_model.model_path().relative_to(Path(hamnet.fr3.__file__).parent).as_posix()
     assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns)
 
 
 def test_model_loads_in_a_fresh_interpreter_outside_the_repo(tmp_path: Path) -> None:
     """`python -I` from another folder: no repo on sys.path, only the installed package."""
     code = (
-        "import hamnet.sim, pathlib\n"
-        "from hamnet.sim import robot\n"
-        "path = robot.model_path()\n"
+        "import hamnet.fr3, pathlib\n"
+        "from hamnet.fr3 import model as fr3_model\n"
+        "path = fr3_model.model_path()\n"
         "assert path.is_file(), path\n"
-        "assert path.is_relative_to(pathlib.Path(hamnet.sim.__file__).parent), path\n"
-        "assert robot.load_mujoco().nu == 7 and robot.load_pinocchio()[0].nq == 7\n"
+        "assert path.is_relative_to(pathlib.Path(hamnet.fr3.__file__).parent), path\n"
+        "assert fr3_model.load_mujoco().nu == 7 and fr3_model.load_pinocchio()[0].nq == 7\n"
         "print(path)\n"
     )
     result = subprocess.run(

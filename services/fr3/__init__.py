@@ -1,0 +1,1 @@
+"""The Franka Research 3 as every service sees it: limits, home pose, model file, kinematics."""
