@@ -21,7 +21,7 @@ import numpy as np
 import torch
 import trimesh
 
-from hamnet.perception.clouds import Cuboids, sample_surface
+from hamnet.perception.clouds import sample_surface
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception
 from hamnet.perception.unicorn import UniCORN
@@ -67,12 +67,10 @@ def main() -> None:
     b, repeats = args.num_envs, (3 if args.quick else 20)
     env = VectorEnv(SimConfig(num_envs=b, num_objects=8, nthread=1, seed=0))
     obs = env.reset(seed=0)
-    s = env.scene_arrays
-    f32 = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
-    cuboids = Cuboids.from_quat(f32(s["centre"]), f32(s["quat"]), f32(s["half_extent"]), torch.as_tensor(s["active"]))
-    scenes = EpisodeScenes(torch.arange(b), torch.as_tensor(obs.episode_ids), cuboids,
-                           f32(env.object_points[env.object_index]))  # fmt: skip
-    pose = f32(obs.object_pose)
+    s = env.scenes()
+    scenes = EpisodeScenes.from_arrays(s.env_ids, s.episode_ids, s.cuboid_centre, s.cuboid_quat,
+                                       s.cuboid_half_extent, s.cuboid_active, s.object_points)  # fmt: skip
+    pose = torch.as_tensor(obs.object_pose, dtype=torch.float32)
     config = CloudConfig()
     core = Perception(UniCORN(), b, config)
     core.start_episodes(scenes)

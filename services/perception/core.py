@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from hamnet.perception.clouds import (
@@ -45,6 +46,33 @@ class EpisodeScenes:
     """K scenes of C cuboid slots."""
     object_points: torch.Tensor
     """(K, P, 3) object surface points in the object's frame, m."""
+
+    @classmethod
+    def from_arrays(
+        cls,
+        env_ids: np.ndarray,
+        episode_ids: np.ndarray,
+        centre: np.ndarray,
+        quat: np.ndarray,
+        half_extent: np.ndarray,
+        active: np.ndarray,
+        object_points: np.ndarray,
+    ) -> EpisodeScenes:
+        """K scenes from the arrays of a Scene message or of `VectorEnv.scenes` (CPU copies).
+
+        Args:
+            env_ids, episode_ids: (K,) integers.
+            centre, quat, half_extent: (K, C, 3), (K, C, 4) wxyz, (K, C, 3) cuboids, m.
+            active: (K, C) bool.
+            object_points: (K, P, 3) in the object's frame, m.
+        """
+        tensor = lambda a, dtype: torch.tensor(np.asarray(a), dtype=dtype)  # noqa: E731
+        f32 = torch.float32
+        cuboids = Cuboids.from_quat(
+            tensor(centre, f32), tensor(quat, f32), tensor(half_extent, f32), tensor(active, torch.bool)
+        )
+        return cls(tensor(env_ids, torch.long), tensor(episode_ids, torch.long), cuboids,
+                   tensor(object_points, f32))  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,7 @@ def _intrinsics(gl_camera, width: int, height: int) -> np.ndarray:
 def render_views(env: VectorEnv, index: int, width: int, height: int) -> list[DepthView]:
     """Depth and segmentation of environment `index` from the four D435-like cameras."""
     model, data = environment_model(env, index)
-    table = env.scene_arrays["centre"][index, 0]
+    table = env.scenes(np.array([index])).cuboid_centre[0, 0]
     labels_of = np.zeros(model.ngeom + 1, np.uint8)
     labels_of[env.world.cuboid_geoms] = SCENE
     labels_of[env.world.object_geoms] = OBJECT
@@ -101,8 +101,10 @@ def main() -> None:
     views = render_views(env, 0, args.width, args.height)
     arrays = {f"{name}_{i}": getattr(v, name) for i, v in enumerate(views)
               for name in ("depth", "labels", "intrinsics", "camera_to_world")}  # fmt: skip
-    scene = {name: env.scene_arrays[name][0] for name in ("centre", "quat", "half_extent", "active")}
-    np.savez(args.out, **arrays, **scene, object_points=env.object_points[env.object_index[0]],
+    s = env.scenes(np.array([0]))
+    scene = {"centre": s.cuboid_centre[0], "quat": s.cuboid_quat[0],
+             "half_extent": s.cuboid_half_extent[0], "active": s.cuboid_active[0]}  # fmt: skip
+    np.savez(args.out, **arrays, **scene, object_points=s.object_points[0],
              object_pose=obs.object_pose[0])  # fmt: skip
 
 

@@ -27,6 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from hamnet.perception.config import CloudConfig
+from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.perception.unicorn import UniCORN
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
@@ -35,10 +38,6 @@ from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
-from hamnet.perception.clouds import Cuboids
-from hamnet.perception.config import CloudConfig
-from hamnet.perception.core import EpisodeScenes, Perception, Percepts
-from hamnet.perception.unicorn import UniCORN
 
 log = logging.getLogger(__name__)
 
@@ -97,9 +96,7 @@ def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> Episo
     points = field_array(message, "object_points", np.float32, (k, num_points, 3), finite=True)
     if k and not active.any(1).all():
         raise PayloadError("range", "Scene holds a scene without any active cuboid")
-    tensor = lambda a: torch.from_numpy(np.array(a))  # noqa: E731  (writable copies)
-    cuboids = Cuboids.from_quat(tensor(centre), tensor(quat), tensor(half), tensor(active))
-    return EpisodeScenes(tensor(env_ids).long(), tensor(episode_ids), cuboids, tensor(points))
+    return EpisodeScenes.from_arrays(env_ids, episode_ids, centre, quat, half, active, points)
 
 
 def encode_tokens(percepts: Percepts, step: int, episode_ids: np.ndarray, version: int) -> PerceptionTokens:

@@ -5,7 +5,9 @@ references per control sample, gains, torque clip) for one policy period and ret
 batched observation, the reward terms, and the termination flags. Environments whose
 episode ended are reset inside `step` (auto-reset): the returned observation is then the
 first of the new episode, while rewards, flags and `episode_ids` belong to the step that
-ended the old one.
+ended the old one, and `final_observation` keeps the observation that ended it (to bootstrap
+the value of a truncated episode). `scenes(env_ids)` describes the current episodes of some
+environments: what the Scene message carries, for the shell and the trainer alike.
 """
 
 from __future__ import annotations
@@ -20,8 +22,8 @@ from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
-from hamnet.sim.robot_init import ArmKinematics
 from hamnet.sim.rewards import REWARD_NAMES, Potentials, potentials, reward_terms
+from hamnet.sim.robot_init import ArmKinematics
 from hamnet.sim.scene import NUM_CUBOIDS, TABLE
 from hamnet.sim.termination import termination, workspace_bounds
 from hamnet.sim.world import build_world
@@ -61,10 +63,45 @@ class Observation:
 
 
 @dataclass(frozen=True)
+class SceneDescription:
+    """The current episodes of K environments: what the Scene message carries."""
+
+    env_ids: np.ndarray
+    """(K,) int64 environment indices."""
+    episode_ids: np.ndarray
+    """(K,) int64."""
+    object_ids: tuple[str, ...]
+    """(K,) library name of each environment's object."""
+    object_scale: np.ndarray
+    """(K,) float32, the object's scale relative to its library mesh."""
+    object_points: np.ndarray
+    """(K, P, 3) float32 surface points of the object in its own frame, m."""
+    cuboid_centre: np.ndarray
+    """(K, C, 3) float32 cuboid centres, world frame, m."""
+    cuboid_quat: np.ndarray
+    """(K, C, 4) float32 cuboid orientations, wxyz."""
+    cuboid_half_extent: np.ndarray
+    """(K, C, 3) float32 half sizes, m."""
+    cuboid_active: np.ndarray
+    """(K, C) bool: slots in use (inactive slots are parked out of the way)."""
+    env_code: np.ndarray
+    """(K, 25) float32 EnvCode of each scene (paper, "Scene encoding")."""
+    start_pose: np.ndarray
+    """(K, 7) float32 object pose at the episode's start: position, quaternion wxyz."""
+    goal_pose: np.ndarray
+    """(K, 7) float32 goal pose: position, quaternion wxyz."""
+
+
+@dataclass(frozen=True)
 class StepResult:
     """One step of every environment."""
 
     observation: Observation
+    """After any auto-reset: the first observation of a new episode where one started."""
+    final_observation: Observation
+    """Before any auto-reset: equal to `observation` except in the rows of `reset_ids`,
+    which hold the last observation of the episode that ended there (Gymnasium's
+    `final_obs`); the value of a truncated episode is bootstrapped from it."""
     reward_terms: np.ndarray
     """(B, R) float32, columns `REWARD_NAMES`."""
     terminated: np.ndarray  # (B,) bool
@@ -108,6 +145,7 @@ class VectorEnv:
         self.goal_pos = np.zeros((b, 3))
         self.goal_quat = np.tile([1.0, 0.0, 0.0, 0.0], (b, 1))
         self.physics_params = np.zeros((b, 6), dtype=np.float32)
+        self.start_pose = np.zeros((b, 7), dtype=np.float32)
         self.workspace = (np.full((b, 3), -np.inf), np.full((b, 3), np.inf))
         self.scene_arrays: dict[str, np.ndarray] = {
             "centre": np.zeros((b, NUM_CUBOIDS, 3)), "quat": np.zeros((b, NUM_CUBOIDS, 4)),
@@ -143,10 +181,12 @@ class VectorEnv:
         self.potentials = current
         stepped_ids = self.episode_ids.copy()
         done = np.flatnonzero(ends.done)
+        final = self.observe()
         if len(done):
             self._new_episodes(done)
         return StepResult(
-            observation=self.observe(),
+            observation=self.observe() if len(done) else final,
+            final_observation=final,
             reward_terms=rewards,
             terminated=ends.terminated,
             truncated=ends.truncated,
@@ -174,6 +214,26 @@ class VectorEnv:
             object_pose=np.concatenate([pos, quat], axis=1).astype(np.float32),
             object_velocity=p.qvel[:, w.object_dof].astype(np.float32),
             physics_params=self.physics_params.copy(),
+        )
+
+    def scenes(self, env_ids: np.ndarray | None = None) -> SceneDescription:
+        """The current episodes of `env_ids` (K,), every environment if None."""
+        ids = np.arange(self.num_envs) if env_ids is None else np.asarray(env_ids, np.int64)
+        arrays = self.scene_arrays
+        entries = self.object_index[ids]  # (K,)
+        return SceneDescription(
+            env_ids=ids.astype(np.int64),
+            episode_ids=self.episode_ids[ids].copy(),
+            object_ids=tuple(self.library.objects[int(i)].name for i in entries),
+            object_scale=self.library.scale[entries].astype(np.float32),
+            object_points=self.object_points[entries],
+            cuboid_centre=arrays["centre"][ids].astype(np.float32),
+            cuboid_quat=arrays["quat"][ids].astype(np.float32),
+            cuboid_half_extent=arrays["half_extent"][ids].astype(np.float32),
+            cuboid_active=arrays["active"][ids].copy(),
+            env_code=arrays["env_code"][ids].astype(np.float32),
+            start_pose=self.start_pose[ids].copy(),
+            goal_pose=np.concatenate([self.goal_pos[ids], self.goal_quat[ids]], 1).astype(np.float32),
         )
 
     def _object_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -205,6 +265,7 @@ class VectorEnv:
         self._next_episode += len(env_ids)
         self.episode_step[env_ids] = 0
         pos, quat = self._object_pose()
+        self.start_pose[env_ids] = np.concatenate([pos, quat], axis=1)[env_ids]
         fresh = self._potentials(pos, quat)
         self.potentials.goal[env_ids] = fresh.goal[env_ids]
         self.potentials.contact[env_ids] = fresh.contact[env_ids]

@@ -23,12 +23,12 @@ import dataclasses
 import functools
 import logging
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.fr3.limits import JOINT_NAMES
+from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
@@ -40,7 +40,7 @@ from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import SCHEDULE_NAMES
-from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
 
 log = logging.getLogger(__name__)
 
@@ -50,9 +50,6 @@ TRANSITION = contract.topic("sim/<w>/transition")
 COMMAND = contract.topic("safety/<w>/command")
 SCHEDULE = contract.topic("trainer/schedule")
 
-NUM_JOINTS = len(JOINT_NAMES)
-OBJECT_SCALE = 5
-"""Column of `physics_params` holding the object's scale (PrivilegedState in sim.proto)."""
 
 
 # --- encode / decode: pure functions, tested without a session -------------------------
@@ -71,38 +68,20 @@ def encode_state(obs: Observation, step: int) -> RobotState:
     return message
 
 
-def encode_scene(
-    obs: Observation,
-    scene_arrays: Mapping[str, np.ndarray],
-    object_ids: Sequence[str],
-    object_points: np.ndarray,
-    env_ids: np.ndarray,
-    step: int,
-) -> Scene:
-    """The Scene of the episodes starting in `env_ids` (K environments).
-
-    Args:
-        obs: the first observation of those episodes (B rows; start pose = object pose).
-        scene_arrays: `VectorEnv.scene_arrays`: centre (B, C, 3), quat (B, C, 4),
-            half_extent (B, C, 3), active (B, C), env_code (B, 25).
-        object_ids: (B,) library name of each environment's object.
-        object_points: (B, P, 3) surface samples of each environment's object, own frame.
-        env_ids: (K,) environments to describe.
-        step: the step of the state these episodes start in.
-    """
-    env_ids = np.asarray(env_ids, dtype=np.int64)
-    message = Scene(header=Header(step=step), object_ids=[object_ids[i] for i in env_ids])
-    to_tensor(env_ids.astype(np.int32), message.env_ids)  # (K,)
-    to_tensor(obs.episode_ids[env_ids].astype(np.int64), message.episode_ids)  # (K,)
-    to_tensor(scene_arrays["centre"][env_ids].astype(np.float32), message.cuboid_pos)  # (K, C, 3)
-    to_tensor(scene_arrays["quat"][env_ids].astype(np.float32), message.cuboid_quat)  # (K, C, 4)
-    to_tensor(scene_arrays["half_extent"][env_ids].astype(np.float32), message.cuboid_half_size)
-    to_tensor(scene_arrays["active"][env_ids].astype(bool), message.cuboid_active)  # (K, C)
-    to_tensor(obs.physics_params[env_ids, OBJECT_SCALE].astype(np.float32), message.object_scale)
-    to_tensor(obs.object_pose[env_ids].astype(np.float32), message.start_pose)  # (K, 7)
-    to_tensor(obs.goal_pose[env_ids].astype(np.float32), message.goal_pose)  # (K, 7)
-    to_tensor(scene_arrays["env_code"][env_ids].astype(np.float32), message.env_code)  # (K, 25)
-    to_tensor(object_points[env_ids].astype(np.float32), message.object_points)  # (K, P, 3)
+def encode_scene(scenes: SceneDescription, step: int) -> Scene:
+    """The Scene message of K environments' current episodes, at the state of `step`."""
+    message = Scene(header=Header(step=step), object_ids=list(scenes.object_ids))
+    to_tensor(scenes.env_ids.astype(np.int32), message.env_ids)  # (K,)
+    to_tensor(scenes.episode_ids.astype(np.int64), message.episode_ids)  # (K,)
+    to_tensor(scenes.cuboid_centre, message.cuboid_pos)  # (K, C, 3)
+    to_tensor(scenes.cuboid_quat, message.cuboid_quat)  # (K, C, 4)
+    to_tensor(scenes.cuboid_half_extent, message.cuboid_half_size)  # (K, C, 3)
+    to_tensor(scenes.cuboid_active.astype(bool), message.cuboid_active)  # (K, C)
+    to_tensor(scenes.object_scale, message.object_scale)  # (K,)
+    to_tensor(scenes.start_pose, message.start_pose)  # (K, 7)
+    to_tensor(scenes.goal_pose, message.goal_pose)  # (K, 7)
+    to_tensor(scenes.env_code, message.env_code)  # (K, 25)
+    to_tensor(scenes.object_points, message.object_points)  # (K, P, 3)
     return message
 
 
@@ -202,7 +181,6 @@ class SimShell:
         self.scene = service.publisher(SCENE.key(ns, w=w))
         service.inbox.serve("scene_query", SCENE.key(ns, w=w))
         self.transition = service.publisher(TRANSITION.key(ns, w=w))
-        self.names = [asset.name for asset in env.library.objects]
         self.step = 0
         self.observation: Observation | None = None
         self.stale = 0
@@ -304,11 +282,7 @@ class SimShell:
 
     def _scene_of(self, env_ids: np.ndarray) -> Scene:
         """The Scene message of the current episodes of `env_ids` (K,)."""
-        object_ids = [self.names[i] for i in self.env.object_index]  # (B,)
-        points = self.env.object_points[self.env.object_index]  # (B, P, 3)
-        return encode_scene(
-            self.observation, self.env.scene_arrays, object_ids, points, env_ids, self.step
-        )
+        return encode_scene(self.env.scenes(env_ids), self.step)
 
     def _stale(self, step: int) -> None:
         self.stale += 1

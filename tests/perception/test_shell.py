@@ -39,9 +39,7 @@ def env() -> VectorEnv:
 
 
 def scene_message(env: VectorEnv, env_ids, step: int):
-    points = env.object_points[env.object_index]  # (B, P, 3)
-    ids = [env.library.objects[int(i)].name for i in env.object_index]
-    return encode_scene(env.observe(), env.scene_arrays, ids, points, np.asarray(env_ids), step)
+    return encode_scene(env.scenes(np.asarray(env_ids)), step)
 
 
 def test_decode_scene_and_state_round_trip(env: VectorEnv) -> None:

@@ -132,6 +132,39 @@ def test_dropped_object_terminates_and_the_environment_starts_a_new_episode(env:
     assert result.observation.episode_step[1] == 0 and result.reset_ids.tolist() == [1]
 
 
+def test_final_observation_keeps_the_state_that_ended_an_episode(env: VectorEnv) -> None:
+    """The value of a truncated episode is bootstrapped from its last state: if
+    `final_observation` held the new episode's first state (as `observation` does), the
+    object would not be where the step left it."""
+    observation = env.reset(seed=3)
+    env.physics.qpos[1, env.world.object_qpos[:3]] = [0.5, 0.0, -1.0]
+    env.physics.batch.forward([1])
+    result = env.step(hold(observation))
+    final, first = result.final_observation, result.observation
+    assert result.reset_ids.tolist() == [1]
+    assert final.object_pose[1, 2] < -0.9 and first.object_pose[1, 2] > -0.5
+    assert final.episode_ids[1] == result.episode_ids[1] != first.episode_ids[1]
+    for name in ("q", "object_pose", "episode_ids"):
+        np.testing.assert_array_equal(getattr(final, name)[[0, 2, 3]], getattr(first, name)[[0, 2, 3]])
+
+
+def test_scenes_describe_the_current_episodes(env: VectorEnv) -> None:
+    observation = env.reset(seed=5)
+    scenes = env.scenes(np.array([2, 0]))
+    assert scenes.env_ids.tolist() == [2, 0]
+    np.testing.assert_array_equal(scenes.episode_ids, observation.episode_ids[[2, 0]])
+    np.testing.assert_array_equal(scenes.start_pose, observation.object_pose[[2, 0]])
+    np.testing.assert_array_equal(scenes.goal_pose, observation.goal_pose[[2, 0]])
+    np.testing.assert_array_equal(scenes.object_scale, observation.physics_params[[2, 0], 5])
+    assert scenes.cuboid_centre.shape[0] == 2 and scenes.cuboid_active[:, 0].all()  # the table
+    assert scenes.object_points.shape == (2, OBJECT_POINTS, 3)
+    assert len(scenes.object_ids) == 2 and scenes.env_code.shape == (2, 25)
+    moved = env.step(hold(observation)).observation  # the start pose stays the episode's
+    still = moved.episode_ids[[2, 0]] == observation.episode_ids[[2, 0]]
+    np.testing.assert_array_equal(env.scenes(np.array([2, 0])).start_pose[still], scenes.start_pose[still])
+    assert len(env.scenes().env_ids) == B
+
+
 def test_object_at_its_goal_succeeds_and_earns_the_success_reward(env: VectorEnv) -> None:
     observation = env.reset(seed=4)
     goal = observation.goal_pose.astype(np.float64)

@@ -19,7 +19,7 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
-from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene import NUM_CUBOIDS
 from hamnet.sim.shell import (
@@ -74,38 +74,43 @@ def test_state_round_trips_with_its_privileged_block() -> None:
     assert from_tensor(message.episode_step).dtype == np.int32
 
 
-def test_scene_describes_only_the_reset_environments() -> None:
-    rng = np.random.default_rng(1)
-    obs = observation(rng)
+def scene_description(rng: np.random.Generator, k: int) -> SceneDescription:
+    """K random scenes with every field filled."""
     c = NUM_CUBOIDS
-    arrays = {
-        "centre": rng.standard_normal((B, c, 3)), "quat": rng.standard_normal((B, c, 4)),
-        "half_extent": rng.random((B, c, 3)), "active": rng.random((B, c)) < 0.5,
-        "env_code": rng.standard_normal((B, 25)).astype(np.float32),
-    }  # fmt: skip
-    names = ["box@0.050", "mug@0.100", "cylinder@0.075", "box@0.100"]
-    ids = np.array([3, 1])
-    points = rng.standard_normal((B, 512, 3)).astype(np.float32)
-    message = wire(encode_scene(obs, arrays, names, points, ids, step=5))
+    f32 = lambda *shape: rng.standard_normal(shape).astype(np.float32)  # noqa: E731
+    return SceneDescription(
+        env_ids=np.array([3, 1][:k]), episode_ids=np.array([40, 12][:k]),
+        object_ids=("box@0.100", "mug@0.100")[:k], object_scale=f32(k), object_points=f32(k, 512, 3),
+        cuboid_centre=f32(k, c, 3), cuboid_quat=f32(k, c, 4), cuboid_half_extent=f32(k, c, 3),
+        cuboid_active=rng.random((k, c)) < 0.5, env_code=f32(k, 25), start_pose=f32(k, 7),
+        goal_pose=f32(k, 7),
+    )  # fmt: skip
+
+
+def test_scene_message_carries_every_field_of_the_description() -> None:
+    scenes = scene_description(np.random.default_rng(1), 2)
+    message = wire(encode_scene(scenes, step=5))
     assert message.header.step == 5
     assert list(message.object_ids) == ["box@0.100", "mug@0.100"]
-    equal(from_tensor(message.env_ids, np.int32, (2,)), ids)
-    equal(from_tensor(message.episode_ids, np.int64, (2,)), obs.episode_ids[ids])
-    cuboids = {"cuboid_pos": "centre", "cuboid_quat": "quat", "cuboid_half_size": "half_extent"}
-    for name, key in {**cuboids, "env_code": "env_code"}.items():
-        close(from_tensor(getattr(message, name), np.float32), arrays[key][ids], rtol=1e-6)
-    equal(from_tensor(message.cuboid_active, bool, (2, c)), arrays["active"][ids])
-    equal(from_tensor(message.object_scale, np.float32, (2,)), obs.physics_params[ids, 5])
-    equal(from_tensor(message.start_pose, np.float32, (2, 7)), obs.object_pose[ids])
-    equal(from_tensor(message.goal_pose, np.float32, (2, 7)), obs.goal_pose[ids])
-    equal(from_tensor(message.object_points, np.float32, (2, 512, 3)), points[ids])
+    equal(from_tensor(message.env_ids, np.int32, (2,)), scenes.env_ids)
+    equal(from_tensor(message.episode_ids, np.int64, (2,)), scenes.episode_ids)
+    fields = {
+        "cuboid_pos": "cuboid_centre", "cuboid_quat": "cuboid_quat",
+        "cuboid_half_size": "cuboid_half_extent", "env_code": "env_code",
+        "object_scale": "object_scale", "start_pose": "start_pose", "goal_pose": "goal_pose",
+        "object_points": "object_points",
+    }  # fmt: skip
+    for name, key in fields.items():
+        equal(from_tensor(getattr(message, name), np.float32), getattr(scenes, key))
+    equal(from_tensor(message.cuboid_active, bool, (2, NUM_CUBOIDS)), scenes.cuboid_active)
 
 
 def test_transition_round_trips_with_named_reward_terms() -> None:
     rng = np.random.default_rng(2)
     flags = lambda: rng.random(B) < 0.5  # noqa: E731
+    stepped = observation(rng)
     result = StepResult(
-        observation=observation(rng),
+        observation=stepped, final_observation=stepped,
         reward_terms=rng.standard_normal((B, 3)).astype(np.float32),
         terminated=flags(), truncated=flags(), success=flags(), reason=np.zeros(B, np.int8),
         episode_ids=np.arange(B, dtype=np.int64) + 10, reset_ids=np.array([], np.int64),
