@@ -120,13 +120,13 @@ def test_gains_and_torque_clip_are_per_environment(world) -> None:
     quat = np.tile([1.0, 0, 0, 0], (num_envs, 1))
     physics.set_state(envs, np.tile(FOLDED, (num_envs, 1)), lifted, quat)
     kp = np.full((num_envs, 7), 200.0)
-    tau_limit = np.array([fr3_limits.FR3.tau_max, np.full(7, 2.0)])
+    tau_limit = np.array([fr3_limits.FR3.tau_max, np.full(7, 1.5)])
     physics.set_gains(kp, 2.0 * np.sqrt(kp), tau_limit)
     target = np.tile(FOLDED, (num_envs, 1))
     target[:, 0] += 0.3  # turn about the base: free motion, no gravity load
     physics.step(np.repeat(target[:, None, :], 8, axis=1), substeps=5)
     force = physics.bind("actuator_force")  # (B, J), impedance part, clipped
-    assert np.all(np.abs(force[1]) <= 2.0 + 1e-9) and np.abs(force[0, 0]) > 2.0
+    assert np.all(np.abs(force[1]) <= 1.5 + 1e-9) and np.abs(force[0, 0]) > 1.5
     hold(physics, target, 9)
     error = np.abs(physics.qpos[:, world.robot_qpos[0]] - target[:, 0])  # (B,)
-    assert error[0] < 0.01 < error[1]  # the clipped environment lags behind
+    assert error[0] < 0.01 < error[1]  # clipped: 1.5 N m against 1.137 N m of friction, lags
