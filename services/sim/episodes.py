@@ -100,6 +100,14 @@ def _rotate(points: np.ndarray, quat: np.ndarray) -> np.ndarray:
     return points @ quaternion.to_matrix(quat).T
 
 
+PHYSICS_PARAM_NAMES = (
+    "object_mass", "object_friction", "object_restitution", "robot_friction", "scene_friction",
+    "object_scale",
+)  # fmt: skip
+"""Columns of `Episodes.physics_params` (RobotState.privileged.physics_params); the policy
+sizes its input from this tuple, so a new column lands here only."""
+
+
 @dataclass(frozen=True, eq=False)
 class Episodes:
     """What was drawn for K environments."""
@@ -113,7 +121,7 @@ class Episodes:
     goal_quat: np.ndarray
     """(K, 4) wxyz."""
     physics_params: np.ndarray
-    """(K, 6) object mass, object friction, restitution, robot friction, scene friction, scale."""
+    """(K, len(PHYSICS_PARAM_NAMES)): the columns PHYSICS_PARAM_NAMES names."""
     near_start: np.ndarray
     """(K,) bool: the arm started near the object."""
 
