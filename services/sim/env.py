@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.sim import episodes as draw
+from hamnet.sim import quaternion
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
 from hamnet.sim.objects.library import ObjectSet
@@ -212,7 +213,7 @@ class VectorEnv:
             ee_pose=np.concatenate([site_pos, six_d], axis=1).astype(np.float32),
             goal_pose=np.concatenate([self.goal_pos, self.goal_quat], axis=1).astype(np.float32),
             object_pose=np.concatenate([pos, quat], axis=1).astype(np.float32),
-            object_velocity=p.qvel[:, w.object_dof].astype(np.float32),
+            object_velocity=self._object_velocity(quat).astype(np.float32),
             physics_params=self.physics_params.copy(),
         )
 
@@ -235,6 +236,15 @@ class VectorEnv:
             start_pose=self.start_pose[ids].copy(),
             goal_pose=np.concatenate([self.goal_pos[ids], self.goal_quat[ids]], 1).astype(np.float32),
         )
+
+    def _object_velocity(self, quat: np.ndarray) -> np.ndarray:
+        """(B, 6) object linear and angular velocity in the world frame (the contract's).
+
+        MuJoCo's free-joint qvel holds the linear velocity in the world frame but the
+        angular velocity in the body frame; `quat` (B, 4) wxyz rotates it to the world."""
+        qvel = self.physics.qvel[:, self.world.object_dof]  # (B, 6)
+        omega = np.einsum("bij,bj->bi", quaternion.to_matrix(quat), qvel[:, 3:])  # (B, 3)
+        return np.concatenate([qvel[:, :3], omega], axis=1)
 
     def _object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         qpos = self.physics.qpos[:, self.world.object_qpos]  # (B, 7)
