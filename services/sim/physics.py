@@ -38,6 +38,7 @@ class BatchPhysics:
         )  # fmt: skip
         self.qpos = self.batch.bind("qpos")  # (B, nq), live
         self.qvel = self.batch.bind("qvel")  # (B, nv), live
+        self.ctrl = self.batch.bind("ctrl")  # (B, J) impedance references q_ref, live
         self.batch.reset()
 
     @property
@@ -121,10 +122,16 @@ class BatchPhysics:
     def set_state(
         self, env_ids: np.ndarray, q: np.ndarray, object_pos: np.ndarray, object_quat: np.ndarray
     ) -> None:
-        """Reset `env_ids` at rest: arm at `q` (K, J), object at pos (K, 3) / quat (K, 4)."""
+        """Reset `env_ids` at rest: arm at `q` (K, J), object at pos (K, 3) / quat (K, 4).
+
+        The impedance reference (ctrl) is set to `q` as well, so the arm holds its start and
+        no joint pushes against its Coulomb friction: at rest, the only constraint forces on
+        the arm are then contacts (`robot_init.arm_in_contact` relies on that).
+        """
         self.batch.reset(env_ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         w = self.world
         self.qpos[np.ix_(env_ids, w.robot_qpos)] = q
+        self.ctrl[env_ids] = q
         self.qpos[np.ix_(env_ids, w.object_qpos[:3])] = object_pos
         self.qpos[np.ix_(env_ids, w.object_qpos[3:])] = object_quat
         self.qvel[env_ids] = 0.0

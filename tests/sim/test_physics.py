@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hamnet.fr3 import limits as fr3_limits
+from hamnet.sim import robot_init
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.scene import sample_scenes
@@ -130,3 +131,22 @@ def test_gains_and_torque_clip_are_per_environment(world) -> None:
     hold(physics, target, 9)
     error = np.abs(physics.qpos[:, world.robot_qpos[0]] - target[:, 0])  # (B,)
     assert error[0] < 0.01 < error[1]  # clipped: 1.5 N m against 1.137 N m of friction, lags
+
+
+def test_a_reset_arm_feels_no_constraint_force_but_contacts(world) -> None:
+    """The joints have Coulomb friction (a constraint in MuJoCo). A reset that left the
+    impedance reference elsewhere would push every joint against it, and the start check
+    (`robot_init.arm_in_contact`, which reads the arm's constraint forces) would reject every
+    start: all near starts fell back to the retracted pose. Free arm: no force; paddle in
+    the table: a force."""
+    num_envs = 2
+    physics, scenes, envs = physics_with_scenes(world, num_envs)
+    hold(physics, np.tile(FOLDED + 0.3, (num_envs, 1)), 1)  # a reference far from the start
+    lifted = np.stack([scenes.centre[:, 0, 0], scenes.centre[:, 0, 1], scenes.table_top + 0.3], 1)
+    quat = np.tile([1.0, 0, 0, 0], (num_envs, 1))
+    physics.set_state(envs, np.tile(FOLDED, (num_envs, 1)), lifted, quat)
+    np.testing.assert_array_equal(physics.ctrl, np.tile(FOLDED, (num_envs, 1)))
+    assert not robot_init.arm_in_contact(physics, envs).any()
+    reaching_down = np.array([0.0, 1.2, 0.0, -0.3, 0.0, 1.5, 0.78])  # paddle far below the top
+    physics.set_state(envs[:1], reaching_down[None], lifted[:1], quat[:1])
+    assert robot_init.arm_in_contact(physics, envs).tolist() == [True, False]
