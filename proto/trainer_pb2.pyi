@@ -24,21 +24,12 @@ class WeightsAnnouncement(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., version: _Optional[int] = ..., architecture: _Optional[str] = ..., config_json: _Optional[str] = ..., safetensors: _Optional[bytes] = ..., sha256: _Optional[str] = ...) -> None: ...
 
 class Schedule(_message.Message):
-    __slots__ = ("header", "global_step", "values")
-    class ValuesEntry(_message.Message):
-        __slots__ = ("key", "value")
-        KEY_FIELD_NUMBER: _ClassVar[int]
-        VALUE_FIELD_NUMBER: _ClassVar[int]
-        key: str
-        value: float
-        def __init__(self, key: _Optional[str] = ..., value: _Optional[float] = ...) -> None: ...
+    __slots__ = ("header", "env_transitions")
     HEADER_FIELD_NUMBER: _ClassVar[int]
-    GLOBAL_STEP_FIELD_NUMBER: _ClassVar[int]
-    VALUES_FIELD_NUMBER: _ClassVar[int]
+    ENV_TRANSITIONS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
-    global_step: int
-    values: _containers.ScalarMap[str, float]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., global_step: _Optional[int] = ..., values: _Optional[_Mapping[str, float]] = ...) -> None: ...
+    env_transitions: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., env_transitions: _Optional[int] = ...) -> None: ...
 
 class Metrics(_message.Message):
     __slots__ = ("header", "iteration", "scalars")

@@ -13,6 +13,9 @@ import json
 from dataclasses import dataclass, field
 from typing import Literal
 
+from hamnet.runtime.counter import from_vectorized_steps
+from hamnet.fr3.limits import ACTION_DIM
+from hamnet.policy.observation import ObservationSpec
 from hamnet.sim.rewards import REWARD_NAMES
 
 SceneInput = Literal["tokens", "env_code"]
@@ -22,21 +25,24 @@ clouds) or the oracle EnvCode (25 procedural-generation parameters, paper Table 
 
 @dataclass(frozen=True)
 class LogStdConfig:
-    """The Gaussian actor's log standard deviation follows a schedule, not the gradient
-    (Table tab:PPO: initial log std -0.4, decay factor -0.000367)."""
+    """The Gaussian actor's log standard deviation follows a schedule of env_transitions
+    (hamnet.runtime.counter), not the gradient. The authors' rule (ham/scripts/train.py:
+    563-570, buffer not trained: rss_train.yaml:544-546): log std -0.4 (rss_train.yaml:269),
+    minus 0.000367 after every vectorized step k with k % 1024 == 0 of 1024 environments,
+    with no floor; the paper's Table tab:PPO gives the same two numbers."""
 
     initial: float = -0.4
-    """log sigma at update 0 (same for every action component)."""
+    """log sigma before any transition (same for every action component)."""
     decay: float = -0.000367
-    """Added to log sigma after every PPO update (the paper's "log std. decay factor")."""
-    minimum: float = -3.0
-    """Floor of log sigma, so that a long run keeps some exploration."""
+    """Added to log sigma once per `interval` (the paper's "log std. decay factor")."""
+    interval: int = from_vectorized_steps(1024)
+    """env_transitions per decay: 1024 vectorized steps of 1024 environments (train.py:564)."""
 
     def __post_init__(self) -> None:
         if self.decay > 0.0:
             raise ValueError(f"decay must be <= 0 (the std shrinks), got {self.decay}")
-        if self.minimum > self.initial:
-            raise ValueError(f"minimum {self.minimum} is above initial {self.initial}")
+        if self.interval < 1:
+            raise ValueError(f"interval must be >= 1, got {self.interval}")
 
 
 @dataclass(frozen=True)
@@ -44,15 +50,22 @@ class ModelConfig:
     """Every size of every architecture; each architecture reads the fields it needs."""
 
     num_tokens: int = 17
-    """Tokens per cloud from the UniCORN encoder (16 patches + the [EMB] token at index 0)."""
+    """Tokens per cloud from the UniCORN encoder (16 patches, then the [EMB] token last)."""
     token_dim: int = 128
     """Width of a token (encoder embedding dim)."""
-    attention_dim: int = 64
-    """Cross-attention embedding dim (Table tab:network)."""
+    object_attention_dim: int = 512
+    """Embedding dim of the object cross-attention: the authors' obj_attn_emb_dim
+    (hypernet_modular.py:518); the paper's Table tab:network says 64 (preset hamnet-paper)."""
+    scene_attention_dim: int = 256
+    """Embedding dim of the local and global scene cross-attentions: the authors'
+    cross_big_emb_dim (hypernet_modular.py:513; cross_big, rss_train.yaml:338)."""
+    attention_out: tuple[int, ...] = (256, 128)
+    """Projection MLP after every cross-attention; its last width is the summary's (the
+    authors' dim_local_proj, hypernet_modular.py:521, 650-656, 799-804)."""
     object_heads: int = 8
-    """Heads of the cross-attention over the object tokens."""
+    """Heads of the cross-attention over the object tokens (hypernet_modular.py:517)."""
     scene_heads: int = 4
-    """Heads of the cross-attentions over the local and global scene tokens."""
+    """Heads of the scene cross-attentions (num_head, rss_train.yaml:321)."""
     scene_input: SceneInput = "tokens"
     """tokens (UniCORN-HAMnet) or env_code (the EnvCode-oracle ablation)."""
     env_code_dim: int = 25
@@ -72,9 +85,10 @@ class ModelConfig:
     """M, modules per base-network layer."""
     gates: bool = True
     """Per-unit gates 1 + linear(z_tau) on every base-network layer (off: the ablation)."""
-    bias_weights: bool = False
-    """Give biases their own softmax over modules, as the authors' code does (every
-    parameter tensor gets one); False: one softmax per layer, as the paper writes."""
+    bias_weights: bool = True
+    """Give biases their own softmax over modules and their own gates, as the authors' code
+    does (every parameter tensor gets one: hypernet_modular.py:1029-1049, scale_bias in
+    rss_train.yaml:335); False: one softmax and one gate per layer, as the paper writes."""
     mlp_hidden: tuple[int, ...] = (844, 422, 422, 211)
     """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.099 so that
     the MLP has as many parameters as our HAMnet (1.965 M), as the paper sized its MLP "to
@@ -84,23 +98,29 @@ class ModelConfig:
     """Rank k of the hypernetwork baseline's generated weights W = W_l W_r."""
     routing_dim: int = 128
     """Soft modularization: width of the routing embedding and of its two-layer MLPs."""
-    action_dim: int = 21
-    """Raw action: joint residual (7), kp (7), damping ratio (7)."""
+    action_dim: int = ACTION_DIM
+    """Raw action: joint residual (J), kp (J), damping ratio (J)."""
     num_values: int = len(REWARD_NAMES)
     """R, critic heads: one per reward term (REWARD_NAMES)."""
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
 
     def __post_init__(self) -> None:
-        for name in ("attention_dim", "num_modules", "hyper_rank", "routing_dim", "action_dim"):
+        for name in ("num_modules", "hyper_rank", "routing_dim", "action_dim"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        for heads in (self.object_heads, self.scene_heads):
-            if heads < 1 or self.attention_dim % heads:
-                raise ValueError(f"attention_dim {self.attention_dim} is not a multiple of {heads} heads")
-        for name in ("modulation_hidden", "base_hidden", "mlp_hidden"):
+        for dim, heads in ((self.object_attention_dim, self.object_heads),
+                           (self.scene_attention_dim, self.scene_heads)):  # fmt: skip
+            if heads < 1 or dim < 1 or dim % heads:
+                raise ValueError(f"attention dim {dim} is not a positive multiple of {heads} heads")
+        for name in ("modulation_hidden", "base_hidden", "mlp_hidden", "attention_out"):
             widths = getattr(self, name)
             if not widths or min(widths) < 1:
                 raise ValueError(f"{name} needs at least one positive width, got {widths}")
+
+    @property
+    def observation(self) -> ObservationSpec:
+        """Names and widths of the non-geometric inputs."""
+        return ObservationSpec(privileged=self.privileged, action_dim=self.action_dim)
 
     def to_json(self) -> str:
         """The config as JSON (what `WeightsAnnouncement.config_json` carries)."""

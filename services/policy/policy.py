@@ -1,7 +1,7 @@
 """The in-process policy core the service and the trainer share: a network plus the Gaussian
 actor around it (PPO's act and evaluate) and the log-std schedule.
 
-The log std is a buffer, not a parameter: it follows `log_std_at(update)` (Table tab:PPO),
+The log std is a buffer, not a parameter: it follows `log_std_at(env_transitions)`,
 is saved with the weights, so the service samples with the trainer's current std, and is
 the same for every environment. Shapes: B batch, A action components, R reward terms,
 L base-network layers, M modules, H recurrent memory.
@@ -51,9 +51,11 @@ class Evaluation:
     """(B, H) next recurrent state, or None."""
 
 
-def log_std_at(update: int, config: LogStdConfig) -> float:
-    """log sigma after `update` PPO updates: initial + decay * update, floored at minimum."""
-    return max(config.initial + config.decay * update, config.minimum)
+def log_std_at(env_transitions: int, config: LogStdConfig) -> float:
+    """log sigma after `env_transitions` (hamnet.runtime.counter): one decay per started
+    interval, as the authors decay after vectorized steps 0, 1024, 2048, ... (train.py:569)."""
+    decays = -(-int(env_transitions) // config.interval)  # ceil
+    return config.initial + config.decay * decays
 
 
 class Policy(nn.Module):
@@ -75,9 +77,9 @@ class Policy(nn.Module):
             return None
         return self.log_std.new_zeros(batch, self.memory_width)
 
-    def set_update(self, update: int) -> None:
-        """Move the log std to its scheduled value after `update` PPO updates."""
-        self.log_std.fill_(log_std_at(update, self.config.log_std))
+    def set_env_transitions(self, env_transitions: int) -> None:
+        """Move the log std to its scheduled value at the trainer's counter."""
+        self.log_std.fill_(log_std_at(env_transitions, self.config.log_std))
 
     def act(
         self, inputs: PolicyInputs, deterministic: bool = False, generator: torch.Generator | None = None

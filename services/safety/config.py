@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from hamnet.runtime.counter import from_vectorized_steps
+
 Squash = Literal["clip", "tanh"]
 """How a raw action component becomes u in [-1, 1] (see `ActionMagnitudeConfig.squash`)."""
 
@@ -31,18 +33,18 @@ def _positive(owner: object, *names: str) -> None:
 
 @dataclass(frozen=True)
 class AnnealingConfig:
-    """Geometric annealing over the global step (paper line 756): every N_s steps the value is
-    multiplied by (end/start)^(N_s/N_t), so it reaches its end value after N_t steps."""
+    """Geometric annealing over env_transitions (hamnet.runtime.counter; paper line 756):
+    every N_s transitions the value is multiplied by (end/start)^(N_s/N_t), so it reaches its
+    end value after N_t. The paper's N_s = 1024 and N_t = 2e6 (Table tab:sim2real-params) count
+    vectorized steps of 1024 environments, as the authors' other schedules do
+    (ham/scripts/env_wrappers.py:1128-1129); the defaults are those numbers in transitions."""
 
     start_step: int = 0
-    """Global step at which annealing begins; before it the start value holds."""
-    interval: int = 1024
-    """N_s, steps between successive annealing updates (Table tab:sim2real-params)."""
-    num_steps: int = 2_000_000
-    """N_t, steps over which the value goes from start to end (Table tab:sim2real-params). The
-    step counter is the one the trainer publishes on trainer/schedule (`global_step`); the
-    paper calls the unit "simulation steps" without saying whether they are summed over
-    environments, so set N_t in whatever unit the trainer counts."""
+    """env_transitions at which annealing begins; before it the start value holds."""
+    interval: int = from_vectorized_steps(1024)
+    """N_s in env_transitions: 1024 vectorized steps of 1024 environments."""
+    num_steps: int = from_vectorized_steps(2e6)
+    """N_t in env_transitions: 2e6 vectorized steps of 1024 environments (2.048e9)."""
 
     def __post_init__(self) -> None:
         if self.start_step < 0:

@@ -157,7 +157,7 @@ def filter_action(
         action: raw policy action, expected (B, 21); anything else is rejected, not raised.
         q, dq: (B, J) measured joint positions (rad) and velocities (rad/s); rows with NaN/Inf
             are rejected (reason STATE); a wrong shape raises ValueError (a caller's bug).
-        step: global step published by the trainer (drives xi and eps_x).
+        step: env_transitions (hamnet.runtime.counter) from the trainer (drives xi, eps_x).
         jacobians: q (N, J) -> (N, R, J) end-effector Jacobians (`cartesian.ee_jacobians`).
         episode_start: (B,) bool, envs starting an episode with this action (EMA cleared, hold
             target reset to q), or None.

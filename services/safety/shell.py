@@ -3,7 +3,7 @@ from the policy's action for that state, or a smooth stop when there is none.
 
 Consumes `sim/<w>/state` (RobotState k), `policy/<w>/action` (PolicyAction k: the action
 for state k; non-finite values pass the transport so that the core rejects them) and
-`trainer/schedule` (Schedule: its `global_step` drives the xi and eps_x annealing).
+`trainer/schedule` (Schedule: its `env_transitions` drives the xi and eps_x annealing).
 Produces `safety/<w>/command` (SafeCommand k, `header.step` = k, as the sim's lock-step
 requires) and `safety/<w>/event` (SafetyEvent: rejections, rate-limited clip events,
 watchdog and e-stop events, and per-stage statistics every `stats_period_s` with kind
@@ -167,8 +167,8 @@ def decode_action(message: PolicyAction) -> ActionIn:
 
 
 def decode_schedule(message: Schedule) -> int:
-    """The trainer's global step, which the annealing of xi and eps_x follows."""
-    return int(message.global_step)
+    """The trainer's env_transitions counter, which the annealing of xi and eps_x follows."""
+    return int(message.env_transitions)
 
 
 def command_mode(output: SafeOutput) -> CommandMode.ValueType:
@@ -285,7 +285,7 @@ class SafetyShell:
         self.estop_key = ESTOP.key(ns, w=w)
         self.estop = EStop()
         self.filter: SafetyFilter | None = None
-        self.global_step = 0
+        self.env_transitions = 0
         self.latest: StateIn | None = None
         """The newest state received."""
         self.pending: StateIn | None = None
@@ -353,7 +353,7 @@ class SafetyShell:
 
     def _handle(self, name: str, value, received_ns: int) -> None:
         if name == "schedule":
-            self.global_step = value
+            self.env_transitions = value
         elif name == "action":
             self._on_action(value)
         else:
@@ -454,7 +454,7 @@ class SafetyShell:
             return
         action, self.action = self.action, None
         output = self.filter.command(
-            action.action, state.q, state.dq, self.global_step, action.stale(state)
+            action.action, state.q, state.dq, self.env_transitions, action.stale(state)
         )
         self._publish(output, state)
         self._account(output.filtered, state.step)
@@ -537,10 +537,10 @@ class SafetyShell:
             log.info(
                 "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
                 "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, stopped by %s, global step %d",
+                "%d watchdog stops, stopped by %s, %d env transitions",
                 (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
                 c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                self.stopped_by or "nothing", self.global_step,
+                self.stopped_by or "nothing", self.env_transitions,
             )  # fmt: skip
             self.counts = dict.fromkeys(self.counts, 0)
             self.latencies.clear()

@@ -1,11 +1,12 @@
 """Curriculum over robot initialisation and ceiling types (paper, "Procedural domain and
-curriculum generation", lines 316-322), a pure function of the global step.
+curriculum generation", lines 316-322), a pure function of env_transitions
+(hamnet.runtime.counter).
 
 Early in training the sim prefers *near* robot initialisations (the end-effector within
 0.1 m of the object) and *nominal* ceilings; as training progresses the proportion of
 *random* initialisations and *tight* ceilings rises linearly (line 321). The trainer
-evaluates `curriculum_values(step)` after each update and publishes it on
-`hamnet/<ns>/trainer/schedule` under SCHEDULE_NAMES; the sim feeds `p_tight` into
+publishes its counter on `hamnet/<ns>/trainer/schedule`; the sim evaluates
+`curriculum_values(env_transitions)` from it, feeds `p_tight` into
 `SceneConfig.p_tight` (`scene_config_at`) and draws a near initialisation with
 probability `p_near_init`.
 """
@@ -15,15 +16,16 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from hamnet.runtime.counter import from_vectorized_steps
 from hamnet.sim.scene_config import SceneConfig
 
 SCHEDULE_NAMES = ("p_near_init", "p_tight")
-"""Stable names of the curriculum values on the schedule topic."""
+"""Stable names of the curriculum values (statistics, logs)."""
 
 
 @dataclass(frozen=True)
 class CurriculumConfig:
-    """Linear schedule of the two sampling probabilities over the global step.
+    """Linear schedule of the two sampling probabilities over env_transitions.
 
     The paper gives neither endpoints nor length. The defaults come from the authors'
     code, which weights tight episodes by 0.5 rising to 5 against 1 for nominal ones, and
@@ -42,11 +44,13 @@ class CurriculumConfig:
     p_tight_end: float = 5.0 / 6.0
     """Probability that a ceiling is tight rather than nominal at the end."""
     start_step: int = 0
-    """Global step (environment transitions summed over all environments) where the
-    values start to move."""
-    num_steps: int = 2_000_000_000
-    """Global steps over which they move from start to end: the paper's whole training run
-    (2 billion interactions, line 374)."""
+    """env_transitions where the values start to move."""
+    num_steps: int = from_vectorized_steps(2e6)
+    """env_transitions over which they move from start to end: the authors' 2e6 vectorized
+    steps of 1024 environments (ham/scripts/env_wrappers.py:1128 total_scale_step, counted
+    once per batched step at line 1216; 2.048e9 transitions, the paper's "2 billion
+    interactions", line 374). The authors move in 1953 stairs of 1024 vectorized steps
+    (n_step_per_update, line 1129); this schedule moves continuously."""
 
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
@@ -61,7 +65,7 @@ class CurriculumConfig:
 
 @dataclass(frozen=True)
 class CurriculumValues:
-    """The curriculum's sampling probabilities at one global step."""
+    """The curriculum's sampling probabilities at one env_transitions count."""
 
     p_near_init: float
     """Probability of a near robot initialisation (else random)."""
@@ -69,23 +73,25 @@ class CurriculumValues:
     """Probability that a ceiling is tight (else nominal); feeds SceneConfig.p_tight."""
 
     def as_dict(self) -> dict[str, float]:
-        """The values keyed by SCHEDULE_NAMES, as published on the schedule topic."""
+        """The values keyed by SCHEDULE_NAMES."""
         return {name: getattr(self, name) for name in SCHEDULE_NAMES}
 
 
-def curriculum_progress(step: int, config: CurriculumConfig) -> float:
-    """Share of the curriculum done at global `step`, in [0, 1]."""
-    return min(max((step - config.start_step) / config.num_steps, 0.0), 1.0)
+def curriculum_progress(env_transitions: int, config: CurriculumConfig) -> float:
+    """Share of the curriculum done at `env_transitions`, in [0, 1]."""
+    return min(max((env_transitions - config.start_step) / config.num_steps, 0.0), 1.0)
 
 
 def _lerp(start: float, end: float, progress: float) -> float:
     return start + (end - start) * progress
 
 
-def curriculum_values(step: int, config: CurriculumConfig | None = None) -> CurriculumValues:
-    """The sampling probabilities at global `step` (environment transitions so far)."""
+def curriculum_values(
+    env_transitions: int, config: CurriculumConfig | None = None
+) -> CurriculumValues:
+    """The sampling probabilities at `env_transitions` (hamnet.runtime.counter)."""
     config = config if config is not None else CurriculumConfig()
-    progress = curriculum_progress(step, config)
+    progress = curriculum_progress(env_transitions, config)
     return CurriculumValues(
         p_near_init=_lerp(config.p_near_init_start, config.p_near_init_end, progress),
         p_tight=_lerp(config.p_tight_start, config.p_tight_end, progress),

@@ -1,11 +1,12 @@
 """The sim's Zenoh shell: steps a `VectorEnv` with the safety filter's commands and
 publishes what happened.
 
-Consumes `safety/<w>/command` (SafeCommand) and `trainer/schedule` (Schedule: the
-curriculum's `p_near_init` and `p_tight`); produces `sim/<w>/state` (RobotState, every
-step), `sim/<w>/transition` (Transition, every step) and `sim/<w>/scene` (Scene, for the
-environments that start a new episode). A Zenoh query on `sim/<w>/scene` is answered with
-the scenes of every environment, so services started late catch up (`Inbox.catch_up`).
+Consumes `safety/<w>/command` (SafeCommand) and `trainer/schedule` (Schedule: the counter
+`env_transitions`, from which the curriculum's `p_near_init` and `p_tight` follow);
+produces `sim/<w>/state` (RobotState, every step), `sim/<w>/transition` (Transition, every
+step) and `sim/<w>/scene` (Scene, for the environments that start a new episode). A Zenoh
+query on `sim/<w>/scene` is answered with the scenes of every environment, so services
+started late catch up (`Inbox.catch_up`).
 
 Steps are numbered: state k (`header.step` = k) is the state after k policy steps; the
 command answering it carries `header.step` = k; transition k is its outcome, published just
@@ -19,7 +20,6 @@ command, whatever its step, or holding the current joint positions until one arr
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import logging
 import time
@@ -39,7 +39,7 @@ from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
-from hamnet.sim.curriculum import SCHEDULE_NAMES
+from hamnet.sim.curriculum import curriculum_values
 from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
 
 log = logging.getLogger(__name__)
@@ -128,18 +128,9 @@ def decode_command(
     return message.header.step, Command(q_ref=q_ref, **gains)
 
 
-def decode_schedule(message: Schedule) -> dict[str, float]:
-    """The curriculum values of a Schedule the sim uses (others are the trainer's own).
-
-    Raises:
-        PayloadError: `range` when a value is not a probability.
-    """
-    given = message.values
-    values = {name: float(given[name]) for name in SCHEDULE_NAMES if name in given}
-    bad = {name: value for name, value in values.items() if not 0.0 <= value <= 1.0}
-    if bad:
-        raise PayloadError("range", f"schedule values must be probabilities, got {bad}")
-    return values
+def decode_schedule(message: Schedule) -> int:
+    """The trainer's env_transitions counter, which the curricula follow."""
+    return int(message.env_transitions)
 
 
 # --- the loop ----------------------------------------------------------------------------
@@ -254,7 +245,7 @@ class SimShell:
     def _handle(self, received: Received) -> tuple[int, Command] | None:
         """A command to consider, or None after applying a schedule or answering a query."""
         if received.name == "schedule":
-            self.env.set_schedule(dataclasses.replace(self.env.schedule, **received.value))
+            self.env.set_schedule(curriculum_values(received.value, self.env.config.curriculum))
             log.debug("curriculum: %s", self.env.schedule)
             return None
         if received.name == "scene_query":
@@ -343,5 +334,5 @@ def _decode_command_payload(
     return decode_command(parse(SafeCommand, payload), num_envs, control_samples, control_dt)
 
 
-def _decode_schedule_payload(key: str, payload: bytes) -> dict[str, float]:
+def _decode_schedule_payload(key: str, payload: bytes) -> int:
     return decode_schedule(parse(Schedule, payload))

@@ -130,7 +130,7 @@ def test_absorbed_cross_attention_equals_standard_attention() -> None:
 
 def test_log_prob_and_entropy_match_torch_normal() -> None:
     policy = build("mlp", seed=0)
-    policy.set_update(100)
+    policy.set_env_transitions(100 * 2**20)
     inputs = random_inputs(policy, B)
     action = policy.act(inputs, generator=torch.Generator().manual_seed(0))
     mean = policy.act(inputs, deterministic=True).action
@@ -141,13 +141,15 @@ def test_log_prob_and_entropy_match_torch_normal() -> None:
     torch.testing.assert_close(evaluation.entropy, normal.entropy().sum(-1))
 
 
-def test_log_std_schedule_decays_to_its_floor() -> None:
+def test_log_std_schedule_counts_env_transitions_as_the_authors_vectorized_steps() -> None:
+    """One decay per started 1024 x 1024 transitions, no floor: about -1.12 after 2e9."""
     config = ARCHITECTURES["hamnet"].config.log_std
     assert log_std_at(0, config) == -0.4
-    assert math.isclose(log_std_at(1000, config), -0.4 - 0.367)
-    assert log_std_at(10**7, config) == config.minimum
+    assert math.isclose(log_std_at(1024, config), -0.4 - 0.000367)
+    assert math.isclose(log_std_at(1000 * 2**20, config), -0.4 - 0.367)
+    assert math.isclose(log_std_at(2_048_000_000, config), -0.4 - 1954 * 0.000367)
     policy = build("hamnet")
-    policy.set_update(1000)
+    policy.set_env_transitions(1000 * 2**20)
     torch.testing.assert_close(policy.log_std, torch.full((21,), -0.767))
 
 

@@ -23,7 +23,7 @@ from tests.policy.inputs import random_inputs
 
 def test_round_trip_rebuilds_the_same_policy_from_metadata() -> None:
     policy = build("hamnet", seed=0)
-    policy.set_update(50)
+    policy.set_env_transitions(50 * 2**20)
     weights = from_bytes(to_bytes(policy, version=7))
     assert (weights.architecture, weights.version, weights.config) == ("hamnet", 7, policy.config)
     rebuilt = policy_from(weights)

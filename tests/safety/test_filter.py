@@ -150,7 +150,7 @@ def random_start(rng: np.random.Generator, b: int = B) -> np.ndarray:
     seed=st.integers(0, 2**32 - 1),
     kind=st.sampled_from(["normal", "extremes", "huge"]),
     bad=st.sampled_from([0.0, 0.05, 0.3]),
-    step=st.integers(0, 3_000_000),
+    step=st.integers(0, 3_000_000_000),
     smoothing=st.booleans(),
 )
 def test_policy_outputs_never_trigger_a_reflex_nor_break_a_bound(

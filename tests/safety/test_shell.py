@@ -184,7 +184,7 @@ def test_event_and_schedule_round_trip() -> None:
     assert from_tensor(event.env_ids).dtype == np.int32
     assert [(s.stage, s.commands, s.clipped, s.mean_excess, s.max_excess)
             for s in event.stages] == [("joint_limits", 10, 2, 0.5, 0.75)]  # fmt: skip
-    assert decode_schedule(wire(Schedule(global_step=123456, values={"xi_large": 0.2}))) == 123456
+    assert decode_schedule(wire(Schedule(env_transitions=123456))) == 123456
 
 
 def test_episode_starts_at_step_zero_or_a_new_episode_id() -> None:
@@ -254,7 +254,7 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
         return action
 
     hooks = {1: lambda: [("action", b"\xff not a message"),
-                         ("schedule", encode(Schedule(global_step=4096)))]}  # fmt: skip
+                         ("schedule", encode(Schedule(env_transitions=4096)))]}  # fmt: skip
     service = scripted(sim_script(act, last=5, hooks=hooks))
     shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
     assert shell.run() == 0
@@ -268,7 +268,7 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
                   if e.kind == SafetyEventKind.REJECTED_NONFINITE]  # fmt: skip
     assert len(rejections) == 1 and rejections[0].header.step == 2
     assert from_tensor(rejections[0].env_ids).tolist() == [0]
-    assert shell.global_step == 4096
+    assert shell.env_transitions == 4096
     assert dict(service.drops.counts) == {("hamnet/t/policy/0/action", "decode"): 1}
 
 

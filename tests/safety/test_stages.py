@@ -130,20 +130,21 @@ def test_action_magnitude_bounds_huge_raw_values() -> None:
 
 
 def test_xi_anneals_geometrically_by_hand() -> None:
-    """N_s = 1024, N_t = 2e6: after k intervals xi = xi_max*(xi*/xi_max)^(1024k/2e6)."""
-    config = ActionMagnitudeConfig()
+    """N_s = 1024, N_t = 2e6 vectorized steps of V = 1024 environments, counted in
+    env_transitions: after k intervals xi = xi_max*(xi*/xi_max)^(1024k/2e6)."""
+    config, v = ActionMagnitudeConfig(), 1024
     assert xi_at(0, config) == (0.26, 0.21)
-    assert xi_at(1023, config) == (0.26, 0.21)  # the first update comes after N_s steps
+    assert xi_at(1024 * v - 1, config) == (0.26, 0.21)  # the first update comes after N_s
     ratio_large = (0.16 / 0.26) ** (1024 / 2e6)
-    assert xi_at(1024, config)[0] == pytest.approx(0.26 * ratio_large)
-    assert xi_at(10 * 1024 + 5, config)[0] == pytest.approx(0.26 * ratio_large**10)
+    assert xi_at(1024 * v, config)[0] == pytest.approx(0.26 * ratio_large)
+    assert xi_at((10 * 1024 + 5) * v, config)[0] == pytest.approx(0.26 * ratio_large**10)
     small = 0.21 * (0.08 / 0.21) ** (976 * 1024 / 2e6)  # 1_000_000 // 1024 = 976 intervals
-    assert xi_at(1_000_000, config)[1] == pytest.approx(small)
-    # N_t is not a multiple of N_s: at step N_t, 1953 intervals give exponent 0.99994; the
-    # 1954th interval (step 2_000_896) reaches xi* exactly, and it stays there.
-    assert xi_at(2_000_000, config) == pytest.approx((0.16, 0.08), rel=1e-4)
-    for step in (2_000_896, 10**12):
-        assert xi_at(step, config) == pytest.approx((0.16, 0.08), rel=1e-12)
+    assert xi_at(1_000_000 * v, config)[1] == pytest.approx(small)
+    # N_t is not a multiple of N_s: at N_t, 1953 intervals give exponent 0.99994; the
+    # 1954th interval (vectorized step 2_000_896) reaches xi* exactly, and it stays there.
+    assert xi_at(2_000_000 * v, config) == pytest.approx((0.16, 0.08), rel=1e-4)
+    for steps in (2_000_896 * v, 10**15):
+        assert xi_at(steps, config) == pytest.approx((0.16, 0.08), rel=1e-12)
 
 
 def test_schedule_holds_before_its_start_and_is_monotone() -> None:
@@ -318,7 +319,8 @@ def test_default_config_holds_the_papers_values() -> None:
     magnitude, cartesian = config.action_magnitude, config.cartesian_clip
     assert (magnitude.xi_max_large, magnitude.xi_star_large) == (0.26, 0.16)
     assert (magnitude.xi_max_small, magnitude.xi_star_small) == (0.21, 0.08)
-    assert (magnitude.annealing.interval, magnitude.annealing.num_steps) == (1024, 2_000_000)
+    # N_s = 1024 and N_t = 2e6 vectorized steps of 1024 environments, in env_transitions.
+    assert (magnitude.annealing.interval, magnitude.annealing.num_steps) == (2**20, 2_048_000_000)
     assert (cartesian.eps_x, cartesian.eps_x_max) == (0.12, 0.24)
     assert config.residual_smoothing.alpha == 0.8
     assert config.joint_limits.central_fraction == 0.9

@@ -19,6 +19,7 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
+from hamnet.sim.curriculum import curriculum_values
 from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene import NUM_CUBOIDS
@@ -32,6 +33,9 @@ from hamnet.sim.shell import (
     encode_transition,
 )
 from tests.scripted import ScriptedService, wire
+
+HALFWAY = 1_024_000_000
+"""env_transitions halfway through the default curriculum."""
 
 B, S, J = 4, 8, 7
 CONTROL_DT = 0.1 / S
@@ -174,14 +178,8 @@ def test_command_without_gains_or_at_another_rate_is_rejected() -> None:
     assert error.value.reason == "control_dt"
 
 
-def test_schedule_keeps_the_sim_values_and_rejects_non_probabilities() -> None:
-    values = {"p_near_init": 0.5, "p_tight": 0.75, "entropy_coef": 3.0}
-    message = Schedule(global_step=5, values=values)
-    assert decode_schedule(message) == {"p_near_init": 0.5, "p_tight": 0.75}
-    for bad in (1.5, float("nan")):
-        with pytest.raises(PayloadError) as error:
-            decode_schedule(Schedule(values={"p_tight": bad}))
-        assert error.value.reason == "range"
+def test_schedule_carries_the_counter_only() -> None:
+    assert decode_schedule(wire(Schedule(env_transitions=5 * 2**30))) == 5 * 2**30
 
 
 # --- the loop, fed a script instead of a network -----------------------------------------
@@ -208,7 +206,7 @@ def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: Vecto
             command = hold_command(from_tensor(state.q, np.float32, (2, J)), S)
             answer = encode(safe_command(command, step))
             if step == 0:
-                schedule = Schedule(values={"p_near_init": 0.25, "p_tight": 0.5})
+                schedule = Schedule(env_transitions=HALFWAY)
                 pending.append(("schedule", encode(schedule)))
             if step == 2:
                 short = {n: getattr(command, n)[:1] for n in ("q_ref", "kp", "kd", "tau_limit")}
@@ -238,7 +236,7 @@ def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: Vecto
     assert set(from_tensor(states[3].episode_ids)).isdisjoint(from_tensor(states[2].episode_ids))
     assert shell.step == 6 and shell.stale == 2
     assert dict(service.drops.counts) == {("hamnet/t/safety/0/command", "shape"): 1}
-    assert (env.schedule.p_near_init, env.schedule.p_tight) == (0.25, 0.5)
+    assert env.schedule == curriculum_values(HALFWAY, env.config.curriculum)
 
 
 def test_free_running_loop_holds_the_arm_until_a_command_then_reuses_it(caplog) -> None:
