@@ -118,3 +118,13 @@ def test_timeout_truncates_and_success_or_drop_terminates() -> None:
 def test_reason_names_follow_the_codes() -> None:
     assert REASON_NAMES == ("running", "success", "dropped", "timeout")
     assert [REASON_NAMES[int(r)] for r in Reason] == list(REASON_NAMES)
+
+
+def test_default_success_is_the_authors_training_configuration() -> None:
+    """The reported success rates use 0.05 m and 0.1 rad (rss_train.yaml task.goal_radius,
+    goal_angle); the paper's 0.1 m stays the "paper" preset. 0.07 m away fails by default."""
+    assert (TaskConfig().success_radius, TaskConfig().success_angle) == (0.05, 0.1)
+    assert PAPER.success_radius == 0.1
+    goal_pos, goal_quat = goal()
+    pos = goal_pos + np.array([0.07, 0.0, 0.0])
+    assert not is_success(pos, goal_quat, goal_pos, goal_quat, TaskConfig()).any()
