@@ -15,6 +15,14 @@ of cuboid A is covered by cuboid B when it lies inside B or on its boundary (wit
 surface and the cuboid with the lower index keeps it. So a plate's underside and the table
 top beneath it both vanish, while two plates whose tops meet in one plane show that plane
 once.
+
+Crop (the authors' `scene_cloud.crop_style: chamfer`, whose scene cloud is sampled inside a
+workspace box: ham/src/ham/env/episode/scene_cloud.py:43-56): only the surface inside the
+table's footprint, from `below` under the table top up to `height` above it, counts. Faces
+are clipped to that box before they are split (exact for faces that are parallel or
+perpendicular to its sides: table, plates, walls, ceiling), and points a tilted face (a ramp)
+puts outside it are rejected like hidden ones. So the table's sides below the top, its
+underside and the walls' outer faces are never sampled.
 """
 
 from __future__ import annotations
@@ -120,14 +128,83 @@ def _face_grid(grid: int, device: torch.device) -> tuple[torch.Tensor, torch.Ten
     return uv, triangles
 
 
+TABLE = 0
+"""Slot of the table in every Scene message (`hamnet.sim.scene.CUBOID_NAMES`)."""
+
+
+def workspace_box(cuboids: Cuboids, below: float, height: float) -> Cuboids:
+    """The crop box of each scene: the table's footprint, from `below` under the table top to
+    `height` above it (authors' scene_cloud.py:51-55: 0.01 and the tallest case).
+
+    Args:
+        cuboids: B scenes; slot TABLE is the table.
+        below: depth of the box under the table top, m.
+        height: height of the box above the table top, m.
+    Returns:
+        One box (slot) per scene, in the table's frame.
+    """
+    rotation = cuboids.rotation[:, TABLE : TABLE + 1]  # (B, 1, 3, 3)
+    half = cuboids.half_extent[:, TABLE : TABLE + 1].clone()  # (B, 1, 3)
+    lift = half[..., 2] + (height - below) / 2  # (B, 1) box centre above the table's, m
+    centre = cuboids.centre[:, TABLE : TABLE + 1] + rotation[..., 2] * lift[..., None]
+    half[..., 2] = (height + below) / 2
+    return Cuboids(centre, rotation, half, torch.ones_like(cuboids.active[:, :1]))
+
+
+def inside(points: torch.Tensor, box: Cuboids, tolerance: float) -> torch.Tensor:
+    """(B, M) whether points (B, M, 3) lie in the one-slot box of their scene (boundary in)."""
+    local = torch.einsum("bmi,bij->bmj", points - box.centre[:, :1], box.rotation[:, 0])
+    return (local.abs() <= box.half_extent[:, :1] + tolerance).all(-1)
+
+
+def _clipped_faces(
+    world: torch.Tensor, axis_u: torch.Tensor, axis_v: torch.Tensor, box: Cuboids, tolerance: float
+) -> torch.Tensor:
+    """Face coordinate ranges (B, C, 6, 2, 2) that keep each face inside the box.
+
+    A face is `world + u * axis_u + v * axis_v` for u, v in [-1, 1]. A side of the box that
+    only u (or only v) crosses bounds u (or v); a side parallel to the face keeps or drops
+    the whole face; a side both cross (a tilted face) is left to rejection.
+
+    Args:
+        world: (B, C, 6, 3) face centres; axis_u, axis_v: (B, C, 6, 3) half-edge vectors, m.
+    Returns:
+        [..., 0, :] the u range, [..., 1, :] the v range; low > high where nothing is left.
+    """
+    offset = world - box.centre[:, :, None]  # (B, C, 6, 3), the box is one slot
+    rot = box.rotation[:, 0]  # (B, 3, 3)
+    p0 = torch.einsum("bcfi,bij->bcfj", offset, rot)  # (B, C, 6, 3) box frame
+    a = torch.einsum("bcfi,bij->bcfj", axis_u, rot)
+    b = torch.einsum("bcfi,bij->bcfj", axis_v, rot)
+    half = box.half_extent[:, :, None] + tolerance  # (B, 1, 1, 3)
+    eps = 1e-6 * (a.norm(dim=-1, keepdim=True) + b.norm(dim=-1, keepdim=True))
+    only_a, only_b = (a.abs() > eps) & (b.abs() <= eps), (b.abs() > eps) & (a.abs() <= eps)
+    neither = (a.abs() <= eps) & (b.abs() <= eps)
+    ranges = []
+    for step, only in ((a, only_a), (b, only_b)):
+        safe = torch.where(only, step, torch.ones_like(step))
+        ends = torch.stack([(-half - p0) / safe, (half - p0) / safe], -1)  # (B, C, 6, 3, 2)
+        low = torch.where(only, ends.amin(-1), torch.full_like(p0, -1.0)).amax(-1).clamp(min=-1.0)
+        high = torch.where(only, ends.amax(-1), torch.full_like(p0, 1.0)).amin(-1).clamp(max=1.0)
+        ranges.append(torch.stack([low, high], -1))  # (B, C, 6, 2)
+    out = (neither & (p0.abs() > half)).any(-1)  # (B, C, 6): a parallel side cuts it off
+    ranges = torch.stack(ranges, -2)  # (B, C, 6, 2, 2)
+    ranges[..., 0][out] = 1.0
+    ranges[..., 1][out] = -1.0
+    return ranges
+
+
 FACE_AXES = torch.tensor([[0, 1, 2], [0, 1, 2], [1, 2, 0], [1, 2, 0], [2, 0, 1], [2, 0, 1]])
 """Per face: normal axis, then the two in-face axes (right-handed order)."""
 FACE_SIGNS = torch.tensor([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 """Per face: side of the normal axis (+x, -x, +y, -y, +z, -z)."""
 
 
-def visible_triangles(cuboids: Cuboids, grid: int, tolerance: float) -> Triangles:
-    """Split every face into triangles and cull those another cuboid hides entirely.
+def visible_triangles(
+    cuboids: Cuboids, grid: int, tolerance: float, crop: Cuboids | None = None
+) -> Triangles:
+    """Split every face (clipped to `crop`, see the module docstring) into triangles and cull
+    those another cuboid hides entirely.
 
     A triangle is culled when one cuboid covers all three of its vertices: a box is convex,
     so it then covers the whole triangle. Partly covered triangles stay (rejection handles
@@ -136,31 +213,35 @@ def visible_triangles(cuboids: Cuboids, grid: int, tolerance: float) -> Triangle
     device, dtype = cuboids.centre.device, cuboids.centre.dtype
     b, c = cuboids.active.shape
     uv, tri = _face_grid(grid, device)  # (V, 2), (G2, 3)
+    uv = uv.to(dtype)
     axes, signs = FACE_AXES.to(device), FACE_SIGNS.to(device, dtype)
     half = cuboids.half_extent  # (B, C, 3)
-    # Local coordinates of every grid vertex of every face: (B, C, 6, V, 3).
-    local = torch.zeros(b, c, 6, len(uv), 3, device=device, dtype=dtype)
-    index = axes[None, None, :, None, :].expand(b, c, 6, len(uv), 3)
-    values = torch.stack(
-        [signs[:, None].expand(6, len(uv)), uv[None, :, 0].expand(6, -1), uv[None, :, 1].expand(6, -1)], -1
-    )  # (6, V, 3) in units of the half extents along (normal, in-face 1, in-face 2)
-    local.scatter_(-1, index, values.expand(b, c, 6, len(uv), 3).to(dtype))
-    local = local * half[:, :, None, None, :]
-    world = torch.einsum("bcij,bcfvj->bcfvi", cuboids.rotation, local) + cuboids.centre[:, :, None, None]
-    normal = cuboids.rotation[:, :, :, axes[:, 0]] * signs  # (B, C, 3, 6)
-    normal = normal.permute(0, 1, 3, 2)  # (B, C, 6, 3)
+    # Per face: its centre and the half-edge vectors along its two in-face axes, world frame.
+    columns = lambda k: cuboids.rotation[:, :, :, axes[:, k]].permute(0, 1, 3, 2)  # noqa: E731
+    extent = lambda k: half.gather(-1, axes[None, None, :, k].expand(b, c, 6))[..., None]  # noqa: E731
+    normal = columns(0) * signs[:, None]  # (B, C, 6, 3)
+    centre = cuboids.centre[:, :, None] + normal * extent(0)  # (B, C, 6, 3)
+    axis_u, axis_v = columns(1) * extent(1), columns(2) * extent(2)  # (B, C, 6, 3), m
+    if crop is None:
+        ranges = torch.tensor([-1.0, 1.0], device=device, dtype=dtype).expand(b, c, 6, 2, 2)
+    else:
+        ranges = _clipped_faces(centre, axis_u, axis_v, crop, tolerance)  # (B, C, 6, 2, 2)
+    low, span = ranges[..., 0], (ranges[..., 1] - ranges[..., 0]).clamp(min=0.0)  # (B, C, 6, 2)
+    coords = low[:, :, :, None] + span[:, :, :, None] * (uv + 1.0) / 2  # (B, C, 6, V, 2)
+    world = (
+        centre[:, :, :, None]
+        + coords[..., :1] * axis_u[:, :, :, None]
+        + coords[..., 1:] * axis_v[:, :, :, None]
+    )  # (B, C, 6, V, 3)
     v = len(uv)
     owner = torch.arange(c, device=device).repeat_interleave(6 * v)  # (C*6*V,)
     vertex_normal = normal[:, :, :, None, :].expand(b, c, 6, v, 3).reshape(b, -1, 3)
     hidden = covered(world.reshape(b, -1, 3), owner, vertex_normal, cuboids, tolerance)
     hidden = hidden.reshape(b, c, 6, v, c)  # (B, C, 6, V, C)
-    corners = hidden[:, :, :, tri, :]  # (B, C, 6, G2, 3, C)
-    culled = corners.all(-2).any(-1)  # (B, C, 6, G2)
+    culled = hidden[:, :, :, tri, :].all(-2).any(-1)  # (B, C, 6, G2)
     vertices = world[:, :, :, tri, :]  # (B, C, 6, G2, 3, 3)
-    extent = 2.0 * half.gather(-1, axes[None, None, :, 1].expand(b, c, 6)) * 2.0 * half.gather(
-        -1, axes[None, None, :, 2].expand(b, c, 6)
-    )  # (B, C, 6) face area, m^2
-    area = (extent / (2 * grid * grid))[..., None].expand(-1, -1, -1, len(tri))  # (B, C, 6, G2)
+    face_area = 4.0 * axis_u.norm(dim=-1) * axis_v.norm(dim=-1) * span.prod(-1) / 4  # (B, C, 6)
+    area = (face_area / (2 * grid * grid))[..., None].expand(-1, -1, -1, len(tri))  # (B, C, 6, G2)
     area = area * ~culled * cuboids.active[:, :, None, None]
     t = c * 6 * len(tri)
     return Triangles(
@@ -187,6 +268,7 @@ def sample_surface(
     grid: int = 2,
     tolerance: float = 1e-5,
     generator: torch.Generator | None = None,
+    crop: Cuboids | None = None,
 ) -> torch.Tensor:
     """Points drawn uniformly from the visible surface of each scene's cuboids.
 
@@ -196,23 +278,32 @@ def sample_surface(
         grid: face subdivision (see `CloudConfig.grid`).
         tolerance: boundary tolerance, m.
         generator: torch random generator on the cuboids' device (None: the global one).
+        crop: one box per scene (`workspace_box`) the surface is cut to; None: all of it.
     Returns:
         (B, N, 3) world-frame points, m, in random order (any prefix is a uniform sample).
     """
     if not bool(cuboids.active.any(-1).all()):
         raise ValueError("every scene needs at least one active cuboid")
     return torch.cat([
-        _sample_visible(cuboids.rows(envs), num_points, grid, tolerance, generator)
+        _sample_visible(
+            cuboids.rows(envs), num_points, grid, tolerance, generator,
+            None if crop is None else crop.rows(envs),
+        )
         for envs in _env_chunks(len(cuboids.active))
     ])  # fmt: skip
 
 
 def _sample_visible(
-    cuboids: Cuboids, num_points: int, grid: int, tolerance: float, generator: torch.Generator | None
+    cuboids: Cuboids,
+    num_points: int,
+    grid: int,
+    tolerance: float,
+    generator: torch.Generator | None,
+    crop: Cuboids | None,
 ) -> torch.Tensor:
     """`sample_surface` for a few environments at once (its point-in-box tests build
     (B, M, C, 3) tensors that stay in the CPU caches only for a few environments)."""
-    triangles = visible_triangles(cuboids, grid, tolerance)
+    triangles = visible_triangles(cuboids, grid, tolerance, crop)
     b = cuboids.active.shape[0]
     draws = num_points + num_points // 4  # most points survive: culling removed the hidden parts
     points, valid = [], []
@@ -221,6 +312,8 @@ def _sample_visible(
         candidate = _points_on(triangles, index, generator)  # (B, M, 3)
         normal = triangles.normal.gather(1, index[..., None].expand(b, draws, 3))
         hidden = covered(candidate, triangles.owner[index], normal, cuboids, tolerance).any(-1)
+        if crop is not None:
+            hidden |= ~inside(candidate, crop, tolerance)  # a tilted face's part outside
         points.append(candidate)
         valid.append(~hidden)
         if int(torch.cat(valid, 1).sum(1).min()) >= num_points:

@@ -43,11 +43,19 @@ class CloudConfig:
     as a depth camera leaves them, with the cloud size kept."""
     tolerance: float = 1e-5
     """A point closer than this to another cuboid (m) counts as on its boundary."""
+    crop_below: float = 0.01
+    """The scene clouds keep the surface from this far under the table top, m (authors'
+    ham/src/ham/env/episode/scene_cloud.py:53, `base_height - 0.01`)."""
+    workspace_height: float = 0.65
+    """... up to this far above it, m, within the table's footprint: the tallest case, ceiling
+    0.5 m on a 0.15 m plate (authors' tabletop_with_object_scene_v3.py:386-387)."""
 
     def __post_init__(self) -> None:
         _at_least(self, 1, "num_points", "grid", "num_keypoints")
         if self.scene_pool < self.num_points:
             raise ValueError(f"scene_pool ({self.scene_pool}) must be >= num_points ({self.num_points})")
+        if self.crop_below < 0.0 or self.workspace_height <= 0.0:
+            raise ValueError("crop_below must be >= 0 and workspace_height > 0")
         if self.noise_std < 0.0 or not 0.0 <= self.dropout < 1.0 or self.tolerance < 0.0:
             raise ValueError("noise_std and tolerance must be >= 0 and dropout in [0, 1)")
 

@@ -3,9 +3,10 @@ the per-step work (pose the object, gather the local cloud, encode it).
 
 What changes when (paper: object tokens once per episode, scene tokens at reset, local
 tokens every step):
-- at an episode's start (`start_episodes`): the scene's visible surface is sampled into a
-  dense pool (S points), its first P points are the global cloud, encoded once; the object's
-  surface points (own frame) are encoded once, and 64 FPS keypoints are picked from them;
+- at an episode's start (`start_episodes`): the scene's visible surface, cropped to the
+  workspace over the table (`clouds.workspace_box`), is sampled into a dense pool (S
+  points), its first P points are the global cloud, encoded once; the object's surface
+  points (own frame) are encoded once, and 64 FPS keypoints are picked from them;
 - every step (`step`): the object cloud and the keypoints are posed, the local cloud is the P
   pool points nearest the posed keypoints, and only it is encoded.
 
@@ -29,6 +30,7 @@ from hamnet.perception.clouds import (
     local_cloud,
     pose_points,
     sample_surface,
+    workspace_box,
 )
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.unicorn import UniCORN
@@ -133,7 +135,10 @@ class Perception:
         if len(ids) == 0:
             return
         cuboids = Cuboids(*(t.to(self.device) for t in vars(scenes.cuboids).values()))
-        pool = sample_surface(cuboids, config.scene_pool, config.grid, config.tolerance, g)  # (K, S, 3)
+        crop = workspace_box(cuboids, config.crop_below, config.workspace_height)
+        pool = sample_surface(
+            cuboids, config.scene_pool, config.grid, config.tolerance, g, crop
+        )  # (K, S, 3)
         environment = corrupt(pool[:, : config.num_points], config.noise_std, config.dropout, g)
         points = scenes.object_points.to(self.device, torch.float32)  # (K, P, 3)
         keypoints = gather(points, farthest_point_sample(points, config.num_keypoints))  # (K, 64, 3)
