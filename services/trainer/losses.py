@@ -1,0 +1,61 @@
+"""PPO's loss terms and diagnostics, each a small function of flat minibatch tensors.
+
+Shapes: N samples (time x environments, flattened), R reward terms, A action components.
+Where a choice is the authors' rather than textbook PPO, the docstring cites it
+(`ppo_util.py` is `ham/src/ham/models/rl/ppo_util.py` in iMSquared/HAMNet at 36f8267).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+
+def normalize_advantages(advantages: Tensor, eps: float = 1e-6) -> Tensor:
+    """(N, R) advantages centred per term and divided by the standard deviation of their
+    sum (assuming independent terms: the root of the summed variances), so the actor's
+    summed advantage has unit scale and the terms keep their relative weights
+    (`ppo_util.py`, `_ppo_loss_and_logs` with SUM_REW)."""
+    centred = advantages - advantages.mean(dim=0)  # (N, R)
+    scale = advantages.var(dim=0, unbiased=False).sum().sqrt()
+    return centred / (scale + eps)
+
+
+def policy_loss(log_prob: Tensor, old_log_prob: Tensor, advantages: Tensor, clip: float) -> Tensor:
+    """Clipped surrogate (PPO, Schulman et al. 2017, Eq. 7), negated for minimisation.
+
+    Args:
+        log_prob, old_log_prob: (N,) log-densities of the taken actions, now and when acting.
+        advantages: (N, R) per reward term; the actor maximises their sum.
+        clip: the ratio's clip range epsilon.
+    """
+    ratio = torch.exp(log_prob - old_log_prob)[:, None]  # (N, 1)
+    surrogate = torch.minimum(ratio * advantages, ratio.clamp(1 - clip, 1 + clip) * advantages)
+    return -surrogate.sum(dim=1).mean()
+
+
+def value_loss(values: Tensor, returns: Tensor) -> Tensor:
+    """0.5 * squared error of every value head, (N, R) against its return, summed over heads
+    and averaged over samples (`ppo_util.py`; value clipping is off: `clip_value: false`)."""
+    return 0.5 * (values - returns).square().sum(dim=1).mean()
+
+
+def bound_loss(mean: Tensor, low: Tensor, high: Tensor) -> Tensor:
+    """Squared excess of the action mean (N, A) beyond [low, high] (A,), summed over
+    components and averaged over samples: keeps the Gaussian's centre where actions still
+    mean something (`ppo_util.py`, `BoundLoss`)."""
+    above = (mean - high).clamp_min(0.0)
+    below = (low - mean).clamp_min(0.0)
+    return (above.square() + below.square()).sum(dim=1).mean()
+
+
+def approx_kl(log_prob: Tensor, old_log_prob: Tensor) -> Tensor:
+    """Estimate of KL(old || new) from (N,) log-densities of the old policy's samples:
+    E[(r - 1) - log r], non-negative and unbiased (Schulman's k3)."""
+    log_ratio = log_prob - old_log_prob
+    return (torch.expm1(log_ratio) - log_ratio).mean()
+
+
+def clip_fraction(log_prob: Tensor, old_log_prob: Tensor, clip: float) -> Tensor:
+    """Share of samples whose ratio left [1 - clip, 1 + clip]."""
+    return ((log_prob - old_log_prob).exp().sub(1.0).abs() > clip).float().mean()

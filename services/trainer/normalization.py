@@ -1,0 +1,73 @@
+"""Running statistics for observation normalization and return-based reward scaling.
+
+Observations are standardised with running means and variances (the authors'
+`NormalizeEnv`, `ham/src/ham/env/env/wrap/normalize_env.py`; inputs that already have
+fixed scales, such as UniCORN tokens, are left out by the caller as the authors' `constlist`
+does, `rss_train.yaml:496-510`). Rewards are divided by the running standard deviation of
+the discounted return of their sum (`sum_rew: True` in `NormalizeEnv.Config`), one scalar
+for all terms, so the reward terms keep their relative weights. State is plain tensors, so
+checkpoints store it as safetensors.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+
+class RunningMeanStd:
+    """Mean and variance of a stream of (N, *shape) batches (Chan et al.'s parallel update)."""
+
+    def __init__(self, shape: tuple[int, ...], eps: float = 1e-6) -> None:
+        self.mean = torch.zeros(shape, dtype=torch.float64)
+        self.var = torch.ones(shape, dtype=torch.float64)
+        self.count = torch.tensor(eps, dtype=torch.float64)
+        """Samples seen; starts at eps so the first batch takes over the prior."""
+
+    def update(self, batch: Tensor) -> None:
+        """Fold (N, *shape) samples into the statistics."""
+        batch = batch.detach().to(torch.float64).reshape(-1, *self.mean.shape)
+        n = batch.shape[0]
+        if n == 0:
+            return
+        mean, var = batch.mean(dim=0), batch.var(dim=0, unbiased=False)
+        total = self.count + n
+        delta = mean - self.mean
+        self.mean = self.mean + delta * n / total
+        self.var = (self.var * self.count + var * n + delta.square() * self.count * n / total) / total
+        self.count = total
+
+    def normalize(self, x: Tensor, eps: float = 1e-6) -> Tensor:
+        """(..., *shape) standardised, in x's dtype."""
+        mean, std = self.mean.to(x.dtype), self.var.sqrt().to(x.dtype)
+        return (x - mean) / (std + eps)
+
+    def state(self, prefix: str) -> dict[str, Tensor]:
+        """Tensors to checkpoint, under `prefix`."""
+        return {f"{prefix}.mean": self.mean, f"{prefix}.var": self.var, f"{prefix}.count": self.count}
+
+    def load(self, tensors: dict[str, Tensor], prefix: str) -> None:
+        """Restore what `state(prefix)` saved."""
+        self.mean, self.var = tensors[f"{prefix}.mean"].clone(), tensors[f"{prefix}.var"].clone()
+        self.count = tensors[f"{prefix}.count"].clone()
+
+
+class ReturnScaler:
+    """Divides rewards by the running std of the discounted return of their sum."""
+
+    def __init__(self, num_envs: int, gamma: float, eps: float = 1e-6) -> None:
+        self.gamma, self.eps = gamma, eps
+        self.returns = torch.zeros(num_envs, dtype=torch.float64)
+        """(B,) discounted return of the summed reward so far in each episode."""
+        self.stats = RunningMeanStd(())
+
+    def scale(self, rewards: Tensor, dones: Tensor) -> Tensor:
+        """Scaled (B, R) rewards of one step; `dones` (B,) ends the episodes after it.
+
+        The statistics see the return including this step, then episodes that ended
+        restart from zero (the authors' order, `normalize_env.py` `step`).
+        """
+        self.returns = self.returns * self.gamma + rewards.sum(dim=1).to(torch.float64)
+        self.stats.update(self.returns)
+        self.returns = torch.where(dones.bool(), torch.zeros_like(self.returns), self.returns)
+        return rewards / (self.stats.var.sqrt().to(rewards.dtype) + self.eps)

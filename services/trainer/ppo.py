@@ -1,0 +1,160 @@
+"""One PPO update on a rollout: epochs of clipped-surrogate, value and bound losses, with KL
+early stopping and the KL-adaptive learning rate (paper Table tab:PPO, the authors'
+configuration where they differ: `hamnet.trainer.config`).
+
+The update knows nothing of HAMnet: it takes the rollout's policy inputs as any tree of
+tensors (tensors, dicts, dataclasses) whose leading dimension is the sample, and a function
+that evaluates actions under the current parameters. Shapes: N samples, A action
+components, R reward terms.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import torch
+from torch import Tensor
+
+from hamnet.trainer.adaptive_lr import adapt_learning_rate
+from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.losses import (
+    approx_kl,
+    bound_loss,
+    clip_fraction,
+    normalize_advantages,
+    policy_loss,
+    value_loss,
+)
+
+
+class Evaluated(Protocol):
+    """What evaluating actions under the current parameters gives (`Policy.evaluate`)."""
+
+    log_prob: Tensor
+    """(N,) log-density of the given actions."""
+    values: Tensor
+    """(N, R) value per reward term."""
+    mean: Tensor
+    """(N, A) mean of the action distribution (for the bound loss)."""
+
+
+Evaluate = Callable[[Any, Tensor], Evaluated]
+"""(inputs of N samples, actions (N, A)) -> Evaluated, with gradients."""
+
+
+@dataclass(frozen=True)
+class Batch:
+    """A rollout flattened over time and environments."""
+
+    inputs: Any
+    """Policy inputs of N samples: a tensor, or a dict/dataclass tree of tensors (N, ...)."""
+    actions: Tensor
+    """(N, A) actions taken."""
+    old_log_prob: Tensor
+    """(N,) their log-density under the acting policy."""
+    advantages: Tensor
+    """(N, R) GAE per reward term."""
+    returns: Tensor
+    """(N, R) value targets per reward term."""
+
+
+@dataclass(frozen=True)
+class UpdateStats:
+    """What one update did, for the metrics topic and the progress line."""
+
+    policy_loss: float
+    value_loss: float
+    bound_loss: float
+    approx_kl: float
+    """KL(old || new) at the last evaluated minibatch."""
+    clip_fraction: float
+    learning_rate: float
+    """After the update's adaptations."""
+    gradient_steps: int
+    early_stopped: bool
+
+
+def take_rows(tree: Any, rows: Tensor) -> Any:
+    """The rows `rows` (K,) of every tensor in a tree of tensors, dicts and dataclasses."""
+    if tree is None:
+        return None
+    if isinstance(tree, Tensor):
+        return tree[rows]
+    if isinstance(tree, dict):
+        return {key: take_rows(value, rows) for key, value in tree.items()}
+    if dataclasses.is_dataclass(tree):
+        changes = {f.name: take_rows(getattr(tree, f.name), rows) for f in dataclasses.fields(tree)}
+        return dataclasses.replace(tree, **changes)
+    raise TypeError(f"cannot take rows of a {type(tree).__name__}")
+
+
+def update(
+    evaluate: Evaluate,
+    parameters: Iterable[Tensor],
+    optimizer: torch.optim.Optimizer,
+    batch: Batch,
+    action_bounds: tuple[Tensor, Tensor],
+    config: PPOConfig,
+    generator: torch.Generator | None = None,
+) -> UpdateStats:
+    """Run up to `config.epochs` epochs of `config.minibatches` gradient steps on `batch`.
+
+    An epoch's step is skipped and the update ends once a minibatch's KL exceeds
+    `early_stop_factor * kl_target`; after every evaluated minibatch the learning rate of
+    `optimizer` adapts to its KL (the authors' `_train_batch`, `ppo.py:567-596`).
+
+    Args:
+        evaluate: evaluates actions with gradients under the current parameters.
+        parameters: what the optimizer trains (for gradient clipping).
+        optimizer: its param groups' `lr` is read and adapted in place.
+        batch: the rollout.
+        action_bounds: (A,) low and high of the raw action; the bound loss keeps the mean
+            within `bound_scale` times them.
+        config: hyperparameters.
+        generator: shuffles the minibatches.
+    """
+    parameters = list(parameters)
+    advantages = normalize_advantages(batch.advantages) if config.normalize_advantages else batch.advantages
+    low, high = (bound * config.bound_scale for bound in action_bounds)
+    n = batch.actions.shape[0]
+    lr = optimizer.param_groups[0]["lr"]
+    steps, stopped, last = 0, False, {}
+    for _ in range(config.epochs):
+        order = torch.randperm(n, generator=generator) if config.minibatches > 1 else torch.arange(n)
+        for rows in order.chunk(config.minibatches):
+            out = evaluate(take_rows(batch.inputs, rows), batch.actions[rows])
+            old = batch.old_log_prob[rows]
+            terms = {
+                "policy": policy_loss(out.log_prob, old, advantages[rows], config.clip),
+                "value": value_loss(out.values, batch.returns[rows]),
+                "bound": bound_loss(out.mean, low, high),
+            }
+            kl = approx_kl(out.log_prob.detach(), old).item()
+            last = {**{k: v.item() for k, v in terms.items()}, "kl": kl,
+                    "clip": clip_fraction(out.log_prob.detach(), old, config.clip).item()}  # fmt: skip
+            if kl > config.early_stop_factor * config.kl_target:
+                lr = _adapt(optimizer, lr, kl, config)
+                stopped = True
+                break
+            loss = (config.policy_coef * terms["policy"] + config.value_coef * terms["value"]
+                    + config.bound_coef * terms["bound"])  # fmt: skip
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
+            optimizer.step()
+            lr = _adapt(optimizer, lr, kl, config)
+            steps += 1
+        if stopped:
+            break
+    return UpdateStats(last["policy"], last["value"], last["bound"], last["kl"], last["clip"], lr, steps, stopped)
+
+
+def _adapt(optimizer: torch.optim.Optimizer, lr: float, kl: float, config: PPOConfig) -> float:
+    """Set the optimizer's learning rate for the next step from this step's KL."""
+    lr = adapt_learning_rate(lr, kl, config)
+    for group in optimizer.param_groups:
+        group["lr"] = lr
+    return lr

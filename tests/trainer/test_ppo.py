@@ -1,0 +1,95 @@
+"""A PPO update on a tiny batched task whose optimum is known in closed form."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor, nn
+
+from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.gae import gae
+from hamnet.trainer.ppo import Batch, take_rows, update
+
+B, T, LOG_STD = 64, 4, math.log(0.3)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    log_prob: Tensor
+    values: Tensor
+    mean: Tensor
+
+
+class TinyActorCritic(nn.Module):
+    """Linear Gaussian actor with a fixed std and a two-headed linear critic."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.actor, self.critic = nn.Linear(2, 2), nn.Linear(2, 2)
+
+    def evaluate(self, states: Tensor, actions: Tensor) -> Evaluation:
+        mean = self.actor(states)
+        log_prob = (-0.5 * ((actions - mean) / math.exp(LOG_STD)).square() - LOG_STD
+                    - 0.5 * math.log(2 * math.pi)).sum(-1)  # fmt: skip
+        return Evaluation(log_prob, self.critic(states), mean)
+
+
+def rewards_of(states: Tensor, actions: Tensor) -> Tensor:
+    """(.., 2) terms: reach the state, and keep the action small; the sum
+    -|a - s|^2 - 0.5 |a|^2 is maximal at a = s / 1.5."""
+    return torch.stack([-(actions - states).square().sum(-1), -0.5 * actions.square().sum(-1)], -1)
+
+
+def test_ppo_converges_to_the_known_optimum_of_a_two_term_bandit() -> None:
+    """One-step episodes with two reward terms: per-term GAE, the summed advantage and the
+    update must drive the mean action to s / 1.5 and each value head to its term."""
+    torch.manual_seed(0)
+    model = TinyActorCritic()
+    optimizer = torch.optim.Adam(model.parameters(), lr=3e-4)
+    config = PPOConfig()
+    bounds = (-torch.full((2,), 2.0), torch.full((2,), 2.0))
+    for _ in range(300):
+        states = torch.rand(T, B, 2) * 2 - 1  # (T, B, 2)
+        with torch.no_grad():
+            out = model.evaluate(states, torch.zeros(T, B, 2))
+            actions = out.mean + math.exp(LOG_STD) * torch.randn(T, B, 2)
+            old = model.evaluate(states, actions)
+        rewards = rewards_of(states, actions)  # (T, B, 2)
+        dones = torch.ones(T, B, dtype=torch.bool)
+        advantages, returns = gae(rewards, old.values, torch.zeros(B, 2), dones, 0.99, 0.95)
+        flat = lambda x: x.reshape(T * B, *x.shape[2:])  # noqa: E731
+        batch = Batch(flat(states), flat(actions), flat(old.log_prob), flat(advantages), flat(returns))
+        stats = update(model.evaluate, model.parameters(), optimizer, batch, bounds, config)
+    probe = torch.rand(256, 2) * 2 - 1
+    with torch.no_grad():
+        out = model.evaluate(probe, torch.zeros(256, 2))
+    error = (out.mean - probe / 1.5).abs()  # (256, 2); it starts near 0.5
+    assert error.max() < 0.1 and error.mean() < 0.03
+    expected = rewards_of(probe, out.mean) - torch.tensor([2, 1]) * 0.09  # E over the noise
+    assert (out.values - expected).abs().mean() < 0.1
+    assert stats.gradient_steps >= 1 and 1e-6 <= stats.learning_rate <= 1e-2
+
+
+def test_early_stopping_skips_the_step_that_would_overshoot_the_kl() -> None:
+    """Old log-probs far from the current ones give a KL above 0.024 at once: no step."""
+    torch.manual_seed(1)
+    model = TinyActorCritic()
+    before = [p.detach().clone() for p in model.parameters()]
+    optimizer = torch.optim.Adam(model.parameters(), lr=3e-4)
+    states, actions = torch.rand(32, 2), torch.rand(32, 2)
+    with torch.no_grad():
+        old_log_prob = model.evaluate(states, actions).log_prob - 1.0
+    batch = Batch(states, actions, old_log_prob, torch.randn(32, 2), torch.randn(32, 2))
+    stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)), PPOConfig())
+    assert stats.early_stopped and stats.gradient_steps == 0
+    assert all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
+    assert stats.learning_rate < 3e-4
+
+
+def test_take_rows_walks_tensors_dicts_and_dataclasses() -> None:
+    tree = {"a": torch.arange(4), "b": Evaluation(torch.arange(4), torch.zeros(4, 2), torch.ones(4, 3)), "c": None}
+    rows = take_rows(tree, torch.tensor([3, 1]))
+    assert rows["a"].tolist() == [3, 1] and rows["b"].log_prob.tolist() == [3, 1]
+    assert rows["b"].mean.shape == (2, 3) and rows["c"] is None
