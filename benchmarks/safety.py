@@ -25,7 +25,9 @@ Produces a table on stdout (median and p99 per command in us, and the medians as
 the 100 ms policy period and of 1 ms), progress on stderr and, as the last stdout line, one JSON
 object: `fraction_of_policy_period_64` (whole pipeline, 64 environments, 80 Hz references as in
 the sim), `fraction_of_1ms_1robot` (whole pipeline, 1 robot, 1 kHz references as on the FR3),
-their p99 and other-rate variants, and every row under `results`.
+their p99 and other-rate variants, the training and finetune profiles' whole command at 64
+and 1024 environments (`training_profile_ms_1024`, `training_profile_fraction_1024`: of the
+policy period; likewise for finetune), and every row under `results`.
 
     .venv/bin/python benchmarks/safety.py --quick     # < 1 min
     .venv/bin/python benchmarks/safety.py             # more samples
@@ -49,6 +51,7 @@ import tyro
 from hamnet.fr3.limits import Q_HOME
 from hamnet.safety import stages
 from hamnet.safety.cartesian import cartesian_clip
+from hamnet.safety.config import SafetyConfig, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.pipeline import target_bounds, tau_limit
 from hamnet.safety.schedule import per_joint, schedule_values
@@ -77,7 +80,9 @@ class SafetyBenchConfig:
     warmup: int = 5
     """Closed-loop periods before timing."""
     step: int = 0
-    """Global step for the annealed bounds (0: xi_max, eps_x_max, the widest)."""
+    """env_transitions for the annealed bounds (0: xi_max, eps_x_max, the widest)."""
+    profile_envs: tuple[int, ...] = (64, 1024)
+    """Environment counts for the training and finetune profiles (80 Hz, as in the sim)."""
     seed: int = 0
 
     @property
@@ -93,11 +98,17 @@ def progress(message: str) -> None:
 class Loop:
     """One `SafetyFilter` at one reference rate in closed loop: the robot tracks perfectly."""
 
-    def __init__(self, num_envs: int, rate_hz: float, rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        num_envs: int,
+        rate_hz: float,
+        rng: np.random.Generator,
+        safety: SafetyConfig | None = None,
+    ) -> None:
         q = np.tile(Q_HOME, (num_envs, 1))  # (B, J)
         self.rng = rng
         self.config = TrajectoryConfig(control_rate_hz=rate_hz)
-        self.filter = SafetyFilter(q, trajectory=self.config)
+        self.filter = SafetyFilter(q, safety, trajectory=self.config)
         self.q, self.dq = q, np.zeros_like(q)  # (B, J) measured, rad and rad/s
         self.action = self.next_action()
 
@@ -291,6 +302,43 @@ def _whole(loop: Loop, step: int) -> Callable[[], float]:
     return call
 
 
+PROFILES_TIMED = ("training", "finetune")
+"""The profiles of the rollout workers, timed as whole `SafetyFilter.command` calls."""
+
+
+def measure_profiles(config: SafetyBenchConfig) -> list[dict]:
+    """`SafetyFilter.command` of each profile in PROFILES_TIMED at 80 Hz, per environment
+    count of `profile_envs`, in closed loop; rows named "<profile> profile"."""
+    results = []
+    for num_envs in config.profile_envs:
+        rng = np.random.default_rng(config.seed)
+        rows = []
+        for profile in PROFILES_TIMED:
+            loop = Loop(num_envs, RATES_HZ["80Hz"], rng, with_profile(profile))
+            call = _whole(loop, config.step)
+            for _ in range(config.warmup):
+                call()
+            rows.append(Row(f"{profile} profile", "all", call, []))
+        chunk = max(config.measured_samples // config.rounds, 1)
+        for _ in range(config.rounds):
+            for row in rows:
+                row.seconds += [row.call() for _ in range(chunk)]
+        results += [summary(row, num_envs) for row in rows]
+        progress(", ".join(f"{num_envs} envs: {r['row']} {r['median_us']:.0f} us" for r in
+                           results[-len(rows):]))  # fmt: skip
+    return results
+
+
+def profile_figures(results: list[dict]) -> dict:
+    """`<profile>_profile_ms_<B>` and `..._fraction_<B>` (of the 100 ms policy period)."""
+    figures = {}
+    for r in results:
+        name = f"{r['row'].replace(' ', '_')}_ms_{r['num_envs']}"
+        figures[name] = round(r["median_us"] * 1e-3, 3)
+        figures[name.replace("_ms_", "_fraction_")] = r["fraction_of_policy_period"]
+    return figures
+
+
 def measure(num_envs: int, config: SafetyBenchConfig) -> list[dict]:
     """Every row for one environment count, interleaved round by round."""
     rows = make_rows(num_envs, config)
@@ -351,6 +399,8 @@ def main(config: SafetyBenchConfig) -> dict:
             f"(80 Hz), {whole['whole pipeline 1kHz']['median_us']:.0f} us (1 kHz)"
         )
         results += rows
+    profiles = measure_profiles(config)
+    results += profiles
     print_table(results)
     at = {(r["num_envs"], r["row"]): r for r in results}
     largest, smallest = max(config.num_envs), min(config.num_envs)
@@ -378,6 +428,7 @@ def main(config: SafetyBenchConfig) -> dict:
             / at[(smallest, "raw ruckig 1kHz (baseline)")]["median_us"],
             3,
         ),
+        **profile_figures(profiles),
         "results": results,
         "samples": config.measured_samples,
         "step": config.step,

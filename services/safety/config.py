@@ -9,7 +9,7 @@ everywhere (stage function, statistics, safety events).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 from hamnet.runtime.counter import from_vectorized_steps
@@ -22,6 +22,16 @@ MagnitudeMode = Literal["scale", "clip"]
 
 CartesianRows = Literal["linear", "full"]
 """Which rows of the end-effector Jacobian define Delta x (see `CartesianClipConfig.rows`)."""
+
+ReferenceMode = Literal["ruckig", "target"]
+"""What stage 6 sends the executor (see `SafetyConfig.references`)."""
+
+Profile = Literal["training", "finetune", "deploy"]
+"""Named settings of the filter for one use (see `with_profile`)."""
+
+PROFILES: tuple[Profile, ...] = ("training", "finetune", "deploy")
+"""Every profile, in the order of the project's stages: train, fine-tune for the real robot,
+deploy on it."""
 
 
 def _positive(owner: object, *names: str) -> None:
@@ -217,3 +227,39 @@ class SafetyConfig:
     """Stage 5."""
     torque_preclip: TorquePreclipConfig = field(default_factory=TorquePreclipConfig)
     """Stage 7."""
+    references: ReferenceMode = "ruckig"
+    """Stage 6: "ruckig", jerk-limited references towards the target (the real robot);
+    "target", the target itself on every control sample, so the impedance controller receives
+    it directly (the paper's MDP; the authors' jpos control, franka.py:1405-1415)."""
+
+    def __post_init__(self) -> None:
+        if self.references not in ("ruckig", "target"):
+            raise ValueError(f"references must be 'ruckig' or 'target', got {self.references!r}")
+
+
+def with_profile(profile: Profile, config: SafetyConfig | None = None) -> SafetyConfig:
+    """`config` (the defaults when None) with the stage switches of a named profile.
+
+    - "training": the paper's MDP, as the authors train it. The action goes through the
+      residual bound xi (annealed), the EMA, the joint band and the executor's torque clip at
+      the FR3's full torque limit (Isaac Gym clips efforts at the URDF's limit), and reaches the
+      impedance controller otherwise unchanged: no Cartesian clip, no torque pre-clip, the
+      target on every control sample (no Ruckig). Batched, with no per-environment loop.
+    - "finetune": training plus the Cartesian clip with eps_x annealed (paper lines 803-804,
+      the sim-to-real fine-tuning stage); set `cartesian_clip.annealing.start_step` to the
+      env_transitions where fine-tuning starts. Its Jacobians are computed per environment.
+    - "deploy": `config` as given, by default every stage with Ruckig references and the torque
+      pre-clip (the real robot, and evaluation runs that ask for them).
+    Other fields (xi, eps_x, alpha, the band, the annealing) come from `config`.
+    """
+    config = config if config is not None else SafetyConfig()
+    if profile == "deploy":
+        return config
+    if profile not in PROFILES:
+        raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+    return replace(
+        config,
+        cartesian_clip=replace(config.cartesian_clip, enabled=profile == "finetune"),
+        torque_preclip=replace(config.torque_preclip, enabled=False, margin=0.0),
+        references="target",
+    )

@@ -4,7 +4,9 @@ executes for one policy period.
 Stages 1-5 and 7 (`pipeline.SafetyCore`) give a safe joint target and gains; stage 6
 (`trajectory.TrajectoryGenerator`) turns the target into jerk-limited references sampled at
 the executor's rate, continuous across periods; stage 7 runs again against those samples
-(gains only go down). `brake` is the watchdog's and the e-stop's path: the references stop
+(gains only go down). With `SafetyConfig.references == "target"` (the "training" and
+"finetune" profiles, `config.with_profile`) stage 6 is `trajectory.TargetReferences`: the
+target on every sample. `brake` is the watchdog's and the e-stop's path: the references stop
 smoothly and hold, with the last safe gains, whatever the policy does.
 """
 
@@ -17,8 +19,12 @@ import numpy as np
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.pipeline import FilterResult, SafetyCore, tau_limit
 from hamnet.safety.stages import torque_preclip
-from hamnet.safety.trajectory import References, TrajectoryConfig, TrajectoryGenerator
-
+from hamnet.safety.trajectory import (
+    References,
+    TargetReferences,
+    TrajectoryConfig,
+    TrajectoryGenerator,
+)
 
 BRAKE_MIN_DAMPING_RATIO = 1.0
 """Damping ratio the braking path uses at least."""
@@ -59,7 +65,8 @@ class SafetyFilter:
         self.config = config if config is not None else SafetyConfig()
         self.core = SafetyCore(len(q), self.config)
         self.core.reset(q)
-        self.trajectory = TrajectoryGenerator(q, trajectory)
+        references = TrajectoryGenerator if self.config.references == "ruckig" else TargetReferences
+        self.trajectory = references(q, trajectory)
         self.tau_limit = np.tile(tau_limit(self.config), (len(q), 1))  # (B, J)
 
     @property

@@ -303,6 +303,67 @@ class TrajectoryGenerator:
         return samples, trajectory.duration <= self._times[-1]
 
 
+class TargetReferences:
+    """Stage 6 of the training and fine-tuning profiles: the joint target itself on every
+    control sample, so the impedance controller receives it directly (the paper's MDP; the
+    authors hold their jpos target over the 8 control steps of a policy step, franka.py:
+    1405-1415). The same interface as `TrajectoryGenerator`, batched (no per-environment
+    loop). A stopped environment, or a non-finite target, holds its last reference at once:
+    there is no braking profile, since this runs on simulated robots only."""
+
+    def __init__(self, q: np.ndarray, config: TrajectoryConfig | None = None) -> None:
+        """Start every environment at rest at q (B, J), rad; `config` gives S (its clocks)."""
+        self.config = config if config is not None else TrajectoryConfig()
+        self._q = _joint_rows(q)  # (B, J), rad
+        self.num_envs = self._q.shape[0]
+        self._stopping = np.zeros(self.num_envs, dtype=bool)  # (B,)
+
+    @property
+    def state(self) -> ReferenceState:
+        """Where the next period starts, (B, J) each (copies): at rest on the last reference."""
+        return ReferenceState(self._q.copy(), np.zeros_like(self._q), np.zeros_like(self._q))
+
+    @property
+    def stopping(self) -> np.ndarray:
+        """Environments holding their last reference, (B,) bool (a copy)."""
+        return self._stopping.copy()
+
+    def stop(self, env_ids: np.ndarray) -> None:
+        """Hold these environments' last reference from the next `step` on, until `resume`."""
+        self._stopping[env_ids] = True
+
+    def resume(self, env_ids: np.ndarray) -> None:
+        """Follow targets again."""
+        self._stopping[env_ids] = False
+
+    def reset(
+        self,
+        env_ids: np.ndarray,
+        q: np.ndarray,
+        dq: np.ndarray | None = None,
+        ddq: np.ndarray | None = None,
+    ) -> None:
+        """Re-anchor environments at measured positions q (N, J) (dq, ddq are not used)."""
+        self._q[env_ids] = _joint_rows(q)
+        self._stopping[env_ids] = False
+
+    def step(self, q_target: np.ndarray) -> References:
+        """q_ref (B, S, J) = the target (B, J) on every sample; velocities zero."""
+        q_target = np.asarray(q_target, dtype=np.float64)  # (B, J)
+        invalid = ~np.isfinite(q_target).all(axis=1)  # (B,)
+        hold = self._stopping | invalid
+        self._q = np.where(hold[:, None], self._q, q_target)  # (B, J)
+        q_ref = np.repeat(self._q[:, None], self.config.samples_per_period, axis=1)  # (B, S, J)
+        plan = np.full(self.num_envs, Plan.TARGET, dtype=np.int8)
+        plan[self._stopping] = Plan.STOP
+        plan[invalid & ~self._stopping] = Plan.STOP_INVALID_TARGET
+        return References(
+            q_ref, np.zeros_like(q_ref), np.zeros_like(q_ref), plan,
+            result=np.where(invalid & ~self._stopping, -100, 0),
+            reached=np.ones(self.num_envs, dtype=bool),
+        )  # fmt: skip
+
+
 def position_extrema(trajectories: list[ruckig.Trajectory]) -> tuple[np.ndarray, np.ndarray]:
     """Lowest and highest position of each joint over whole Ruckig plans, from their profiles.
 
