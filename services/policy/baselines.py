@@ -43,7 +43,7 @@ class MonolithicMLP(nn.Module):
         super().__init__()
         _feed_forward(config, "mlp")
         self.context, self.object = ContextEncoder(config), ObjectEncoder(config)
-        width = self.context.width + config.attention_dim  # the state enters once
+        width = self.context.width + self.object.attention.width  # the state enters once
         self.actor = MLP((width, *config.mlp_hidden, config.action_dim))
         self.critic = MLP((width, *config.mlp_hidden, config.num_values))
 

@@ -13,9 +13,9 @@ import json
 from dataclasses import dataclass, field
 from typing import Literal
 
-from hamnet.runtime.counter import from_vectorized_steps
 from hamnet.fr3.limits import ACTION_DIM
 from hamnet.policy.observation import ObservationSpec
+from hamnet.runtime.counter import from_vectorized_steps
 from hamnet.sim.rewards import REWARD_NAMES
 
 SceneInput = Literal["tokens", "env_code"]
@@ -89,11 +89,10 @@ class ModelConfig:
     """Give biases their own softmax over modules and their own gates, as the authors' code
     does (every parameter tensor gets one: hypernet_modular.py:1029-1049, scale_bias in
     rss_train.yaml:335); False: one softmax and one gate per layer, as the paper writes."""
-    mlp_hidden: tuple[int, ...] = (844, 422, 422, 211)
-    """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.099 so that
-    the MLP has as many parameters as our HAMnet (1.965 M), as the paper sized its MLP "to
-    match the number of trainable parameters" (Appendix baseline-arch). Our inputs are
-    narrower than the paper's, so its exact widths would give 1.69 M here."""
+    mlp_hidden: tuple[int, ...] = (917, 459, 459, 229)
+    """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.195 so that
+    the MLP has as many parameters as our HAMnet (3.547 M), as the paper sized its MLP "to
+    match the number of trainable parameters" (Appendix baseline-arch)."""
     hyper_rank: int = 16
     """Rank k of the hypernetwork baseline's generated weights W = W_l W_r."""
     routing_dim: int = 128

@@ -1,8 +1,9 @@
 """Building blocks of the policy networks: cross-attention over tokens, plain MLPs, and the
 module bank whose per-sample mixture is a contraction over the module axis.
 
-Hidden layers are Linear -> LayerNorm (no affine, as in the authors' code) -> tanh; output
-layers are linear. Shapes: B batch, N tokens, D token width, M modules, J in, I out.
+Hidden layers of the actor, critic and modulation networks are Linear -> LayerNorm (no
+affine, as in the authors' code) -> tanh; output layers are linear. The cross-attention
+embeddings use the authors' Linear -> LayerNorm -> GELU. Shapes: B batch, N tokens, D token width, M modules, J in, I out.
 """
 
 from __future__ import annotations
@@ -38,41 +39,73 @@ class MLP(nn.Module):
         return x
 
 
-class CrossAttention(nn.Module):
-    """One query per sample attends over N tokens with H heads (paper Fig. overall-arch).
+def gelu_mlp(dims: Sequence[int], activate_last: bool = False) -> nn.Sequential:
+    """Linear -> LayerNorm -> GELU between layers: the authors' MLP with use_ln and GELU
+    (ham/models/common.py:419-466), used by their cross-attention embeddings."""
+    layers: list[nn.Module] = []
+    for index, (i, o) in enumerate(zip(dims[:-1], dims[1:])):
+        layers.append(nn.Linear(i, o))
+        if activate_last or index < len(dims) - 2:
+            layers += [nn.LayerNorm(o), nn.GELU()]
+    return nn.Sequential(*layers)
 
-    The query is the sample's state group, tokenized by a two-layer MLP (paper's caption).
+
+class CrossAttention(nn.Module):
+    """One query per sample attends over N tokens with H heads, then a projection MLP: the
+    authors' cross-attentions (hypernet_modular.py:627-723, 795-804).
+
+    `embed_tokens` False (object tokens): query = linear (their embed_query, then the
+    attention's W_q: two linear maps, one here), tokens enter raw (their to_kv is linear).
+    True (scene tokens, their cross_big): query and tokens each pass a Linear-LN-GELU
+    embedding of width E first (embed_robot, kv_gr), the query then W_q.
+
     The key and value projections are absorbed into the query side: q_h . (W_k,h t_n)
     equals (W_k,h^T q_h) . t_n and sum_n a_n W_v,h t_n equals W_v,h sum_n a_n t_n, so the
-    tokens are never projected: O(H N D) per sample instead of O(N D E). Key biases shift
-    every score of a query equally (softmax ignores them) and value biases pass through the
-    convex sum into the output bias, so nothing is lost (checked against a standard
-    implementation in the tests).
+    tokens are never projected by them: O(H N D) per sample instead of O(N D E). Key biases
+    shift every score of a query equally (softmax ignores them) and value biases pass
+    through the convex sum into the output bias, so nothing is lost (checked against a
+    standard implementation in the tests). The attention's output projection and the
+    first layer of the projection MLP (E, *out_dims) are two linear maps, one here.
     """
 
-    def __init__(self, query_dim: int, token_dim: int, dim: int, heads: int) -> None:
+    def __init__(
+        self, query_dim: int, token_dim: int, dim: int, heads: int, out_dims: Sequence[int],
+        embed_tokens: bool,
+    ) -> None:  # fmt: skip
         super().__init__()
         self.heads, self.head_dim = heads, dim // heads
-        self.query = nn.Sequential(nn.Linear(query_dim, dim), nn.Tanh(), nn.Linear(dim, dim))
-        self.key = nn.Parameter(torch.empty(heads, self.head_dim, token_dim))  # (H, E/H, D)
-        self.value = nn.Parameter(torch.empty(heads, self.head_dim, token_dim))  # (H, E/H, D)
-        self.out = nn.Linear(dim, dim)
-        bound = 1.0 / math.sqrt(token_dim)
+        self.query = (
+            nn.Sequential(gelu_mlp((query_dim, dim), activate_last=True), nn.Linear(dim, dim))
+            if embed_tokens
+            else nn.Linear(query_dim, dim)
+        )
+        self.embed = gelu_mlp((token_dim, dim), activate_last=True) if embed_tokens else None
+        keys = dim if embed_tokens else token_dim
+        self.key = nn.Parameter(torch.empty(heads, self.head_dim, keys))  # (H, E/H, D')
+        self.value = nn.Parameter(torch.empty(heads, self.head_dim, keys))  # (H, E/H, D')
+        self.out = gelu_mlp((dim, *out_dims))
+        self.width = out_dims[-1]
+        bound = 1.0 / math.sqrt(keys)
         nn.init.uniform_(self.key, -bound, bound)
         nn.init.uniform_(self.value, -bound, bound)
 
     def forward(self, query: Tensor, tokens: Tensor) -> Tensor:
-        """(B, Q) queries over (B, N, D) tokens -> (B, E) summaries."""
+        """(B, Q) queries over (B, N, D) tokens -> (B, out_dims[-1]) summaries."""
         b = query.shape[0]
+        if self.embed is not None:
+            tokens = self.embed(tokens)  # (B, N, E)
         q = self.query(query).view(b, self.heads, self.head_dim).transpose(0, 1)  # (H, B, E/H)
         # Batched over heads, not broadcast over samples: broadcasting would copy the
         # projections B times.
-        q_key = (q @ self.key).transpose(0, 1) / math.sqrt(self.head_dim)  # (B, H, D)
+        q_key = (q @ self.key).transpose(0, 1) / math.sqrt(self.head_dim)  # (B, H, D')
         attention = torch.softmax(q_key @ tokens.transpose(1, 2), dim=-1)  # (B, H, N)
-        mixed = (attention @ tokens).transpose(0, 1)  # (H, B, D)
+        mixed = (attention @ tokens).transpose(0, 1)  # (H, B, D')
         heads = (mixed @ self.value.transpose(1, 2)).transpose(0, 1).reshape(b, -1)  # (B, E)
         return self.out(heads)
 
+
+Gates = tuple[Tensor, Tensor] | None
+"""Per-unit gates of one modular layer: (B, I) for the weight product, (B, I) for the bias."""
 
 MIXTURE_CHUNK = 1024
 """Rows of the batch mixed at a time. The (rows, M*J) scaled inputs of a whole large batch
@@ -121,7 +154,9 @@ def _chunks(batch: int) -> list[slice]:
 
 
 class ModularLinear(nn.Module):
-    """A bank of M linear modules mixed per sample: y = g * (sum_m w_m (W_m x + b_m)).
+    """A bank of M linear modules mixed per sample: y = g_W * (sum_m w_m W_m x) +
+    g_b * (sum_m v_m b_m), with separate module weights w, v and gates g_W, g_b for the
+    weights and the bias, as the authors' GateModMLP (gate_mod_mlp.py:181-200).
 
     The mixture is one contraction over the module axis: the sample's module weights scale
     copies of its input, (B, M*J), which one GEMM maps through the stacked modules
@@ -136,21 +171,24 @@ class ModularLinear(nn.Module):
         self.weight = nn.Parameter(torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound))
         self.bias = nn.Parameter(torch.empty(num_modules, out_dim).uniform_(-bound, bound))
 
-    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gate: Tensor | None) -> Tensor:
+    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Gates) -> Tensor:
         """Mix the modules for each sample.
 
         Args:
             x: (B, J) inputs.
             weights: (B, M) softmax over modules for the weight matrices.
             bias_weights: (B, M) softmax over modules for the biases.
-            gate: (B, I) per-unit gates, or None.
+            gates: per-unit gates (B, I) of the weight product and of the bias, or None.
 
         Returns:
-            (B, I) outputs.
+            (B, I) outputs: g_W * (sum_m w_m W_m x) + g_b * (sum_m v_m b_m).
         """
         stacked = self.weight.view(-1, self.out_dim)  # (M*J, I)
-        y = _ModuleMixture.apply(x, weights, stacked) + bias_weights @ self.bias  # (B, I)
-        return y if gate is None else y * gate
+        y = _ModuleMixture.apply(x, weights, stacked)  # (B, I)
+        bias = bias_weights @ self.bias  # (B, I)
+        if gates is None:
+            return y + bias
+        return torch.addcmul(bias * gates[1], y, gates[0])
 
 
 class ModularMLP(nn.Module):
@@ -168,12 +206,12 @@ class ModularMLP(nn.Module):
         return [layer.out_dim for layer in self.layers]
 
     def forward(
-        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Sequence[Tensor] | None
+        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Sequence[Gates]
     ) -> Tensor:
-        """(B, J) -> (B, out) with (B, L, M) module weights and L gates (B, D_l) or None."""
+        """(B, J) -> (B, out) with (B, L, M) module weights and, per layer, its gates
+        (None: ungated; the output layer never has any, hypernet_modular.py:956-962)."""
         for index, layer in enumerate(self.layers):
-            gate = None if gates is None else gates[index]
-            x = layer(x, weights[:, index], bias_weights[:, index], gate)
+            x = layer(x, weights[:, index], bias_weights[:, index], gates[index])
             if index < len(self.layers) - 1:
                 x = hidden_activation(x)
         return x

@@ -1,14 +1,17 @@
-"""HAMnet (paper Sec. method-modular-arch): modulation network, module banks with gates,
-and the actor and critic base networks; the student adds a GRU to each.
+"""HAMnet (paper Sec. method-modular-arch, with the authors' configuration where the paper
+leaves it open): modulation network, module banks with gates, and the actor and critic
+base networks; the student adds a GRU to each.
 
-Modulation: the robot and object state (group 1) query the local and global scene tokens
-by cross-attention; the two summaries, the object's [EMB] token and the full state
-(group 3) pass through an MLP (256, 256) to the modulation embedding z_tau, from which two
-heads predict, for each of the L base-network layers, a softmax over the M modules and
-per-unit gates 1 + linear(z_tau). Base: the hand and goal (group 2) query the object
-tokens; the summary and the state feed the actor (mean of a Gaussian over the 21 raw
-action components) and the critic (one value per reward term), each built from its own
-module banks (`ModularMLP`). Shapes: B batch, N tokens, D token width, L layers, M modules.
+Modulation: robot and object state query the local and global scene tokens by
+cross-attention; the object's [EMB] token, the two summaries and the context state
+(`ObservationSpec.context`, previous action included) pass through an MLP (256, 256) to
+the modulation embedding z_tau, from which one linear header predicts, for each of the L
+base-network layers, a softmax over the M modules for the weights and another for the
+biases, and per-unit gates 1 + linear(z_tau) on every hidden layer. Base: object state,
+goal and hand query the object tokens; the summary and the base state feed the actor (mean
+of a Gaussian over the raw action) and the critic (one value per reward term), each built
+from its own module banks (`ModularMLP`). Shapes: B batch, N tokens, D token width,
+L layers, M modules.
 """
 
 from __future__ import annotations
@@ -20,7 +23,10 @@ from torch import Tensor, nn
 
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.layers import MLP, CrossAttention, ModularMLP
-from hamnet.policy.observation import Observation, widths
+from hamnet.policy.observation import Observation
+
+GATE_INIT = 0.008
+"""Gate header weights start U(-0.008, 0.008), biases 0 (init_std, hypernet_modular.py:281)."""
 
 
 @dataclass(frozen=True)
@@ -29,7 +35,7 @@ class PolicyInputs:
 
     observation: Observation
     object_tokens: Tensor
-    """(B, N, D) UniCORN tokens of the object cloud; token 0 is [EMB]."""
+    """(B, N, D) UniCORN tokens of the object cloud; the last token is [EMB]."""
     local_tokens: Tensor | None = None
     """(B, N, D) tokens of the local (focal) scene cloud; None for the EnvCode oracle."""
     global_tokens: Tensor | None = None
@@ -61,22 +67,24 @@ def _require(value: Tensor | None, what: str) -> Tensor:
 
 
 class ContextEncoder(nn.Module):
-    """What tells a network its situation: scene summary + object [EMB] + state, (B, F).
-
-    F = 2E (local and global cross-attention summaries) or 25 (EnvCode) + D + S."""
+    """What tells a network its situation, (B, F): the local and global scene summaries
+    (or the EnvCode), the object cloud's [EMB] token and the context state, in the
+    authors' key_ctx order (rss_train.yaml:280-289; [EMB] is the last token, reduce "last",
+    rss_train.yaml:324 and hypernet_modular.py:886-888)."""
 
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
-        state, scene_query, _ = widths(config.privileged)
+        spec = config.observation
         self.tokens = config.scene_input == "tokens"
         if self.tokens:
-            args = (scene_query, config.token_dim, config.attention_dim, config.scene_heads)
+            args = (spec.width("scene_query"), config.token_dim, config.scene_attention_dim,
+                    config.scene_heads, config.attention_out, True)  # fmt: skip
             self.local_attention = CrossAttention(*args)
             self.global_attention = CrossAttention(*args)
-            scene = 2 * config.attention_dim
+            scene = 2 * self.local_attention.width
         else:
             scene = config.env_code_dim
-        self.width = scene + config.token_dim + state
+        self.width = config.token_dim + scene + spec.width("context")
 
     def forward(self, inputs: PolicyInputs) -> Tensor:
         """(B, F) context features."""
@@ -84,28 +92,30 @@ class ContextEncoder(nn.Module):
         if self.tokens:
             local = self.local_attention(query, _require(inputs.local_tokens, "local tokens"))
             whole = self.global_attention(query, _require(inputs.global_tokens, "global tokens"))
-            scene = torch.cat((local, whole), dim=-1)  # (B, E + E)
+            scene = torch.cat((local, whole), dim=-1)  # (B, 2 E_out)
         else:
             scene = _require(inputs.env_code, "the EnvCode")  # (B, 25)
-        embedding = inputs.object_tokens[:, 0]  # (B, D) [EMB]
-        return torch.cat((scene, embedding, inputs.observation.state), dim=-1)
+        embedding = inputs.object_tokens[:, -1]  # (B, D) [EMB]
+        return torch.cat((embedding, scene, inputs.observation.context), dim=-1)
 
 
 class ObjectEncoder(nn.Module):
-    """Base-network input: object cross-attention summary + state, (B, E + S)."""
+    """Base-network input, (B, E_out + S): the object cross-attention summary (queried by
+    object state, goal and hand, hypernet_modular.py:515-516, 983-991) and the base state."""
 
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
-        state, _, object_query = widths(config.privileged)
+        spec = config.observation
         self.attention = CrossAttention(
-            object_query, config.token_dim, config.attention_dim, config.object_heads
-        )
-        self.width = config.attention_dim + state
+            spec.width("object_query"), config.token_dim, config.object_attention_dim,
+            config.object_heads, config.attention_out, False,
+        )  # fmt: skip
+        self.width = self.attention.width + spec.width("base")
 
     def forward(self, inputs: PolicyInputs) -> Tensor:
-        """(B, E + S) features."""
-        summary = self.attention(inputs.observation.object_query, inputs.object_tokens)  # (B, E)
-        return torch.cat((summary, inputs.observation.state), dim=-1)
+        """(B, E_out + S) features."""
+        summary = self.attention(inputs.observation.object_query, inputs.object_tokens)
+        return torch.cat((summary, inputs.observation.base), dim=-1)
 
 
 class HAMNet(nn.Module):
@@ -127,15 +137,18 @@ class HAMNet(nn.Module):
         self.actor = ModularMLP((base_in, *config.base_hidden, config.action_dim), m)
         self.critic = ModularMLP((base_in, *config.base_hidden, config.num_values), m)
         self.num_layers = len(self.actor.layers) + len(self.critic.layers)
-        # One linear layer for every header (one GEMM): module logits for the weights,
-        # for the biases (when they have their own), and the gates of every layer's units.
-        logits = self.num_layers * m
-        self.gate_dims = self.actor.out_dims + self.critic.out_dims if config.gates else []
-        self.head_dims = [logits, logits if config.bias_weights else 0, sum(self.gate_dims)]
+        # One linear layer for every header (one GEMM): module logits for the weights and
+        # (when they have their own) the biases, then the gates of every hidden layer's
+        # units, for the weight product and the bias. The output layers have no gates
+        # (scale_last false, hypernet_modular.py:956-962).
+        logits, bias_logits = self.num_layers * m, self.num_layers * m * config.bias_weights
+        hidden = self.actor.out_dims[:-1] + self.critic.out_dims[:-1]
+        self.gate_dims = hidden * (1 + config.bias_weights) if config.gates else []
+        self.head_dims = [logits, bias_logits, sum(self.gate_dims)]
         self.heads = nn.Linear(z, sum(self.head_dims))
-        with torch.no_grad():  # gates start near 1: the modules alone decide at first
-            first_gate = logits + self.head_dims[1]
-            self.heads.weight[first_gate:].mul_(0.01)
+        with torch.no_grad():  # gates start near 1 (hypernet_modular.py:328-331)
+            first_gate = logits + bias_logits
+            nn.init.uniform_(self.heads.weight[first_gate:], -GATE_INIT, GATE_INIT)
             self.heads.bias[first_gate:].zero_()
 
     @property
@@ -161,10 +174,20 @@ class HAMNet(nn.Module):
         bias_weights = weights
         if self.config.bias_weights:
             bias_weights = torch.softmax(bias_logits.view(b, self.num_layers, m), dim=-1)
-        gates = None
-        if self.config.gates:
-            gates = torch.split(1.0 + gate_logits, self.gate_dims, dim=-1)  # L x (B, D_l)
+        gates = self._gates(gate_logits)
         la = len(self.actor.layers)
-        mean = self.actor(x, weights[:, :la], bias_weights[:, :la], gates and gates[:la])
-        values = self.critic(x, weights[:, la:], bias_weights[:, la:], gates and gates[la:])
+        mean = self.actor(x, weights[:, :la], bias_weights[:, :la], gates[:la])
+        values = self.critic(x, weights[:, la:], bias_weights[:, la:], gates[la:])
         return NetworkOutput(mean, values, weights, memory)
+
+    def _gates(self, logits: Tensor) -> list:
+        """Per layer (actor's, then critic's): (weight gate, bias gate), each (B, D_l), or
+        None for the ungated output layers (and every layer without gates)."""
+        la, lc = len(self.actor.layers), len(self.critic.layers)
+        if not self.config.gates:
+            return [None] * (la + lc)
+        gates = torch.split(1.0 + logits, self.gate_dims, dim=-1)
+        hidden = (la - 1) + (lc - 1)
+        bias = gates[hidden:] if self.config.bias_weights else gates[:hidden]
+        pairs = list(zip(gates[:hidden], bias))
+        return pairs[: la - 1] + [None] + pairs[la - 1 :] + [None]

@@ -1,12 +1,13 @@
-"""Observation assembly: robot state (and, for the teacher, the privileged block) to the
-network's non-geometric inputs. One pure, batched torch function shared by the policy
-service and the trainer, so both see exactly the same observation.
+"""Observation assembly: robot state, the previous action and (for the teacher) the
+privileged block to the network's non-geometric inputs, named and sized by one
+`ObservationSpec`. Pure, batched torch, shared by the policy service and the trainer.
 
 Poses reach the network as translation + 6D rotation (the first two columns of the
-rotation matrix, Zhou et al. 2019; paper line 237). The goal is relative to the current
-object pose for the teacher (paper line 237); the student cannot observe the object pose,
-so it gets the goal in the world frame and infers the object from its cloud tokens.
-Shapes: B environments.
+rotation matrix, Zhou et al. 2019; paper line 237). The goal is relative to the object
+pose (paper line 237; the authors' RelGoal wrapper, ham/scripts/env_wrappers.py:1056): the
+true pose for the teacher, the pose estimator's for the student (paper line 462:
+FoundationPose on the real robot; `estimated_pose` is its training-time stand-in).
+Shapes: B environments, J joints, A action components.
 """
 
 from __future__ import annotations
@@ -16,45 +17,114 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from hamnet.fr3.limits import ACTION_DIM, NUM_JOINTS
+from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
+
 POSE_WIDTH = 9
 """Translation (3) + 6D rotation (6)."""
+VELOCITY_WIDTH = 6
+"""Object linear (3, m/s) + angular (3, rad/s) velocity, world frame."""
+
+
+@dataclass(frozen=True)
+class ObservationSpec:
+    """Every named input piece and its width, and which pieces feed which part of the
+    network. The piece names and orders are the authors' (rss_train.yaml:280-313)."""
+
+    privileged: bool = True
+    """Teacher (object pose and velocity, physics parameters) or student (no privileged
+    inputs; the object pose is the estimator's)."""
+    num_joints: int = NUM_JOINTS
+    """J of robot_state = (q, dq)."""
+    action_dim: int = ACTION_DIM
+    """A of previous_action (the raw action of the last step, zeros at an episode start)."""
+    physics_params: int = len(PHYSICS_PARAM_NAMES)
+    """Width of the sim's physics parameters (teacher only)."""
+
+    context: tuple[str, ...] = (
+        "physics_params", "object_state", "goal", "previous_action", "hand_state", "robot_state"
+    )  # fmt: skip
+    """Non-geometric inputs of the modulation network, in the authors' key_ctx order
+    (rss_train.yaml:280-289, after the three clouds); pieces a student lacks are skipped."""
+    base: tuple[str, ...] = ("object_state", "goal", "previous_action", "hand_state", "robot_state")
+    """Non-geometric inputs of the base network (key_state, rss_train.yaml:300-306)."""
+    scene_query: tuple[str, ...] = ("robot_state", "object_state")
+    """Query of the local and global scene cross-attentions (cross_big: robot state and
+    key_local_cross = object_state, hypernet_modular.py:511, 852-855, 875-878)."""
+    object_query: tuple[str, ...] = ("object_state", "goal", "hand_state")
+    """Query of the object cross-attention (key_cross_task, hypernet_modular.py:515-516)."""
+
+    @property
+    def pieces(self) -> dict[str, int]:
+        """Name -> width of every piece this observation has."""
+        pieces = {
+            "robot_state": 2 * self.num_joints,  # q (rad), dq (rad/s)
+            "hand_state": POSE_WIDTH,  # end-effector pose
+            "object_state": POSE_WIDTH + VELOCITY_WIDTH if self.privileged else POSE_WIDTH,
+            "goal": POSE_WIDTH,  # relative to the (estimated) object pose
+            "previous_action": self.action_dim,
+        }
+        if self.privileged:
+            pieces["physics_params"] = self.physics_params
+        return pieces
+
+    def names(self, group: str) -> tuple[str, ...]:
+        """The pieces of `group` (context, base, scene_query, object_query) this spec has."""
+        return tuple(name for name in getattr(self, group) if name in self.pieces)
+
+    def width(self, group: str) -> int:
+        """Width of `group`'s concatenated pieces."""
+        return sum(self.pieces[name] for name in self.names(group))
 
 
 @dataclass(frozen=True)
 class RobotObservation:
-    """What the sim publishes every policy step, as float32 tensors."""
+    """What the sim (or the real robot's bridge) publishes every policy step, as tensors."""
 
     q: Tensor
-    """(B, 7) joint positions, rad."""
+    """(B, J) joint positions, rad."""
     dq: Tensor
-    """(B, 7) joint velocities, rad/s."""
+    """(B, J) joint velocities, rad/s."""
     ee_pose: Tensor
     """(B, 9) end-effector translation (m) + 6D rotation."""
     goal_pose: Tensor
     """(B, 7) goal pose of the object: position (m) + quaternion wxyz."""
     object_pose: Tensor | None = None
-    """(B, 7) object position + quaternion wxyz; privileged (None on the real robot)."""
+    """(B, 7) object position + quaternion wxyz: the true pose (teacher) or the pose
+    estimator's (student)."""
     object_velocity: Tensor | None = None
-    """(B, 6) object linear (m/s) + angular (rad/s) velocity; privileged."""
+    """(B, 6) object linear (m/s) + angular (rad/s) velocity, world frame; privileged."""
     physics_params: Tensor | None = None
-    """(B, 6) mass, frictions, restitution, scale; privileged."""
+    """(B, P) physics parameters (PHYSICS_PARAM_NAMES); privileged."""
 
 
 @dataclass(frozen=True)
 class Observation:
-    """The network's non-geometric inputs (the paper's input groups 1-3, Fig. overall-arch)."""
+    """The network's non-geometric inputs, one tensor per group of `ObservationSpec`."""
 
-    state: Tensor
-    """(B, S) group 3, every non-geometric input: S = 53 teacher, 32 student."""
+    context: Tensor
+    """(B, spec.width("context")) modulation-network state."""
+    base: Tensor
+    """(B, spec.width("base")) base-network state."""
     scene_query: Tensor
-    """(B, Q1) group 1, robot and object state that query the scene tokens: 32 / 23."""
+    """(B, spec.width("scene_query")) query of the scene cross-attentions."""
     object_query: Tensor
-    """(B, Q2) group 2, hand and goal that query the object tokens: 18."""
+    """(B, spec.width("object_query")) query of the object cross-attention."""
 
 
-def widths(privileged: bool) -> tuple[int, int, int]:
-    """(S, Q1, Q2) of `assemble` for a teacher (privileged) or a student."""
-    return (53, 32, 18) if privileged else (32, 23, 18)
+@dataclass(frozen=True)
+class PoseNoiseConfig:
+    """Error model of the student's object pose in training (docs/policy.md): independent
+    every step, as FoundationPose re-estimates every frame (paper line 462)."""
+
+    position_std: float = 0.01
+    """Std of the Gaussian position error per axis, m."""
+    rotation_std: float = 0.075
+    """Std of the Gaussian rotation-vector error per axis, rad."""
+
+    def __post_init__(self) -> None:
+        if self.position_std < 0 or self.rotation_std < 0:
+            raise ValueError("pose noise stds must be >= 0")
 
 
 def rotation_matrix(quat: Tensor) -> Tensor:
@@ -70,6 +140,18 @@ def rotation_matrix(quat: Tensor) -> Tensor:
     ).reshape(*quat.shape[:-1], 3, 3)  # fmt: skip
 
 
+def quaternion_multiply(a: Tensor, b: Tensor) -> Tensor:
+    """(..., 4) wxyz Hamilton product a * b (rotate by b, then by a)."""
+    aw, ax, ay, az = torch.unbind(a, dim=-1)
+    bw, bx, by, bz = torch.unbind(b, dim=-1)
+    return torch.stack((
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ), dim=-1)  # fmt: skip
+
+
 def six_d(rotation: Tensor) -> Tensor:
     """(..., 6): the first two columns of (..., 3, 3) rotation matrices, column after column."""
     return rotation[..., :, :2].transpose(-1, -2).reshape(*rotation.shape[:-2], 6)
@@ -82,39 +164,59 @@ def pose_9d(pose: Tensor) -> Tensor:
 
 def relative_goal(object_pose: Tensor, goal_pose: Tensor) -> Tensor:
     """(B, 9) goal relative to the object: world-frame offset (3) + 6D of R_goal R_object^T."""
-    rotation = rotation_matrix(goal_pose[..., 3:]) @ rotation_matrix(object_pose[..., 3:]).transpose(-1, -2)
+    rotation = rotation_matrix(goal_pose[..., 3:]) @ rotation_matrix(object_pose[..., 3:]).mT
     return torch.cat((goal_pose[..., :3] - object_pose[..., :3], six_d(rotation)), dim=-1)
 
 
-def assemble(robot: RobotObservation, privileged: bool) -> Observation:
+def estimated_pose(pose: Tensor, noise: PoseNoiseConfig, generator: torch.Generator | None) -> Tensor:
+    """(B, 7) a pose estimator's reading of the true (B, 7) poses: Gaussian position error
+    and a rotation by a Gaussian rotation vector, applied in the world frame."""
+    b = pose.shape[0]
+    shape = (b, 3)
+    position = torch.randn(shape, generator=generator, device=pose.device) * noise.position_std
+    rotvec = torch.randn(shape, generator=generator, device=pose.device) * noise.rotation_std
+    angle = rotvec.norm(dim=-1, keepdim=True)  # (B, 1) rad
+    axis = rotvec / angle.clamp_min(1e-12)
+    error = torch.cat((torch.cos(angle / 2), axis * torch.sin(angle / 2)), dim=-1)  # (B, 4)
+    return torch.cat((pose[:, :3] + position, quaternion_multiply(error, pose[:, 3:])), dim=-1)
+
+
+def _pieces(robot: RobotObservation, previous_action: Tensor, spec: ObservationSpec) -> dict:
+    """Name -> (B, width) tensor of every piece of `spec`."""
+    if robot.object_pose is None:
+        raise ValueError("an observation needs the object pose (true, or the estimator's)")
+    pieces = {
+        "robot_state": torch.cat((robot.q, robot.dq), dim=-1),  # (B, 2J)
+        "hand_state": robot.ee_pose,  # (B, 9)
+        "object_state": pose_9d(robot.object_pose),  # (B, 9)
+        "goal": relative_goal(robot.object_pose, robot.goal_pose),  # (B, 9)
+        "previous_action": previous_action,  # (B, A)
+    }
+    if spec.privileged:
+        if robot.object_velocity is None or robot.physics_params is None:
+            raise ValueError("a teacher observation needs the privileged block (object "
+                             "velocity, physics parameters)")  # fmt: skip
+        pieces["object_state"] = torch.cat((pieces["object_state"], robot.object_velocity), -1)
+        pieces["physics_params"] = robot.physics_params  # (B, P)
+    for name, width in spec.pieces.items():
+        if pieces[name].shape[-1] != width:
+            raise ValueError(f"{name} has width {pieces[name].shape[-1]}, the spec says {width}")
+    return pieces
+
+
+def assemble(robot: RobotObservation, previous_action: Tensor, spec: ObservationSpec) -> Observation:
     """The network inputs of one batch of robot states.
 
     Args:
-        robot: the sim's (or the bridge's) state; the privileged fields are needed only when
-            `privileged` is True and ignored otherwise.
-        privileged: teacher (True) or student (False) inputs.
+        robot: the sim's (or the bridge's) state; a student reads only the object pose
+            (the estimator's) of the privileged fields.
+        previous_action: (B, A) raw action of the previous step, zeros at episode starts.
+        spec: which pieces, in which groups.
 
     Raises:
-        ValueError: a teacher observation without the privileged block.
+        ValueError: a missing input the spec needs, or a piece of the wrong width.
     """
-    joints = torch.cat((robot.q, robot.dq), dim=-1)  # (B, 14) x^q
-    if not privileged:
-        goal = pose_9d(robot.goal_pose)  # (B, 9) world frame
-        return Observation(
-            state=torch.cat((joints, robot.ee_pose, goal), dim=-1),  # (B, 14 + 9 + 9 = 32)
-            scene_query=torch.cat((joints, robot.ee_pose), dim=-1),  # (B, 14 + 9 = 23)
-            object_query=torch.cat((robot.ee_pose, goal), dim=-1),  # (B, 9 + 9 = 18)
-        )
-    if robot.object_pose is None or robot.object_velocity is None or robot.physics_params is None:
-        raise ValueError("a teacher observation needs the privileged block (object pose, "
-                         "object velocity, physics parameters)")  # fmt: skip
-    obj = pose_9d(robot.object_pose)  # (B, 9)
-    goal = relative_goal(robot.object_pose, robot.goal_pose)  # (B, 9)
-    state = torch.cat(  # (B, 14 + 9 + 9 + 6 + 6 + 9 = 53)
-        (joints, robot.ee_pose, obj, robot.object_velocity, robot.physics_params, goal), dim=-1
-    )
-    return Observation(
-        state=state,
-        scene_query=torch.cat((joints, robot.ee_pose, obj), dim=-1),  # (B, 14 + 9 + 9 = 32)
-        object_query=torch.cat((robot.ee_pose, goal), dim=-1),  # (B, 9 + 9 = 18)
-    )
+    pieces = _pieces(robot, previous_action, spec)
+    group = lambda name: torch.cat([pieces[n] for n in spec.names(name)], dim=-1)  # noqa: E731
+    return Observation(group("context"), group("base"), group("scene_query"), group("object_query"))
+

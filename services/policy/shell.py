@@ -5,7 +5,10 @@ same step), `sim/<w>/scene` (EnvCode of reset environments, for the EnvCode orac
 `trainer/weights` (WeightsAnnouncement). Produces `policy/<w>/action` (PolicyAction k:
 `header.step` = k, `header.policy_version` = the weights' version, raw action, log-prob,
 values, module weights). State and tokens are paired by step (`Pairing`); a state sent
-again after its answer gets the same answer again.
+again after its answer gets the same answer again. The network inputs come from the one
+input builder (`hamnet.policy.inputs`: previous action, memory resets, EnvCode cache).
+A student reads the object pose from the privileged block, where the sim stands in for the
+real robot's pose estimator (the estimator's error model is added unless switched off).
 
 Hot reload: an announcement is checked (sha256, metadata, architecture, config, tensor
 shapes, finiteness) and loaded into a second copy of the network, which replaces the serving
@@ -24,8 +27,9 @@ import numpy as np
 import torch
 
 from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.policy import inputs as builder
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import RobotObservation, assemble
+from hamnet.policy.observation import PoseNoiseConfig, RobotObservation
 from hamnet.policy.pairing import Pairing
 from hamnet.policy.policy import Action, Policy
 from hamnet.policy.registry import build
@@ -82,24 +86,24 @@ def _floats(owner, name: str, shape) -> torch.Tensor:
     return torch.tensor(field_array(owner, name, np.float32, shape))
 
 
-def decode_state(message: RobotState, privileged: bool) -> StateIn:
-    """RobotState k; the privileged block is required when `privileged` (a teacher).
+def decode_state(message: RobotState, privileged: bool, physics_params: int) -> StateIn:
+    """RobotState k: a teacher (`privileged`) reads the whole privileged block, a student
+    only its object pose (the pose estimator's stand-in).
 
+    Args:
+        physics_params: P, the width of the physics parameters.
     Raises:
         PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
     """
-    q = _floats(message, "q", (None, J))  # (B, 7)
+    q = _floats(message, "q", (None, J))  # (B, J)
     b = len(q)
-    extra: dict[str, torch.Tensor] = {}
+    if not message.HasField("privileged"):
+        raise PayloadError("missing", "RobotState.privileged is needed for the object pose")
+    block = message.privileged
+    extra = {"object_pose": _floats(block, "object_pose", (b, 7))}
     if privileged:
-        if not message.HasField("privileged"):
-            raise PayloadError("missing", "RobotState.privileged is needed by a teacher policy")
-        block = message.privileged
-        extra = {
-            "object_pose": _floats(block, "object_pose", (b, 7)),
-            "object_velocity": _floats(block, "object_velocity", (b, 6)),
-            "physics_params": _floats(block, "physics_params", (b, 6)),
-        }
+        extra["object_velocity"] = _floats(block, "object_velocity", (b, 6))
+        extra["physics_params"] = _floats(block, "physics_params", (b, physics_params))
     robot = RobotObservation(
         q=q,
         dq=_floats(message, "dq", (b, J)),
@@ -168,6 +172,9 @@ class ShellConfig:
     dropped."""
     report_period_s: float = 10.0
     """Seconds between rate lines in the log."""
+    student_pose_noise: bool = True
+    """Add the pose estimator's error model (`PoseNoiseConfig`) to a student's object pose:
+    on against the sim, off where the pose already comes from an estimator."""
 
     def __post_init__(self) -> None:
         if self.pending < 1:
@@ -188,8 +195,9 @@ class PolicyShell:
         model = policy.config
         ns, w = service.namespace, service.identity.worker
         inbox = service.inbox
-        inbox.subscribe("state", STATE.key(ns, w=w),
-                        decoder=lambda k, p: decode_state(parse(RobotState, p), model.privileged))
+        width = model.observation.physics_params
+        inbox.subscribe("state", STATE.key(ns, w=w), decoder=lambda k, p: decode_state(
+            parse(RobotState, p), model.privileged, width))
         inbox.subscribe("tokens", TOKENS.key(ns, w=w), decoder=lambda k, p: decode_tokens(
             parse(PerceptionTokens, p), model.num_tokens, model.token_dim))
         inbox.subscribe("scene", SCENE.key(ns, w=w),
@@ -199,11 +207,11 @@ class PolicyShell:
         self.action = service.publisher(ACTION.key(ns, w=w))
         self.pairing: Pairing[StateIn, TokensIn] = Pairing(self.config.pending)
         self.generator = torch.Generator(self.device).manual_seed(self.config.seed)
-        self.env_code = np.zeros((0, model.env_code_dim), np.float32)
-        """(B, 25) latest EnvCode of every environment (rows grow as scenes arrive)."""
-        self.memory: torch.Tensor | None = None
-        """(B, H) recurrent state of a student."""
-        self.episode_ids: np.ndarray | None = None
+        self.env_code = torch.zeros(0, model.env_code_dim, device=self.device)
+        """(E, 25) latest EnvCode of every environment (rows grow as scenes arrive)."""
+        self.carry: builder.Carry | None = None
+        """Previous action and memory of every environment (None before the first step)."""
+        self.pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
         self.answered: tuple[int, PolicyAction] | None = None
         self.counts = dict.fromkeys(("actions", "resent", "stale", "mismatch", "rejected"), 0)
         self.latencies: list[float] = []
@@ -245,12 +253,8 @@ class PolicyShell:
             self._serve(self.pairing.add_state(state.step, state))
 
     def _on_scene(self, env_ids: np.ndarray, env_code: np.ndarray) -> None:
-        rows = int(env_ids.max(initial=-1)) + 1
-        if rows > len(self.env_code):
-            grown = np.zeros((rows, self.env_code.shape[1]), np.float32)
-            grown[: len(self.env_code)] = self.env_code
-            self.env_code = grown
-        self.env_code[env_ids] = env_code
+        self.env_code = builder.store_env_code(
+            self.env_code, torch.from_numpy(env_ids).long(), torch.from_numpy(env_code))
 
     def _serve(self, pair: tuple[StateIn, TokensIn] | None) -> None:
         if pair is None:
@@ -265,7 +269,7 @@ class PolicyShell:
             action = self.policy.act(
                 self._inputs(state, tokens), self.config.deterministic, self.generator
             )
-        self.memory = action.memory
+        self.carry = builder.end_step(self.carry, action.action, action.memory)
         message = encode_action(state.step, self.version, state.episode_ids, action,
                                 self.config.deterministic)  # fmt: skip
         self.action.put(message)
@@ -274,43 +278,26 @@ class PolicyShell:
         self.latencies.append(time.monotonic() - started)
 
     def _inputs(self, state: StateIn, tokens: TokensIn) -> PolicyInputs:
-        """The network inputs of a pair, on the device, with memory reset at episode starts."""
+        """The network inputs of a pair, on the device (the builder zeroes the carry of
+        environments whose episode started)."""
         robot = RobotObservation(**{
             name: None if value is None else value.to(self.device)
             for name, value in vars(state.robot).items()
         })  # fmt: skip
-        b = len(state.episode_ids)
-        obj, local, whole = (t.to(self.device) for t in tokens.tokens)
-        return PolicyInputs(
-            observation=assemble(robot, self.policy.config.privileged),
-            object_tokens=obj,
-            local_tokens=local,
-            global_tokens=whole,
-            env_code=self._env_code(b),
-            memory=self._memory(state),
-        )
-
-    def _env_code(self, b: int) -> torch.Tensor | None:
-        if self.policy.config.scene_input != "env_code":
-            return None
-        if len(self.env_code) < b:
+        b, config = len(state.episode_ids), self.policy.config
+        if self.carry is None or len(self.carry.episode_ids) != b:
+            self.carry = builder.initial_carry(config, self.policy.memory_width, b, self.device)
+        ids = torch.from_numpy(state.episode_ids).to(self.device)
+        steps = torch.from_numpy(state.episode_step).to(self.device)
+        self.carry = builder.begin_step(self.carry, ids, steps)
+        if config.scene_input == "env_code" and len(self.env_code) < b:
             log.warning("no scene yet for environments %d..%d: their EnvCode is zero",
                         len(self.env_code), b - 1)  # fmt: skip
             self._on_scene(np.arange(b), np.zeros((b, self.env_code.shape[1]), np.float32))
-        return torch.tensor(self.env_code[:b], device=self.device)
-
-    def _memory(self, state: StateIn) -> torch.Tensor | None:
-        """(B, H) recurrent memory, zeroed where an episode starts."""
-        b = len(state.episode_ids)
-        if not self.policy.memory_width:
-            return None
-        if self.memory is None or len(self.memory) != b or self.episode_ids is None:
-            self.memory = self.policy.initial_memory(b)
-        else:
-            starts = (state.episode_step == 0) | (state.episode_ids != self.episode_ids)  # (B,)
-            self.memory[torch.from_numpy(starts).to(self.device)] = 0.0
-        self.episode_ids = state.episode_ids
-        return self.memory
+        return builder.policy_inputs(
+            config, self.carry, robot, tuple(t.to(self.device) for t in tokens.tokens),
+            self.env_code, self.pose_noise, self.generator,
+        )  # fmt: skip
 
     def _on_weights(self, message: WeightsAnnouncement) -> None:
         version = message.version

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import torch
 
+from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import RobotObservation, assemble
 from hamnet.policy.policy import Policy
+from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 
 
 def random_robot(batch: int, seed: int = 0) -> RobotObservation:
@@ -15,7 +17,15 @@ def random_robot(batch: int, seed: int = 0) -> RobotObservation:
     r = lambda *shape: torch.randn(*shape, generator=g)  # noqa: E731
     unit = lambda q: q / q.norm(dim=-1, keepdim=True)  # noqa: E731
     pose = lambda: torch.cat((r(batch, 3), unit(r(batch, 4))), dim=-1)  # noqa: E731
-    return RobotObservation(r(batch, 7), r(batch, 7), r(batch, 9), pose(), pose(), r(batch, 6), r(batch, 6))
+    return RobotObservation(
+        r(batch, J), r(batch, J), r(batch, 9), pose(), pose(), r(batch, 6),
+        r(batch, len(PHYSICS_PARAM_NAMES)),
+    )  # fmt: skip
+
+
+def random_action(batch: int, seed: int = 0) -> torch.Tensor:
+    """(B, A) a previous action."""
+    return torch.randn(batch, 21, generator=torch.Generator().manual_seed(seed + 2))
 
 
 def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs:
@@ -24,7 +34,7 @@ def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs
     g = torch.Generator().manual_seed(seed + 1)
     tokens = lambda: torch.randn(batch, config.num_tokens, config.token_dim, generator=g)  # noqa: E731
     return PolicyInputs(
-        observation=assemble(random_robot(batch, seed), config.privileged),
+        observation=assemble(random_robot(batch, seed), random_action(batch, seed), config.observation),
         object_tokens=tokens(),
         local_tokens=tokens(),
         global_tokens=tokens(),

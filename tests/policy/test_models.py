@@ -41,12 +41,12 @@ def test_hamnet_reports_one_softmax_per_actor_and_critic_layer() -> None:
     assert policy.act(random_inputs(policy, B)).module_weights.shape == (B, 10, 8)
 
 
-def naive_modular(layer: ModularLinear, x, weights, bias_weights, gate):
-    """Per-sample reference: build each sample's weight matrix, then multiply."""
+def naive_modular(layer: ModularLinear, x, weights, bias_weights, gates):
+    """Per-sample reference: build each sample's gated weight matrix and bias, then multiply."""
+    gate, bias_gate = gates if gates is not None else (1.0, 1.0)
     matrices = torch.einsum("bm,mji->bji", weights, layer.weight)  # (B, J, I)
     bias = bias_weights @ layer.bias  # (B, I)
-    y = torch.bmm(x.unsqueeze(1), matrices).squeeze(1) + bias
-    return y * gate
+    return torch.bmm(x.unsqueeze(1), matrices).squeeze(1) * gate + bias * bias_gate
 
 
 @pytest.mark.parametrize("chunk", [1024, 3])
@@ -59,11 +59,11 @@ def test_module_contraction_equals_per_sample_weight_matrices(chunk: int, monkey
     layer = layer.double()
     weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
     bias_weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
-    gate = 1 + 0.1 * torch.randn(B, 11, dtype=torch.float64)
-    torch.testing.assert_close(layer(x, weights, bias_weights, gate), naive_modular(layer, x, weights, bias_weights, gate))
+    gates = tuple(1 + 0.1 * torch.randn(B, 11, dtype=torch.float64) for _ in range(2))
+    torch.testing.assert_close(layer(x, weights, bias_weights, gates), naive_modular(layer, x, weights, bias_weights, gates))
     # The hand-written backward against autograd through the naive reference.
-    inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, gate)]
-    assert torch.autograd.gradcheck(lambda *a: layer(*a), inputs)
+    inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, *gates)]
+    assert torch.autograd.gradcheck(lambda x, w, v, g, h: layer(x, w, v, (g, h)), inputs)
 
 
 def test_hamnet_forward_equals_naive_reference_to_1e5() -> None:
@@ -117,13 +117,15 @@ def test_gradients_reach_every_module(name: str) -> None:
             assert parameter.grad.abs().sum() > 0, parameter_name
 
 
-def test_absorbed_cross_attention_equals_standard_attention() -> None:
+@pytest.mark.parametrize("embed_tokens", [False, True])
+def test_absorbed_cross_attention_equals_standard_attention(embed_tokens: bool) -> None:
     torch.manual_seed(0)
-    attention = CrossAttention(query_dim=5, token_dim=12, dim=8, heads=2).double()
+    attention = CrossAttention(5, 12, 8, 2, (6, 3), embed_tokens).double()
     query, tokens = torch.randn(B, 5).double(), torch.randn(B, 7, 12).double()
     q = attention.query(query).view(B, 2, 1, 4)  # (B, H, 1, E/H)
-    k = torch.einsum("hed,bnd->bhne", attention.key, tokens)  # (B, H, N, E/H)
-    v = torch.einsum("hed,bnd->bhne", attention.value, tokens)
+    keys = attention.embed(tokens) if embed_tokens else tokens  # (B, N, D')
+    k = torch.einsum("hed,bnd->bhne", attention.key, keys)  # (B, H, N, E/H)
+    v = torch.einsum("hed,bnd->bhne", attention.value, keys)
     standard = F.scaled_dot_product_attention(q, k, v).reshape(B, 8)
     torch.testing.assert_close(attention(query, tokens), attention.out(standard))
 
@@ -166,3 +168,36 @@ def test_student_memory_carries_information_between_steps() -> None:
 def test_teacher_config_refuses_a_recurrent_baseline() -> None:
     with pytest.raises(ValueError, match="no recurrent variant"):
         build("mlp", with_changes("mlp", recurrent=True))
+
+
+def test_hamnet_biases_have_their_own_softmax_and_the_output_layers_no_gates() -> None:
+    """The authors give every parameter tensor its own module weights and leave the output
+    layer ungated (hypernet_modular.py:956-962, 1029-1049): a shared softmax would make
+    the two weight sets equal, a gated output layer would show a gate at the last index."""
+    policy = build("hamnet", seed=0)
+    network: HAMNet = policy.network
+    with torch.no_grad():
+        network.heads.weight.normal_()  # gates away from their initial 1
+    captured = {}
+    hook = network.actor.register_forward_hook(lambda m, args, out: captured.update(args=args))
+    network(random_inputs(policy, B))
+    hook.remove()
+    _, weights, bias_weights, gates = captured["args"]
+    assert not torch.allclose(weights, bias_weights)
+    assert gates[-1] is None and len(gates) == len(network.actor.layers)
+    for (gate, bias_gate), width in zip(gates[:-1], network.actor.out_dims):
+        assert gate.shape == bias_gate.shape == (B, width) and not torch.allclose(gate, bias_gate)
+
+
+def test_modulation_reads_the_emb_token_last() -> None:
+    """The authors append [EMB] after the patch tokens (unicorn.py:153-154) and read the
+    last token (reduce "last", rss_train.yaml:324): token 0 is a patch and must not matter."""
+    policy = build("hamnet", seed=0)
+    context = policy.network.context
+    inputs = random_inputs(policy, B)
+    base = context(inputs)
+    tokens = inputs.object_tokens.clone()
+    tokens[:, 0] += 1.0
+    torch.testing.assert_close(context(dataclasses.replace(inputs, object_tokens=tokens)), base)
+    tokens[:, -1] += 1.0
+    assert not torch.allclose(context(dataclasses.replace(inputs, object_tokens=tokens)), base)

@@ -23,12 +23,15 @@ from tests.scripted import ScriptedService, wire
 B = 3
 
 
-def expected(policy, step: int, env_code: np.ndarray | None = None) -> torch.Tensor:
-    """The deterministic action for step `step` computed by the core directly."""
+def expected(policy, step: int, env_code: np.ndarray | None = None, previous=None) -> torch.Tensor:
+    """The deterministic action for step `step` computed by the core directly, after the
+    action `previous` (B, 21) of the same episodes (None: their first step)."""
+    previous = torch.zeros(B, 21) if previous is None else previous
     g = torch.Generator().manual_seed(10_000 + step)
     obj, local, whole = (torch.randn(B, 17, 128, generator=g) for _ in range(3))
     inputs = PolicyInputs(
-        assemble(random_robot(B, seed=step), policy.config.privileged), obj, local, whole,
+        assemble(random_robot(B, seed=step), previous, policy.config.observation),
+        obj, local, whole,
         None if env_code is None else torch.tensor(env_code), policy.initial_memory(B),
     )  # fmt: skip
     with torch.no_grad():
@@ -44,13 +47,13 @@ def run(policy, messages: list[tuple[str, object]]) -> tuple[list, PolicyShell]:
         return "end" if item is None else (item[0], encode(item[1]))
 
     service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
-    shell = PolicyShell(service, policy, 0, ShellConfig(deterministic=True))
+    shell = PolicyShell(service, policy, 0, ShellConfig(deterministic=True, student_pose_noise=False))
     shell.run()
     return [message for topic, message in service.published if topic == "action"], shell
 
 
 def test_state_and_tokens_decode_to_what_was_sent() -> None:
-    state = decode_state(wire(state_message(5, B)), privileged=True)
+    state = decode_state(wire(state_message(5, B)), privileged=True, physics_params=6)
     robot = random_robot(B, seed=5)
     assert state.step == 5 and state.episode_ids.shape == (B,)
     for name in ("q", "ee_pose", "object_velocity", "physics_params"):
@@ -59,12 +62,15 @@ def test_state_and_tokens_decode_to_what_was_sent() -> None:
     assert [t.shape for t in tokens.tokens] == [(B, 17, 128)] * 3
 
 
-def test_teacher_refuses_a_state_without_privileged_block() -> None:
+def test_a_state_without_privileged_block_is_refused() -> None:
+    """Teacher and student alike need the object pose (the student's is the estimator's)."""
     message = state_message(1, B)
     message.ClearField("privileged")
-    with pytest.raises(PayloadError, match="privileged"):
-        decode_state(message, privileged=True)
-    assert decode_state(message, privileged=False).robot.object_pose is None
+    for privileged in (True, False):
+        with pytest.raises(PayloadError, match="privileged"):
+            decode_state(message, privileged=privileged, physics_params=6)
+    student = decode_state(state_message(1, B), privileged=False, physics_params=6).robot
+    assert student.object_pose is not None and student.physics_params is None
 
 
 def test_pairs_by_step_in_any_order_and_a_lost_half_blocks_nothing() -> None:
@@ -76,9 +82,12 @@ def test_pairs_by_step_in_any_order_and_a_lost_half_blocks_nothing() -> None:
         ("tokens", tokens_message(1, B)),  # too late: step 2 is answered
     ])  # fmt: skip
     assert [a.header.step for a in actions] == [0, 2]
+    previous = None  # step 2 follows the last answered action, step 0's
     for message in actions:
         got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
-        torch.testing.assert_close(got, expected(policy, message.header.step), atol=1e-5, rtol=1e-5)
+        want = expected(policy, message.header.step, previous=previous)
+        torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+        previous = got
         assert message.deterministic and tuple(message.module_weights.shape) == (B, 10, 8)
         assert tuple(message.values.shape) == (B, 3) and tuple(message.log_prob.shape) == (B,)
     assert shell.pairing.dropped["superseded"] == 1 and shell.counts["stale"] == 1
@@ -119,10 +128,12 @@ def test_hot_reload_swaps_between_batches_and_bad_weights_keep_the_old_ones() ->
     actions, shell = run(serving, messages)
     assert [(a.header.step, a.header.policy_version) for a in actions] == [(0, 0), (1, 1), (2, 1)]
     reference = {0: build("hamnet", seed=0), 1: newer, 2: newer}
+    previous = None
     for message in actions:
         got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
-        want = expected(reference[message.header.step], message.header.step)
+        want = expected(reference[message.header.step], message.header.step, previous=previous)
         torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+        previous = got
     assert shell.counts["rejected"] == 5 and shell.version == 1
 
 

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from hamnet.policy.policy import Policy
+from hamnet.policy.weights import sha256, to_bytes
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.proto.trainer_pb2 import WeightsAnnouncement
-from hamnet.policy.policy import Policy
-from hamnet.policy.weights import sha256, to_bytes
 from hamnet.runtime.tensor import to_tensor
 from tests.policy.inputs import random_robot
 

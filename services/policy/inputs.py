@@ -1,0 +1,116 @@
+"""The one input builder of the policy: robot state, tokens and what is carried between
+steps (previous action, recurrent memory, EnvCode) to `PolicyInputs`. Pure, batched torch
+without Zenoh: the policy service (`hamnet.policy.shell`) calls it per message, a trainer
+calls it in-process on `VectorEnv` observations, and both see the same inputs.
+
+A step is `begin_step` (zero the carry of environments whose episode started), then
+`policy_inputs`, then `end_step` with what the policy did. The previous action is the raw
+action the policy returned (the authors' AddPrevAction stores the action passed to step
+and zeroes it at resets, ham/scripts/env_wrappers.py:1040-1053). Shapes: B environments,
+A action components, H memory, C EnvCode width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from hamnet.policy.config import ModelConfig
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import PoseNoiseConfig, RobotObservation, assemble, estimated_pose
+
+
+@dataclass(frozen=True)
+class Carry:
+    """What the builder remembers of every environment between two steps."""
+
+    episode_ids: Tensor
+    """(B,) int64 episode of the last step (-1 before the first)."""
+    previous_action: Tensor
+    """(B, A) raw action of the last step; zeros at an episode start."""
+    memory: Tensor | None
+    """(B, H) recurrent memory of a student; None for a feed-forward policy."""
+
+
+def initial_carry(config: ModelConfig, memory_width: int, batch: int, device="cpu") -> Carry:
+    """The carry of `batch` environments before their first step."""
+    memory = torch.zeros(batch, memory_width, device=device) if memory_width else None
+    return Carry(
+        episode_ids=torch.full((batch,), -1, dtype=torch.int64, device=device),
+        previous_action=torch.zeros(batch, config.action_dim, device=device),
+        memory=memory,
+    )
+
+
+def begin_step(carry: Carry, episode_ids: Tensor, episode_step: Tensor) -> Carry:
+    """The carry with the rows of new episodes zeroed.
+
+    Args:
+        episode_ids: (B,) int64 episode of every environment at this step.
+        episode_step: (B,) policy steps since each episode started (0 at its first).
+    """
+    if len(episode_ids) != len(carry.episode_ids):
+        raise ValueError(f"carry of {len(carry.episode_ids)} environments, step of {len(episode_ids)}")
+    keep = ((episode_step != 0) & (episode_ids == carry.episode_ids)).unsqueeze(1)  # (B, 1)
+    memory = None if carry.memory is None else carry.memory * keep
+    return Carry(episode_ids, carry.previous_action * keep, memory)
+
+
+def end_step(carry: Carry, action: Tensor, memory: Tensor | None) -> Carry:
+    """The carry after the policy acted: its raw action (B, A) and next memory (B, H)."""
+    return Carry(carry.episode_ids, action.detach(), None if memory is None else memory.detach())
+
+
+def store_env_code(cache: Tensor, env_ids: Tensor, env_code: Tensor) -> Tensor:
+    """The EnvCode cache (E, C) with rows `env_ids` (K,) set to `env_code` (K, C); it grows
+    to cover the largest id (scenes arrive only for environments that were reset)."""
+    rows = max(len(cache), int(env_ids.max()) + 1 if len(env_ids) else 0)
+    grown = cache.new_zeros(rows, cache.shape[1])
+    grown[: len(cache)] = cache
+    grown[env_ids] = env_code.to(grown)
+    return grown
+
+
+def policy_inputs(
+    config: ModelConfig,
+    carry: Carry,
+    robot: RobotObservation,
+    tokens: tuple[Tensor, Tensor, Tensor],
+    env_code: Tensor | None = None,
+    pose_noise: PoseNoiseConfig | None = None,
+    generator: torch.Generator | None = None,
+) -> PolicyInputs:
+    """The network inputs of one step.
+
+    Args:
+        config: the policy's architecture.
+        carry: after `begin_step` of this step.
+        robot: the state; for a student `object_pose` is the simulator's true pose (with
+            `pose_noise`) or a pose estimator's (real robot, `pose_noise` None).
+        tokens: object, local and global tokens, (B, N, D) each.
+        env_code: (>= B, C) EnvCode cache, for the EnvCode oracle only.
+        pose_noise: the estimator's error model, applied to a student's object pose.
+        generator: of the pose noise.
+    """
+    if not config.privileged and pose_noise is not None and robot.object_pose is not None:
+        robot = RobotObservation(
+            robot.q, robot.dq, robot.ee_pose, robot.goal_pose,
+            estimated_pose(robot.object_pose, pose_noise, generator),
+        )  # fmt: skip
+    b = len(robot.q)
+    code = None
+    if config.scene_input == "env_code":
+        if env_code is None or len(env_code) < b:
+            raise ValueError(f"the EnvCode oracle needs the EnvCode of all {b} environments")
+        code = env_code[:b]
+    obj, local, whole = tokens
+    return PolicyInputs(
+        observation=assemble(robot, carry.previous_action, config.observation),
+        object_tokens=obj,
+        local_tokens=local,
+        global_tokens=whole,
+        env_code=code,
+        memory=carry.memory,
+    )
