@@ -43,10 +43,14 @@ def inputs(policy: Policy, batch: int) -> PolicyInputs:
     g = torch.Generator().manual_seed(batch)
     r = lambda *shape: torch.randn(*shape, generator=g)  # noqa: E731
     pose = lambda: torch.cat((r(batch, 3), torch.nn.functional.normalize(r(batch, 4), dim=-1)), -1)  # noqa: E731
-    robot = RobotObservation(r(batch, 7), r(batch, 7), r(batch, 9), pose(), pose(), r(batch, 6), r(batch, 6))
     c = policy.config
+    spec = c.observation
+    j = spec.num_joints
+    robot = RobotObservation(
+        r(batch, j), r(batch, j), r(batch, 9), pose(), pose(), r(batch, 6), r(batch, spec.physics_params)
+    )  # fmt: skip
     return PolicyInputs(
-        assemble(robot, c.privileged), r(batch, c.num_tokens, c.token_dim),
+        assemble(robot, r(batch, c.action_dim), spec), r(batch, c.num_tokens, c.token_dim),
         r(batch, c.num_tokens, c.token_dim), r(batch, c.num_tokens, c.token_dim),
         r(batch, c.env_code_dim), policy.initial_memory(batch),
     )  # fmt: skip

@@ -78,8 +78,9 @@ class EncoderConfig:
     """Self-attention heads."""
     mlp_ratio: int = 2
     """Hidden width of each transformer layer's MLP, in multiples of `width`."""
-    tokenizer_hidden: int = 64
-    """Hidden width of the per-point MLP of the patch tokenizer (max-pooled over a patch)."""
+    tokenizer_hidden: tuple[int, ...] = (256, 256)
+    """Hidden widths of the MLP over each flattened patch (the authors' MLPPatchEncoder,
+    ham/models/cloud/point_mae.py:772)."""
     frequencies: int = 16
     """Sinusoidal frequencies per coordinate of the positional embedding of the centres."""
     max_wavelength: float = 4.0
@@ -88,7 +89,11 @@ class EncoderConfig:
 
     def __post_init__(self) -> None:
         _at_least(self, 1, "num_patches", "patch_size", "width", "depth", "heads", "mlp_ratio")
-        _at_least(self, 1, "tokenizer_hidden", "frequencies")
+        _at_least(self, 1, "frequencies")
+        hidden = self.tokenizer_hidden
+        if not isinstance(hidden, tuple) or not hidden or min(hidden) < 1:
+            raise ValueError(f"tokenizer_hidden must be a tuple of positive widths (the MLP over "
+                             f"the flattened patch), got {hidden!r}")  # fmt: skip
         if self.width % self.heads:
             raise ValueError(f"width ({self.width}) must be divisible by heads ({self.heads})")
         if self.patch_size > self.num_points or self.num_patches > self.num_points:
@@ -96,7 +101,7 @@ class EncoderConfig:
 
     @property
     def num_tokens(self) -> int:
-        """Tokens per cloud: [EMB] first, then one per patch."""
+        """Tokens per cloud: one per patch, then [EMB]."""
         return self.num_patches + 1
 
     def to_json(self) -> str:
@@ -106,7 +111,8 @@ class EncoderConfig:
     @classmethod
     def from_json(cls, text: str) -> EncoderConfig:
         """Inverse of `to_json`; unknown or missing fields raise TypeError."""
-        return cls(**json.loads(text))
+        values = json.loads(text)
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
 
 
 @dataclass(frozen=True)

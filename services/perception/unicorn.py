@@ -1,12 +1,17 @@
-"""The UniCORN geometry encoder: a point cloud (B, P, 3) to tokens (B, 1 + K, D), [EMB]
-first (paper Fig. pretraining_network and section "Training UniCORN"; Table tab:network).
+"""The UniCORN geometry encoder: a point cloud (B, P, 3) to tokens (B, K + 1, D), [EMB]
+last (paper Fig. pretraining_network and section "Training UniCORN"; Table tab:network;
+where the paper leaves it open, the authors' code: ham/models/cloud/unicorn.py and
+point_mae.py).
 
-Patchify: K centres by farthest-point sampling, each with its k nearest points, centred on
-it. Tokenize: a per-point MLP max-pooled over the patch (a mini-PointNet, so the order of
-the points inside a patch does not matter). Add a sinusoidal embedding of the centre (a
-linear map of sin/cos features), prepend the learned [EMB] token, and run pre-LN
-transformer layers. Everything is batched: no Python loop runs per cloud or per patch
-(FPS loops over the K centres, each step for the whole batch).
+Patchify: K centres by farthest-point sampling, each with its k nearest points sorted by
+distance; the patch is re-centred on its mean (GroupFPSV2 recenter, point_mae.py:1074-1075)
+and its points taken relative to it (unicorn.py:122). Tokenize: an MLP over the flattened
+patch (k x 3 -> 256 -> 256 -> D, Linear-LN-GELU, MLPPatchEncoder, point_mae.py:769-816),
+plus a sinusoidal embedding of the centre (a linear map of sin/cos features). The learned
+[EMB] token goes after the patch tokens (z_ctx appended, unicorn.py:153-154; the policy
+reads the last token, rss_train.yaml:324), then pre-LN transformer layers. Everything is
+batched: no Python loop runs per cloud or per patch (FPS loops over the K centres, each
+step for the whole batch).
 """
 
 from __future__ import annotations
@@ -21,13 +26,15 @@ from hamnet.perception.config import EncoderConfig
 
 
 def patchify(points: torch.Tensor, num_patches: int, patch_size: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Centres and centre-normalised patches of clouds (B, P, 3).
+    """Centres and centre-relative patches of clouds (B, P, 3).
 
     Returns:
-        centres (B, K, 3) and patches (B, K, k, 3) (each point minus its centre), m.
+        centres (B, K, 3), the mean of each patch, and patches (B, K, k, 3) (each point
+        minus its patch's centre, nearest to the FPS seed first), m.
     """
-    centres = gather(points, farthest_point_sample(points, num_patches))  # (B, K, 3)
-    patches = gather(points, knn(points, centres, patch_size))  # (B, K, k, 3)
+    seeds = gather(points, farthest_point_sample(points, num_patches))  # (B, K, 3)
+    patches = gather(points, knn(points, seeds, patch_size))  # (B, K, k, 3), sorted
+    centres = patches.mean(dim=2)  # (B, K, 3)
     return centres, patches - centres[:, :, None, :]
 
 
@@ -50,23 +57,24 @@ class SinusoidalEmbedding(nn.Module):
 
 
 class PatchTokenizer(nn.Module):
-    """Per-point MLP, max-pooled over the patch, then a linear map to the width."""
+    """An MLP over the flattened patch: k x 3 -> tokenizer_hidden -> width, Linear -> LN ->
+    GELU between layers, linear output (the authors' MLPPatchEncoder)."""
 
     def __init__(self, config: EncoderConfig) -> None:
         super().__init__()
-        hidden = config.tokenizer_hidden
-        self.point = nn.Sequential(
-            nn.Linear(3, hidden), nn.GELU(), nn.Linear(hidden, 2 * hidden), nn.GELU()
-        )
-        self.out = nn.Linear(2 * hidden, config.width)
+        dims = (3 * config.patch_size, *config.tokenizer_hidden, config.width)
+        layers: list[nn.Module] = []
+        for i, o in zip(dims[:-2], dims[1:-1]):
+            layers += [nn.Linear(i, o), nn.LayerNorm(o), nn.GELU()]
+        self.mlp = nn.Sequential(*layers, nn.Linear(dims[-2], dims[-1]))
 
     def forward(self, patches: torch.Tensor) -> torch.Tensor:
         """patches (B, K, k, 3) -> tokens (B, K, D)."""
-        return self.out(self.point(patches).amax(-2))
+        return self.mlp(patches.flatten(-2))
 
 
 class UniCORN(nn.Module):
-    """Point clouds (B, P, 3) to tokens (B, 1 + num_patches, width); token 0 is [EMB]."""
+    """Point clouds (B, P, 3) to tokens (B, num_patches + 1, width); the last is [EMB]."""
 
     def __init__(self, config: EncoderConfig | None = None) -> None:
         super().__init__()
@@ -84,13 +92,13 @@ class UniCORN(nn.Module):
         self.norm = nn.LayerNorm(config.width)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
-        """points (B, P, 3), m -> tokens (B, 1 + K, D)."""
+        """points (B, P, 3), m -> tokens (B, K + 1, D)."""
         config = self.config
         if points.ndim != 3 or points.shape[1:] != (config.num_points, 3):
             raise ValueError(f"expected clouds (B, {config.num_points}, 3), got {tuple(points.shape)}")
         centres, patches = patchify(points, config.num_patches, config.patch_size)
         tokens = self.tokenizer(patches) + self.position(centres)  # (B, K, D)
-        tokens = torch.cat([self.emb.expand(len(points), -1, -1), tokens], 1)  # (B, 1 + K, D)
+        tokens = torch.cat([tokens, self.emb.expand(len(points), -1, -1)], 1)  # (B, K + 1, D)
         for layer in self.layers:
             tokens = layer(tokens)
         return self.norm(tokens)

@@ -1,4 +1,4 @@
-"""The UniCORN encoder (shapes, [EMB] first, invariance to the order of the points,
+"""The UniCORN encoder (shapes, [EMB] last, invariance to the order of the points,
 batch independence), its checkpoints (round trip, clear errors) and the cached core."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from hamnet.perception.checkpoint import (
 from hamnet.perception.clouds import Cuboids, pose_points
 from hamnet.perception.config import CloudConfig, EncoderConfig
 from hamnet.perception.core import EpisodeScenes, Perception
-from hamnet.perception.unicorn import UniCORN, patchify
+from hamnet.perception.unicorn import PatchTokenizer, UniCORN, patchify
 
 SMALL = EncoderConfig(num_points=128, num_patches=8, patch_size=16, width=32, depth=2, heads=4)
 
@@ -46,13 +46,38 @@ def test_each_cloud_is_encoded_on_its_own() -> None:
         torch.testing.assert_close(encoder(points)[1:2], encoder(points[1:2]), atol=1e-5, rtol=0)
 
 
-def test_patches_are_centred_knn_groups_of_fps_centres() -> None:
+def test_patches_are_knn_groups_of_fps_seeds_centred_on_their_mean() -> None:
+    """The authors re-centre each patch on its mean (point_mae.py:1074-1075)."""
     points = torch.rand(2, 128, 3)
     centres, patches = patchify(points, 8, 16)
     assert centres.shape == (2, 8, 3) and patches.shape == (2, 8, 16, 3)
-    assert float(patches[:, :, 0].abs().max()) == 0.0  # the nearest point is the centre itself
-    radius = patches.norm(dim=-1)  # (B, K, k): sorted, nearest first
-    assert bool((radius[..., 1:] >= radius[..., :-1]).all())
+    torch.testing.assert_close(patches.mean(dim=2), torch.zeros(2, 8, 3), atol=1e-6, rtol=0)
+    seed = patches[:, :, :1]  # the FPS seed is its own nearest neighbour: first
+    radius = (patches - seed).norm(dim=-1)  # (B, K, k): sorted, nearest to the seed first
+    assert bool((radius[..., 1:] >= radius[..., :-1] - 1e-6).all())
+
+
+def test_tokenizer_is_an_mlp_over_the_flattened_patch() -> None:
+    """Paper: an MLP over the flattened patch, not a max-pooled PointNet: swapping two points
+    of a patch changes its token (a pooled tokenizer would give the same one)."""
+    torch.manual_seed(0)
+    tokenizer = PatchTokenizer(SMALL)
+    assert tokenizer.mlp[0].in_features == 3 * SMALL.patch_size
+    patches = torch.rand(1, 2, SMALL.patch_size, 3)
+    swapped = patches[:, :, [1, 0, *range(2, SMALL.patch_size)]]
+    assert not torch.allclose(tokenizer(patches), tokenizer(swapped))
+
+
+def test_emb_is_the_last_token() -> None:
+    """The authors append [EMB] after the patches (unicorn.py:153-154); the policy reads the
+    last token. Before the transformer, the last token is the learned [EMB] itself."""
+    encoder = UniCORN(SMALL).eval()
+    captured = {}
+    hook = encoder.layers[0].register_forward_pre_hook(lambda m, args: captured.update(x=args[0]))
+    with torch.no_grad():
+        encoder(torch.rand(2, 128, 3))
+    hook.remove()
+    torch.testing.assert_close(captured["x"][:, -1], encoder.emb[0].expand(2, -1))
 
 
 def test_wrong_cloud_shape_is_a_clear_error() -> None:
@@ -131,3 +156,15 @@ def test_core_caches_scene_and_object_tokens_and_follows_the_object() -> None:
     torch.testing.assert_close(third.global_tokens[[0, 2]], first.global_tokens[[0, 2]])
     assert not torch.allclose(third.global_tokens[1], first.global_tokens[1])
     np.testing.assert_array_equal(core.episode_ids.numpy(), [0, 9, 2])
+
+
+def test_a_checkpoint_of_the_pooled_tokenizer_fails_with_the_reason(tmp_path) -> None:
+    """Checkpoints written before the flattened-patch MLP (tokenizer_hidden was one int)
+    must not load, and the error must name the field."""
+    from safetensors.torch import save_file
+
+    old = SMALL.to_json().replace('"tokenizer_hidden": [256, 256]', '"tokenizer_hidden": 64')
+    save_file({"emb": torch.zeros(1, 1, 32)}, str(tmp_path / "old.safetensors"),
+              metadata={"hamnet.encoder.config": old, "hamnet.encoder.version": "1"})  # fmt: skip
+    with pytest.raises(CheckpointError, match="invalid encoder metadata.*tokenizer_hidden"):
+        load_checkpoint(tmp_path / "old.safetensors")
