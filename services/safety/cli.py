@@ -1,9 +1,11 @@
 """`hamnet safety`: the safety filter between policy and robot over Zenoh, with the watchdog
 and the e-stop queryable (see `hamnet.safety.shell` for the topics and the timing).
 
-Stages are configured under `--safety.<stage>.<field>` (e.g.
-`--safety.cartesian-clip.eps-x 0.1`), the reference under `--trajectory.<field>` (80 Hz
-samples for the sim, `--trajectory.control-rate-hz 1000` for libfranka).
+`--profile` picks the stage switches for a use (training, finetune, deploy: see
+`hamnet.safety.config.with_profile`; deploy, the full chain with Ruckig, by default). Stages
+are configured under `--safety.<stage>.<field>` (e.g. `--safety.cartesian-clip.eps-x 0.1`),
+the reference under `--trajectory.<field>` (80 Hz samples for the sim,
+`--trajectory.control-rate-hz 1000` for libfranka).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Annotated
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
-from hamnet.safety.config import SafetyConfig
+from hamnet.safety.config import Profile, SafetyConfig, with_profile
 from hamnet.safety.shell import SafetyShell, ShellConfig
 from hamnet.safety.trajectory import TrajectoryConfig
 
@@ -24,6 +26,9 @@ class SafetyServiceConfig:
     """One safety worker: the filter's stages, its reference, the watchdog and reports."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    profile: Profile = "deploy"
+    """training (the paper's MDP: no Cartesian clip, no pre-clip, the target on every sample),
+    finetune (training plus the annealed Cartesian clip) or deploy (every stage, Ruckig)."""
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     """Stages 1-5 and 7 of the filter."""
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
@@ -39,4 +44,5 @@ def main(argv: Sequence[str]) -> int:
     """Run `hamnet safety` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "safety", __doc__)
     with Service(identity, config.common.transport) as service:
-        return SafetyShell(service, config.loop, config.safety, config.trajectory).run()
+        safety = with_profile(config.profile, config.safety)
+        return SafetyShell(service, config.loop, safety, config.trajectory).run()
