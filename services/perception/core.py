@@ -79,7 +79,7 @@ class EpisodeScenes:
 
 @dataclass(frozen=True)
 class Percepts:
-    """One step of every environment: clouds (world frame, m) and tokens ([EMB] first)."""
+    """One step of every environment: clouds (world frame, m) and tokens ([EMB] last)."""
 
     object_cloud: torch.Tensor  # (B, P, 3)
     environment_cloud: torch.Tensor  # (B, P, 3)
