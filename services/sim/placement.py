@@ -7,8 +7,9 @@ start positions and wxyz quaternions and a validity mask. Each environment draws
 number of candidates at once and keeps the first that passes, so there is no loop that
 could run forever: an environment with no passing candidate is reported invalid (resample
 its scene). The goal is drawn first, biased toward elevated plates; the start then prefers
-faces lower than the goal and keeps its distance from the goal in position and orientation,
-so an episode never starts in success. Shapes: B environments, K stable orientations,
+faces lower than the goal and keeps its distance from the goal in position or orientation
+(the authors' rule, so in-place reorientations occur), so an episode never starts in
+success. Shapes: B environments, K stable orientations,
 T tries, R regions.
 """
 
@@ -27,10 +28,16 @@ from hamnet.sim.scene import SceneBatch
 class PlacementConfig:
     """How goal and start poses are drawn."""
 
-    min_position_separation: float = 0.1
-    """Smallest distance between goal and start positions, m (paper's success radius)."""
+    min_position_separation: float = 0.05
+    """A start this far from the goal's position or farther is accepted, m: the success
+    radius (the authors accept a pair when pos_err > goal_radius or orn_err > goal_angle,
+    ham/src/ham/env/episode/goal_obj_pose.py:164-167, with goal_radius 0.05,
+    rss_train.yaml:122, scaled by sample_thresh 1.0, rss_train.yaml:132-134)."""
     min_orientation_separation: float = 0.1
-    """Smallest angle between goal and start orientations, rad (paper's success angle)."""
+    """... or this far from its orientation, rad: the success angle (rss_train.yaml:123)."""
+    require_both_separations: bool = False
+    """True: the start must differ in position and in orientation (no in-place
+    reorientation or pure translation: stricter than the authors)."""
     elevated_goal_bias: float = 10.0
     """Weight, relative to 1, of faces above the table top when drawing the goal, and of faces
     lower than the goal when drawing the start; 1 draws both by area alone."""
@@ -128,9 +135,9 @@ def sample_placements(
     start = _candidates(rng, scene, area * np.where(lower, bias, 1.0), objects, config)
     distance = np.linalg.norm(start.pos - goal.pos[:, None], axis=-1)  # (B, T), m
     angle = quaternion.angle_between(start.quat, goal.quat[:, None])  # (B, T), rad
-    separated = (distance >= config.min_position_separation) & (
-        angle >= config.min_orientation_separation
-    )
+    far = distance >= config.min_position_separation  # (B, T)
+    turned = angle >= config.min_orientation_separation  # (B, T)
+    separated = (far & turned) if config.require_both_separations else (far | turned)
     start = _pick(start._replace(valid=start.valid & separated))
     return Placement(
         goal_pos=goal.pos,

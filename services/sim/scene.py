@@ -5,7 +5,9 @@
 half-extent arrays with an active mask, the table friction, the 25-d scene parameter vector
 (EnvCode) for the oracle ablation, and the flat regions objects may stand on. The slot count
 never changes, so a MuJoCo model keeps 16 box geoms per environment and only moves and
-resizes them; inactive slots are parked inside the table, beneath its top.
+resizes them; inactive slots are parked inside the table, beneath its top. The table and the
+walls stand on the floor (`scene_config.FLOOR_Z`, where the robot's pedestal stands): the
+table's box reaches from the floor to its top, so it never floats or sinks through it.
 
 Frame: the robot stands at the world origin looking along +x; the table lies ahead of it.
 Axis 0 is longitudinal (x, away from the robot), axis 1 lateral (y). Along each axis three
@@ -22,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from hamnet.sim import quaternion
-from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.scene_config import FLOOR_Z, SceneConfig
 
 CUBOID_NAMES = (
     "table",
@@ -55,7 +57,9 @@ ENV_CODE_COLUMNS = (
 )  # fmt: skip
 """EnvCode columns. Metres and radians; ramp_pos is the centre of an interim plate along its
 axis from the table centre; wall and ceiling heights are above the table top (the ceiling's
-underside, platform rise included) and 0 when that cuboid is absent."""
+underside, platform rise included) and 0 when that cuboid is absent. table_dim_z and
+table_pos_z are the sampled parameters whose sum sets the top (FLOOR_Z + pos + dim); the
+table's box reaches from the floor to that top."""
 NUM_REGIONS = 25
 """Regions: the 5 x 5 grid of segments (plate, ramp, plate, ramp, plate) of the two axes."""
 
@@ -112,7 +116,8 @@ class _Interior(NamedTuple):
 
 
 class _Case(NamedTuple):
-    height: np.ndarray  # (B,) wall height and ceiling clearance above the table top, m
+    height: np.ndarray  # (B,) ceiling clearance above the table top (walls reach it), m
+    wall_height: np.ndarray  # (B,) wall top above the table top, m: `height` under a ceiling
     wall: np.ndarray  # (B, 4) bool, order front, back, right, left
     ceiling: np.ndarray  # (B,) bool
     tight: np.ndarray  # (B,) bool
@@ -144,9 +149,8 @@ def sample_scenes(
     interior = _sample_interior(rng, table_dim[:, :2], config)
     case = _sample_case(rng, object_height, interior.height.max(axis=(1, 2)), config)
 
-    origin = np.asarray(config.table_origin)
-    table_centre = origin[:2] + table_pos[:, :2]  # (B, 2), m
-    table_top = origin[2] + table_pos[:, 2] + table_dim[:, 2]  # (B,), m
+    table_centre = np.asarray(config.table_origin) + table_pos[:, :2]  # (B, 2), m
+    table_top = FLOOR_Z + table_pos[:, 2] + table_dim[:, 2]  # (B,), m
     centre, quat, half_extent, active = _cuboids(
         interior, case, table_centre, table_dim, table_top, config
     )
@@ -181,14 +185,16 @@ def _sample_interior(
 ) -> _Interior:
     """Plate elevations, ramp tilts and the plate sizes that fit them on the table.
 
-    Each planar plate is a top plate with probability p_top_plate, raised by its own
-    U(plate_height); bottom plates lie at the table top. A ramp's horizontal run is
+    Each planar plate is a top plate with probability p_top_plate, raised by U(plate_height),
+    one draw per scene (`shared_plate_height`) or per plate; bottom plates lie at the table
+    top. A ramp's horizontal run is
     |rise| * tan(tilt), and the three plates share what the two runs leave of the axis, so
     plates and ramps tile the table exactly.
     """
     num_envs = len(extent)  # extent: (B, 2) table size along x, y
     is_top = rng.random((num_envs, 2, 3)) < config.p_top_plate
-    height = is_top * rng.uniform(*config.plate_height, size=(num_envs, 2, 3))  # (B, 2, 3)
+    draws = (num_envs, 1, 1) if config.shared_plate_height else (num_envs, 2, 3)
+    height = is_top * rng.uniform(*config.plate_height, size=draws)  # (B, 2, 3), m
     angle = rng.uniform(*config.ramp_angle, size=(num_envs, 2, 2))  # (B, 2, 2), rad
     share = rng.dirichlet(np.ones(3), size=(num_envs, 2))  # (B, 2, 3), sums to 1
     share = config.plate_share_min + (1.0 - 3.0 * config.plate_share_min) * share
@@ -208,8 +214,9 @@ def _sample_case(
     """Walls and ceiling: masks, the nominal/tight choice and the height they reach.
 
     A ceiling opens the front wall (the robot's way in) and keeps at least one of the other
-    three walls to carry it. Walls reach the ceiling height also when there is no ceiling.
-    `rise` (B,) is the highest platform, which lifts the ceiling so objects stay under it.
+    three walls to carry it; its walls reach it. Without a ceiling the walls are
+    U(wall_height) high, whatever the tight/nominal draw. `rise` (B,) is the highest
+    platform, which lifts the ceiling so objects stay under it.
     """
     num_envs = len(object_height)
     ceiling = rng.random(num_envs) < config.p_ceiling
@@ -221,8 +228,10 @@ def _sample_case(
     wall[:, 0] &= ~ceiling
     unsupported = ceiling & ~wall[:, 1:].any(axis=-1)
     wall[unsupported, support[unsupported]] = True
+    open_walls = rng.uniform(*config.wall_height, size=num_envs)  # (B,), m
     height = np.where(tight, object_height + gap, nominal) + rise
-    return _Case(height=height, wall=wall, ceiling=ceiling, tight=tight)
+    wall_height = np.where(ceiling, height, open_walls)
+    return _Case(height=height, wall_height=wall_height, wall=wall, ceiling=ceiling, tight=tight)
 
 
 def _cuboids(
@@ -243,8 +252,9 @@ def _cuboids(
     half_extent = np.zeros((num_envs, NUM_CUBOIDS, 3))  # (B, N, 3)
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (num_envs, NUM_CUBOIDS, 1))  # (B, N, 4)
     active = np.zeros((num_envs, NUM_CUBOIDS), dtype=bool)  # (B, N)
-    centre[:, TABLE] = np.column_stack([table_centre, table_top - table_dim[:, 2] / 2])
-    half_extent[:, TABLE] = table_dim / 2
+    # The table's box reaches the floor: table_dim_z only sets, with table_pos_z, its top.
+    centre[:, TABLE] = np.column_stack([table_centre, (table_top + FLOOR_Z) / 2])
+    half_extent[:, TABLE] = np.column_stack([table_dim[:, :2] / 2, (table_top - FLOOR_Z) / 2])
     active[:, TABLE] = True
     boxes = (centre, quat, half_extent, active)
     _place_interior(boxes, interior, table_centre, table_dim, table_top, config)
@@ -312,10 +322,10 @@ def _place_case(
     config: SceneConfig,
 ) -> None:
     """Write the wall and ceiling slots: walls stand just outside the table's edges, from
-    its bottom to the case height; the ceiling covers the table and the walls."""
+    the floor to their height; the ceiling covers the table and the walls."""
     centre, _, half_extent, active = boxes
     thickness = config.wall_thickness
-    bottom, top = table_top - table_dim[:, 2], table_top + case.height  # (B,), m
+    bottom, top = FLOOR_Z, table_top + case.wall_height  # (B,), m
     for k, slot in enumerate((FRONT_WALL, BACK_WALL, RIGHT_WALL, LEFT_WALL)):
         axis, side = divmod(k, 2)  # front/back face x, right/left face y
         sign = 2 * side - 1  # -1 for front and right
@@ -329,7 +339,7 @@ def _place_case(
         half_extent[:, slot, 2] = (top - bottom) / 2
         active[:, slot] = case.wall[:, k]
     centre[:, CEILING, :2] = table_centre
-    centre[:, CEILING, 2] = top + config.ceiling_thickness / 2
+    centre[:, CEILING, 2] = table_top + case.height + config.ceiling_thickness / 2
     half_extent[:, CEILING, :2] = table_dim[:, :2] / 2 + thickness
     half_extent[:, CEILING, 2] = config.ceiling_thickness / 2
     active[:, CEILING] = case.ceiling
@@ -388,7 +398,7 @@ def _env_code(
             interior.angle.reshape(num_envs, 4),  # 4
             interior.height.reshape(num_envs, 6),  # 6
             ramp_pos.reshape(num_envs, 4),  # 4
-            case.wall * case.height[:, None],  # 4
+            case.wall * case.wall_height[:, None],  # 4
             (case.ceiling * case.height)[:, None],  # 1
         ],
         axis=-1,

@@ -2,7 +2,10 @@
 
 `SceneConfig` holds every distribution the scene sampler in `scene.py` draws from. Field
 names follow the table (`table_dim_x` is `table_dim.x`); lengths are metres, angles radians.
-The curriculum over ceiling types changes `p_tight` with `dataclasses.replace`.
+Where the paper's table is ambiguous or differs, the defaults are the authors' training
+configuration (ham/src/ham/data/cfg/rss_train.yaml and the scene code it selects; file and
+line in each field's docstring); `SCENE_PRESETS["paper"]` keeps the paper's text. The
+curriculum over ceiling types changes `p_tight` with `dataclasses.replace`.
 """
 
 from __future__ import annotations
@@ -12,6 +15,12 @@ from dataclasses import dataclass
 
 Range = tuple[float, float]
 """Closed interval (low, high) of a uniform distribution."""
+
+FLOOR_Z = -0.4
+"""World z of the floor that the table and the robot's pedestal stand on, m. The robot's base
+is the world origin, 0.4 m above the floor as in the authors' code
+(ham/src/ham/env/episode/robot_pos.py:49, `base_height: table`), whose table bottom sits on
+the floor at table_pos.z = 0 (ham/src/ham/env/episode/table_pos.py:37-39)."""
 
 
 def _check_range(name: str, value: Range, low: float = -math.inf) -> None:
@@ -33,12 +42,20 @@ class SceneConfig:
     """Shift of the whole scene along x from `table_origin`, m."""
     table_pos_y: Range = (-0.15, 0.15)
     """Shift of the whole scene along y, m."""
-    table_pos_z: Range = (0.1, 0.8)
-    """Height of the table's bottom face above `table_origin`, m (shifts the whole scene)."""
+    table_pos_z: Range = (0.0, 0.6)
+    """Rise of the table top, m: the top is at FLOOR_Z + table_pos_z + table_dim_z, so
+    -0.2 to +0.6 m from the robot's base (authors: min/max_table_height_offset,
+    tabletop_with_object_scene_v3.py:146-147 and 331-332, use_table_height_dr
+    rss_train.yaml:73; the paper's table says U(0.1, 0.8)). Their slab then floats above
+    the floor; ours reaches down to it (`scene.py`), so no camera sees a floating table."""
     ramp_angle: Range = (0.0, math.radians(30.0))
     """Tilt of each interim plate from the vertical, rad: 0 is a step, larger is a gentler slope."""
-    plate_height: Range = (0.0, 0.15)
-    """Elevation of a top planar plate above the table top, m (bottom plates stay at 0)."""
+    plate_height: Range = (0.05, 0.15)
+    """Elevation of a top planar plate above the table top, m (bottom plates stay at 0):
+    gen.base.min_height/max_height, rss_train.yaml:59-60 (the paper: U(0.0, 0.15))."""
+    shared_plate_height: bool = True
+    """One elevation per scene for all its top plates (the authors' gen_base.py:286-290
+    draws one height per scene); False: one per plate (the paper's "x 6")."""
     ceiling_height: Range = (0.3, 0.5)
     """Clearance of a nominal ceiling above the table top, before the platform rise, m."""
     gap_height: Range = (0.03, 0.05)
@@ -47,19 +64,25 @@ class SceneConfig:
     """Probability that a scene has a ceiling (ceil_mask ~ B(p))."""
     p_wall: float = 0.5
     """Probability of each of the four walls (wall_mask ~ B(p)), before the ceiling's rules."""
+    wall_height: Range = (0.05, 0.3)
+    """Height of the walls of a scene without a ceiling above the table top, m, whatever the
+    ceiling curriculum draws (gen.case.min/max_wall_height, rss_train.yaml:67-68, used for
+    open scenes by gen_case.py:170-178; tight ceilings only where there is a ceiling,
+    gen_both.py:158). Under a ceiling the walls reach it."""
     table_friction: Range = (0.2, 0.6)
     """Friction coefficient of every cuboid of the scene."""
     p_tight: float = 0.5
     """Probability of a tight ceiling rather than a nominal one; the curriculum raises it."""
-    p_top_plate: float = 0.5
-    """Probability that a planar plate is a top (elevated) plate rather than a bottom one."""
+    p_top_plate: float = 1.0 - 0.707
+    """Probability that a planar plate is a top (elevated) plate rather than a bottom one:
+    the authors raise a plate when U(0, 1) > p_high = 0.707 (gen_base.py:161,
+    rss_train.yaml:57), so that about half of the 3 x 3 cells, each the higher of its two
+    crossing plates, are raised; the paper says nothing (preset "paper": 0.5)."""
     plate_share_min: float = 0.1
     """Smallest share of an axis (after the ramps) that one planar plate takes."""
-    table_origin: tuple[float, float, float] = (0.5, 0.0, -0.4)
-    """World position of the table at table_pos = 0: centre in x, y; bottom face in z.
-
-    The robot stands at the world origin looking along +x; -0.4 puts its base 0.4 m above
-    the scene's floor, as in the authors' code."""
+    table_origin: tuple[float, float] = (0.5, 0.0)
+    """World xy of the table's centre at table_pos = 0, m; the robot stands at the world
+    origin looking along +x."""
     embed_depth: float = 0.02
     """How far planar plates reach below the table top, so a low plate is never a sliver, m."""
     ramp_thickness: float = 0.02
@@ -76,7 +99,7 @@ class SceneConfig:
             _check_range(name, getattr(self, name), low=1e-3)
         for name in ("table_pos_x", "table_pos_y", "table_pos_z"):
             _check_range(name, getattr(self, name))
-        for name in ("plate_height", "gap_height", "table_friction"):
+        for name in ("plate_height", "gap_height", "table_friction", "wall_height"):
             _check_range(name, getattr(self, name), low=0.0)
         _check_range("ramp_angle", self.ramp_angle, low=0.0)
         if self.ramp_angle[1] >= math.pi / 2:
@@ -98,3 +121,11 @@ class SceneConfig:
     def max_ramp_run(self) -> float:
         """Longest horizontal run of one ramp: the highest plate at the largest tilt, m."""
         return self.plate_height[1] * math.tan(self.ramp_angle[1])
+
+
+SCENE_PRESETS: dict[str, SceneConfig] = {
+    "paper": SceneConfig(
+        table_pos_z=(0.1, 0.8), plate_height=(0.0, 0.15), shared_plate_height=False, p_top_plate=0.5
+    ),
+}
+"""Named scene variants: the paper's Table tab:env-param where the authors' code differs."""

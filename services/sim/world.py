@@ -29,6 +29,7 @@ from hamnet.fr3 import model as fr3_model
 from hamnet.sim.objects.asset import ObjectAsset
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.scene import CUBOID_NAMES
+from hamnet.sim.scene_config import FLOOR_Z
 
 MAX_PARTS = 8
 """Convex parts of the live object; library objects with more are rejected."""
@@ -36,8 +37,9 @@ MAX_PARTS = 8
 OBJECT_BODY = "object"
 """Name of the live object body (its free joint is `object/free`)."""
 
-FLOOR_Z = -1.5
-"""Height of a floor plane below every possible table, m: a dropped object lands there."""
+PEDESTAL_HALF_EXTENT = (0.15, 0.15)
+"""Half extents in x, y of the box the robot's base stands on, from the floor up to the
+base (the world origin), m: the 0.4 m rise of the authors' `base_height: table`."""
 
 _CATALOGUE_ORIGIN = np.array([0.0, 0.0, -50.0])
 """Where catalogue bodies are parked, far from everything (they never collide anyway)."""
@@ -173,6 +175,12 @@ def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
     world = spec.worldbody
     world.add_geom(
         name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], pos=[0, 0, FLOOR_Z]
+    )
+    world.add_geom(
+        name="pedestal",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=[*PEDESTAL_HALF_EXTENT, -FLOOR_Z / 2],
+        pos=[-0.05, 0.0, FLOOR_Z / 2],
     )
     for name in CUBOID_NAMES:
         world.add_geom(name=f"scene/{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01] * 3)

@@ -111,8 +111,10 @@ def test_every_drawn_start_and_goal_pose_stays_put(seed: int) -> None:
 
 def test_an_object_that_finds_no_placement_fails_loudly() -> None:
     """An environment whose placement failed in every scene it was given must not start
-    from the unchecked candidate: one scene per environment is too few for 32 of them."""
-    once = PlacementConfig(max_scene_draws=1)
+    from the unchecked candidate: no start lies 10 m or 4 rad from its goal."""
+    once = PlacementConfig(
+        max_scene_draws=1, min_position_separation=10.0, min_orientation_separation=4.0
+    )
     env = VectorEnv(SimConfig(num_envs=32, num_objects=3, nthread=1, placement=once))
     with pytest.raises(RuntimeError, match="no valid placement"):
         env.reset(seed=0)
@@ -122,7 +124,7 @@ def test_dropped_object_terminates_and_the_environment_starts_a_new_episode(env:
     observation = env.reset(seed=3)
     ids = observation.episode_ids.copy()
     qpos = env.physics.qpos
-    qpos[1, env.world.object_qpos[:3]] = [0.5, 0.0, -1.0]  # far below any table
+    qpos[1, env.world.object_qpos[:3]] = [0.5, 1.0, -0.35]  # on the floor beside the table
     env.physics.batch.forward([1])
     result = env.step(hold(observation))
     assert result.terminated[1] and not result.success[1] and result.reason[1] == Reason.DROPPED
@@ -137,12 +139,12 @@ def test_final_observation_keeps_the_state_that_ended_an_episode(env: VectorEnv)
     `final_observation` held the new episode's first state (as `observation` does), the
     object would not be where the step left it."""
     observation = env.reset(seed=3)
-    env.physics.qpos[1, env.world.object_qpos[:3]] = [0.5, 0.0, -1.0]
+    env.physics.qpos[1, env.world.object_qpos[:3]] = [0.5, 1.0, -0.35]  # beside the table
     env.physics.batch.forward([1])
     result = env.step(hold(observation))
     final, first = result.final_observation, result.observation
     assert result.reset_ids.tolist() == [1]
-    assert final.object_pose[1, 2] < -0.9 and first.object_pose[1, 2] > -0.5
+    assert final.object_pose[1, 2] < -0.3 and first.object_pose[1, 2] > -0.25
     assert final.episode_ids[1] == result.episode_ids[1] != first.episode_ids[1]
     for name in ("q", "object_pose", "episode_ids"):
         np.testing.assert_array_equal(getattr(final, name)[[0, 2, 3]], getattr(first, name)[[0, 2, 3]])

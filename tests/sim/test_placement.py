@@ -146,13 +146,32 @@ def test_orientations_are_unit_stable_poses_turned_about_the_vertical(seed: int)
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_goal_and_start_are_separated_in_position_and_orientation(seed: int) -> None:
-    config = PlacementConfig(min_position_separation=0.15, min_orientation_separation=0.5)
+    config = PlacementConfig(
+        min_position_separation=0.15, min_orientation_separation=0.5, require_both_separations=True
+    )
     _, _, placement = setup(seed, config)
     valid = placement.valid
     distance = np.linalg.norm(placement.goal_pos - placement.start_pos, axis=-1)[valid]
     angle = quaternion.angle_between(placement.goal_quat, placement.start_quat)[valid]
     assert valid.mean() > 0.5
     assert np.all(distance >= 0.15) and np.all(angle >= 0.5)
+
+
+def test_a_start_far_enough_in_position_or_orientation_is_accepted() -> None:
+    """Both separations were required, so a start next to the goal but turned away (an
+    in-place reorientation) never occurred. The authors accept a pair when either error
+    exceeds the success threshold (goal_obj_pose.py:164-167): every valid pair is outside
+    success, and some are reorientations in place (closer than the success radius)."""
+    config = PlacementConfig()
+    placements = [setup(seed, config)[2] for seed in SEEDS]
+    distance = np.concatenate(
+        [np.linalg.norm(p.goal_pos - p.start_pos, axis=-1)[p.valid] for p in placements]
+    )
+    angle = np.concatenate(
+        [quaternion.angle_between(p.goal_quat, p.start_quat)[p.valid] for p in placements]
+    )
+    assert np.all((distance >= 0.05) | (angle >= 0.1))
+    assert np.any((distance < 0.05) & (angle >= 0.1)), "no in-place reorientation"
 
 
 def test_elevated_goal_bias_raises_the_share_of_elevated_goals_and_uphill_tasks() -> None:

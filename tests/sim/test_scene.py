@@ -24,7 +24,7 @@ from hamnet.sim.scene import (
     SceneBatch,
     sample_scenes,
 )
-from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.scene_config import FLOOR_Z, SCENE_PRESETS, SceneConfig
 from hamnet.sim.scene_view import save_scene
 
 B = 256
@@ -66,28 +66,79 @@ def test_env_code_has_25_named_columns_and_finite_arrays() -> None:
         assert np.all(np.isfinite(array))
 
 
+@pytest.mark.parametrize("preset", ["default", "paper"])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_every_parameter_is_within_the_paper_range(seed: int) -> None:
-    config = SceneConfig()
+def test_every_parameter_is_within_its_range(seed: int, preset: str) -> None:
+    """The paper's table, except the table's rise (authors: 0 to 0.6) and the plates'
+    elevation (authors: 0.05 to 0.15) in the default configuration."""
+    config = SCENE_PRESETS.get(preset, SceneConfig())
     scene, _ = scenes(seed, config)
-    paper = {
+    ranges = {
         "table_dim_x": (0.255, 0.51),
         "table_dim_y": (0.325, 0.65),
         "table_dim_z": (0.2, 0.4),
         "table_pos_x": (0.0, 0.1),
         "table_pos_y": (-0.15, 0.15),
-        "table_pos_z": (0.1, 0.8),
+        "table_pos_z": (0.1, 0.8) if preset == "paper" else (0.0, 0.6),
     }
-    paper |= {f"ramp_angle_{a}{j}": (0.0, math.radians(30)) for a in "xy" for j in (0, 1)}
-    paper |= {f"plate_height_{a}{i}": (0.0, 0.15) for a in "xy" for i in (0, 1, 2)}
-    for name, (low, high) in paper.items():
+    ranges |= {f"ramp_angle_{a}{j}": (0.0, math.radians(30)) for a in "xy" for j in (0, 1)}
+    low = 0.0 if preset == "paper" else 0.05
+    ranges |= {f"plate_height_{a}{i}": (low, 0.15) for a in "xy" for i in (0, 1, 2)}
+    for name, (low, high) in ranges.items():
         values = scene.env_code[:, COLUMN[name]]
+        if name.startswith("plate_height"):
+            values = values[values > 0]  # bottom plates code 0
         assert np.all((values >= low) & (values <= high)), name
     assert np.all((scene.friction >= 0.2) & (scene.friction <= 0.6))
-    # Table dims are the table cuboid's size.
+    # Table dims x, y are the table cuboid's size; the box stands on the floor.
     np.testing.assert_allclose(
-        2 * scene.half_extent[:, TABLE], columns(scene, "table_dim_x", "table_dim_y", "table_dim_z")
+        2 * scene.half_extent[:, TABLE, :2], columns(scene, "table_dim_x", "table_dim_y")
     )
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_table_stands_on_the_floor_with_its_top_minus_02_to_06_m_from_the_robot(
+    seed: int,
+) -> None:
+    """The demo's table hovered 0.35 m above the robot's floor, then sank through it: the
+    table's box now reaches from the floor to its top, which lies -0.2 to +0.6 m from the
+    robot's base (the world origin) as in the authors' code; walls stand on the floor too."""
+    scene, _ = scenes(seed)
+    bottom = scene.centre[:, :, 2] - scene.half_extent[:, :, 2]  # (B, N), boxes are upright
+    np.testing.assert_allclose(bottom[:, TABLE], FLOOR_Z, atol=1e-12)
+    top = scene.centre[:, TABLE, 2] + scene.half_extent[:, TABLE, 2]
+    np.testing.assert_allclose(top, scene.table_top)
+    assert np.all((scene.table_top >= -0.2) & (scene.table_top <= 0.6))
+    expected = FLOOR_Z + columns(scene, "table_pos_z")[:, 0] + columns(scene, "table_dim_z")[:, 0]
+    np.testing.assert_allclose(scene.table_top, expected)
+    walls = scene.active[:, FRONT_WALL:CEILING]
+    np.testing.assert_allclose(bottom[:, FRONT_WALL:CEILING][walls], FLOOR_Z, atol=1e-12)
+
+
+def test_open_walls_are_005_to_030_m_whatever_the_ceiling_curriculum() -> None:
+    """Walls of scenes without a ceiling were as high as a (tight or nominal) ceiling would
+    have been; the authors draw them U(0.05, 0.3) (gen_case.py:170-178), and the tight
+    probability of the curriculum must not change them."""
+    heights = []
+    for p_tight in (0.0, 1.0):
+        config = SceneConfig(p_tight=p_tight, p_ceiling=0.0, p_wall=1.0)
+        scene = sample_scenes(np.random.default_rng(0), np.full(2048, 0.05), config)
+        heights.append(columns(scene, "wall_height_front")[:, 0])
+    np.testing.assert_array_equal(heights[0], heights[1])
+    assert heights[0].min() >= 0.05 and heights[0].max() <= 0.3
+    assert abs(heights[0].mean() - 0.175) < 0.005
+
+
+def test_raised_plates_share_one_elevation_per_scene_at_the_authors_rate() -> None:
+    """A plate is raised with probability 1 - p_high = 0.293 (gen_base.py:161) and all
+    raised plates of a scene share one U(0.05, 0.15) height (gen_base.py:286-290)."""
+    scene = sample_scenes(np.random.default_rng(0), np.full(4096, 0.1))
+    height = columns(scene, *(f"plate_height_{a}{i}" for a in "xy" for i in range(3)))
+    raised = height > 0
+    assert abs(raised.mean() - 0.293) < 0.01
+    several = raised.sum(-1) > 1
+    spread = np.where(raised, height, np.nan)
+    assert np.all(np.nanmax(spread[several], -1) == np.nanmin(spread[several], -1))
 
 
 def test_masks_follow_their_bernoulli_probabilities() -> None:
@@ -97,7 +148,8 @@ def test_masks_follow_their_bernoulli_probabilities() -> None:
     walls = scene.active[~ceiling, FRONT_WALL:CEILING]  # no ceiling: walls are free B(0.5)
     assert np.all(np.abs(walls.mean(axis=0) - 0.5) < 0.04)
     assert abs(scene.tight.mean() - 0.5) < 0.03
-    is_top = columns(scene, *(f"plate_height_{a}{i}" for a in "xy" for i in range(3))) > 0
+    paper = sample_scenes(np.random.default_rng(0), np.full(4096, 0.1), SCENE_PRESETS["paper"])
+    is_top = columns(paper, *(f"plate_height_{a}{i}" for a in "xy" for i in range(3))) > 0
     assert abs(is_top.mean() - 0.5) < 0.02
 
 
@@ -174,7 +226,9 @@ def test_nominal_ceiling_is_uniform_clearance_plus_platform_rise(seed: int) -> N
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_walls_reach_the_case_height_and_absent_ones_code_zero(seed: int) -> None:
+def test_walls_reach_their_height_and_absent_ones_code_zero(seed: int) -> None:
+    """EnvCode's wall columns are the walls' tops above the table top; under a ceiling they
+    reach the ceiling's underside."""
     scene, _ = scenes(seed)
     corners = box_corners(scene)
     walls = columns(scene, *(f"wall_height_{side}" for side in ("front", "back", "right", "left")))
@@ -182,6 +236,10 @@ def test_walls_reach_the_case_height_and_absent_ones_code_zero(seed: int) -> Non
     assert np.all(walls[~on] == 0)
     wall_top = corners[:, FRONT_WALL:CEILING, :, 2].max(-1) - scene.table_top[:, None]
     np.testing.assert_allclose(walls[on], wall_top[on])
+    ceiling = scene.active[:, CEILING]
+    under = on & ceiling[:, None]
+    clearance = np.broadcast_to(columns(scene, "ceiling_height"), walls.shape)
+    np.testing.assert_allclose(walls[under], clearance[under])
     assert np.all(columns(scene, "ceiling_height")[~scene.active[:, CEILING]] == 0)
 
 
