@@ -20,7 +20,7 @@ from hamnet.fr3.limits import Q_HOME
 from hamnet.sim import quaternion, robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
-from hamnet.sim.objects.randomization import ObjectRandomization
+from hamnet.sim.objects.randomization import ObjectRandomization, max_rule_frictions
 from hamnet.sim.objects.spec import restitution_solref
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.placement import Placement, sample_placements
@@ -141,9 +141,13 @@ def draw_episodes(
     entry = rng.integers(len(library.objects), size=count)  # (K,)
     scenes, placement = _scenes_and_placements(rng, library, entry, scene_config, config)
     draws = _object_draws(rng, config, count)
-    physics.set_scene(env_ids, scenes.centre, scenes.quat, scenes.half_extent, scenes.friction)
+    robot_friction, object_friction, scene_friction = max_rule_frictions(
+        draws["hand_friction"], draws["friction"], scenes.friction
+    )  # PhysX's averages under MuJoCo's max rule
+    physics.set_scene(env_ids, scenes.centre, scenes.quat, scenes.half_extent, scene_friction)
     solref = restitution_solref(draws["restitution"])
-    physics.set_object(env_ids, entry, draws["mass"], draws["friction"], solref)
+    physics.set_object(env_ids, entry, draws["mass"], object_friction, solref)
+    physics.set_robot_friction(env_ids, robot_friction)
     near = rng.random(count) < p_near_init  # (K,)
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
@@ -152,10 +156,9 @@ def draw_episodes(
         radius, cuboids, config,
     )  # fmt: skip
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
-    robot_friction = np.full(count, 1.0)  # MuJoCo's default for the arm's geoms
     params = np.stack([
-        draws["mass"], draws["friction"], draws["restitution"], robot_friction, scenes.friction,
-        library.scale[entry],
+        draws["mass"], draws["friction"], draws["restitution"], draws["hand_friction"],
+        scenes.friction, library.scale[entry],
     ], axis=1).astype(np.float32)  # fmt: skip
     return Episodes(env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near)
 
@@ -231,6 +234,7 @@ def _object_draws(rng: np.random.Generator, config: SimConfig, count: int) -> di
         "mass": rng.uniform(*ranges.mass, size=count),
         "friction": rng.uniform(*ranges.friction, size=count),
         "restitution": rng.uniform(*ranges.restitution, size=count),
+        "hand_friction": rng.uniform(*ranges.hand_friction, size=count),
     }
 
 

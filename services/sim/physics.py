@@ -36,6 +36,8 @@ class BatchPhysics:
             "body_mass", "body_inertia", "body_ipos", "body_iquat",
             "actuator_gainprm", "actuator_biasprm", "actuator_forcerange",
         )  # fmt: skip
+        self.robot_geoms = np.flatnonzero(np.isin(world.model.geom_bodyid, world.robot_bodies))
+        """Geoms of the arm's moving bodies (their friction is set per environment)."""
         self.qpos = self.batch.bind("qpos")  # (B, nq), live
         self.qvel = self.batch.bind("qvel")  # (B, nv), live
         self.ctrl = self.batch.bind("ctrl")  # (B, J) impedance references q_ref, live
@@ -105,6 +107,11 @@ class BatchPhysics:
         f["body_ipos"][env_ids, body] = c.inertia_pos[object_index]
         f["body_iquat"][env_ids, body] = c.inertia_quat[object_index]
         self.batch.set_const(env_ids)
+
+    def set_robot_friction(self, env_ids: np.ndarray, friction: np.ndarray) -> None:
+        """Sliding friction (K,) of every geom of the arm's moving bodies in `env_ids` (K,)."""
+        geoms = self.robot_geoms
+        self.fields["geom_friction"][env_ids[:, None], geoms[None, :], 0] = friction[:, None]
 
     def set_gains(self, kp: np.ndarray, kd: np.ndarray, tau_limit: np.ndarray) -> None:
         """Impedance gains and torque clip of every environment until the next call.

@@ -7,12 +7,16 @@ the defaults are the authors' released training configuration for HAMnet:
   (`min_scale`/`max_scale`, applied as radius / object radius);
 - mass ~ U(0.1, 0.5) kg (`min_mass`/`max_mass`; their code then passes (max, max), so it
   trains at 0.5 kg: set `mass=(0.5, 0.5)` to reproduce that);
-- friction ~ U(0.2, 1.0) and restitution ~ U(0.0, 0.2) (their scene's defaults).
+- friction ~ U(0.2, 1.0) and restitution ~ U(0.0, 0.2) (their scene's defaults);
+- the robot's (hand's) friction ~ U(1.0, 1.5) (`min_hand_friction`/`max_hand_friction`,
+  rss_train.yaml:106-107).
 
 Inertia follows from mass and scaled shape at uniform density (`ObjectAsset.unit_inertia`).
 MuJoCo has no restitution coefficient: `spec.restitution_solref` maps it onto `solref`.
-MuJoCo also combines the friction of two geoms by taking the larger one (PhysX, the authors'
-engine, averages), which the scene's friction choice has to keep in mind.
+MuJoCo combines the friction of two geoms by taking the larger one; PhysX, the authors'
+engine, averages them (its default combine mode: their code never sets another, and
+ham/src/ham/env/common.py:19-27 and 120-133 only set per-shape coefficients).
+`max_rule_frictions` picks per-geom values whose maxima are those averages.
 """
 
 from __future__ import annotations
@@ -41,6 +45,9 @@ class ObjectRandomization:
     """Sliding friction coefficient of the object's geoms."""
     restitution: tuple[float, float] = (0.0, 0.2)
     """Coefficient of restitution of the object's contacts."""
+    hand_friction: tuple[float, float] = (1.0, 1.5)
+    """Friction coefficient of the robot's geoms (the authors' hand, rss_train.yaml:106-107),
+    averaged with the object's in a contact as PhysX does (`max_rule_frictions`)."""
 
     def __post_init__(self) -> None:
         if self.radius is not None:
@@ -49,6 +56,7 @@ class ObjectRandomization:
         _check_range("mass", self.mass, 1e-3)
         _check_range("friction", self.friction, 0.0)
         _check_range("restitution", self.restitution, 0.0, 0.99)
+        _check_range("hand_friction", self.hand_friction, 0.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,3 +97,22 @@ def sample_physics(
         friction=rng.uniform(*config.friction, size=batch),
         restitution=rng.uniform(*config.restitution, size=batch),
     )
+
+
+def max_rule_frictions(
+    hand: np.ndarray, obj: np.ndarray, scene: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-geom sliding frictions under MuJoCo's max rule that reproduce PhysX's averages.
+
+    With the object's geoms at 0, the robot's at (h + o) / 2 and the scene's at (o + s) / 2,
+    MuJoCo's max(a, b) gives robot-object contacts (h + o) / 2 and object-scene contacts
+    (o + s) / 2: the authors' effective coefficients. Robot-scene contacts get
+    max((h + o) / 2, (o + s) / 2) instead of (h + s) / 2 (about (o - s) / 2 more): the arm
+    only brushes the scene.
+
+    Args:
+        hand, obj, scene: (K,) sampled coefficients of the robot, the object and the scene.
+    Returns:
+        (K,) each: the robot's, the object's and the scene's geom friction.
+    """
+    return (hand + obj) / 2, np.zeros_like(obj), (obj + scene) / 2

@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hamnet.sim.config import SimConfig
+from hamnet.sim.env import VectorEnv
+from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from hamnet.sim.objects import ObjectRandomization, sample_physics
+from hamnet.sim.objects.randomization import max_rule_frictions
 
 
 def test_samples_lie_in_the_configured_ranges() -> None:
@@ -50,3 +54,36 @@ def test_same_generator_state_gives_the_same_samples() -> None:
 def test_invalid_ranges_are_rejected(bad: dict) -> None:
     with pytest.raises(ValueError):
         ObjectRandomization(**bad)
+
+
+def test_max_rule_frictions_give_physx_averages_for_robot_object_and_object_scene() -> None:
+    """MuJoCo takes the larger of two geoms' frictions; the authors' PhysX averages them. The
+    per-geom values must make max() equal the averages the authors trained with."""
+    rng = np.random.default_rng(0)
+    hand, obj = rng.uniform(1.0, 1.5, 64), rng.uniform(0.2, 1.0, 64)
+    scene = rng.uniform(0.2, 0.6, 64)
+    robot_geom, object_geom, scene_geom = max_rule_frictions(hand, obj, scene)
+    np.testing.assert_allclose(np.maximum(robot_geom, object_geom), (hand + obj) / 2)
+    np.testing.assert_allclose(np.maximum(object_geom, scene_geom), (obj + scene) / 2)
+
+
+def test_the_sims_robot_object_contacts_have_the_averaged_friction() -> None:
+    """In the batched model of a reset VectorEnv: the arm's geoms, the object's and the
+    scene's frictions combine (max) to the average of the sampled hand and object
+    coefficients, which the privileged physics parameters report; the hand coefficient
+    spans U(1.0, 1.5) (it was MuJoCo's default 1.0 for every episode)."""
+    env = VectorEnv(SimConfig(num_envs=16, num_objects=2, nthread=1))
+    observation = env.reset(seed=0)
+    params = dict(zip(PHYSICS_PARAM_NAMES, observation.physics_params.T, strict=True))
+    friction = env.physics.fields["geom_friction"][..., 0]  # (B, ngeom)
+    robot = friction[:, env.physics.robot_geoms]  # (B, G)
+    obj = friction[:, env.world.object_geoms].max(-1)  # (B,)
+    scene = friction[:, env.world.cuboid_geoms]  # (B, 16)
+    average = (params["robot_friction"] + params["object_friction"]) / 2
+    combined = np.maximum(robot, obj[:, None])  # (B, G)
+    expected = np.broadcast_to(average[:, None], combined.shape)
+    np.testing.assert_allclose(combined, expected, rtol=1e-6)
+    scene_average = (params["scene_friction"] + params["object_friction"]) / 2
+    np.testing.assert_allclose(np.maximum(scene, obj[:, None]).mean(-1), scene_average, rtol=1e-6)
+    assert params["robot_friction"].min() >= 1.0 and params["robot_friction"].max() <= 1.5
+    assert np.ptp(params["robot_friction"]) > 0.2
