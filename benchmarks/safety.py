@@ -8,7 +8,7 @@ difference; actions N(0, 1), so stages clip as in training) and times, call by c
 interleaved round by round:
 
 - each stage on its own, with the inputs that stage sees: 1 guard, 2 scaling + magnitude
-  (schedule included), 3 Cartesian clip (Pinocchio Jacobians included), 4 EMA, 5 joint
+  (schedule included), 3 Cartesian clip (batched Jacobians included), 4 EMA, 5 joint
   limits, 7 torque pre-clip against the target; stage 6 (`TrajectoryGenerator.step`) at
   80 Hz and 1 kHz, each followed by stage 7's recheck against its samples;
 - stages 1-5/7 as the core runs them (`SafetyCore.filter`, statistics included), and the whole
