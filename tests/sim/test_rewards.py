@@ -194,3 +194,37 @@ def test_reward_at_the_goal_pays_success_and_no_shaping_from_rest() -> None:
 def test_task_config_rejects_invalid_values(kwargs: dict) -> None:
     with pytest.raises(ValueError):
         TaskConfig(**kwargs)
+
+
+def push_returns(config: TaskConfig, steps: int = 30) -> tuple[float, float]:
+    """Undiscounted shaping returns (goal, contact) of a typical 0.15 m push: a 0.1 m cube
+    slides straight to its goal in `steps` policy steps, the paddle's tip starting 0.15 m
+    from its centre and then pushing on its back face (0.05 m from the centre)."""
+    t = np.linspace(0.0, 1.0, steps + 1)  # (T + 1,)
+    goal = np.array([0.6, 0.0, 0.05])
+    pos = goal + np.outer(0.15 * (1.0 - t), [-1.0, 0.0, 0.0])  # (T + 1, 3)
+    tip = pos + np.outer(np.minimum(0.15, 0.05 + 0.1 * (1.0 - 10 * t).clip(0)), [-1.0, 0, 0])
+    n = len(t)
+    phi = potentials(
+        pos, np.tile(IDENTITY, (n, 1)), np.tile(goal, (n, 1)), np.tile(IDENTITY, (n, 1)),
+        np.tile(bbox_from_half_extent(np.full((1, 3), 0.05)), (n, 1, 1)), tip, config,
+    )  # fmt: skip
+    prev = Potentials(phi.goal[:-1], phi.contact[:-1])  # (T,) each
+    curr = Potentials(phi.goal[1:], phi.contact[1:])
+    terms = reward_terms(np.zeros(steps, dtype=bool), prev, curr, config)  # (T, 3)
+    return float(terms[:, 1].sum()), float(terms[:, 2].sum())
+
+
+def test_a_015_m_push_earns_the_authors_shaping_return() -> None:
+    """The issue's question: how much shaping does a 0.15 m push earn next to the success
+    bonus of 1? With the authors' rewards (the default): the goal term telescopes to
+    0.15 * log(1 + 3 * 0.15) = 0.056 (every corner moves 0.15 m), the contact term to
+    0.03 * (log(1 + 3 * 0.15) - log(1 + 3 * 0.05)) = 0.007, about 0.06 in all. The
+    paper's reading (discount 0.99 in the shaping) adds (gamma - 1) phi > 0 at every step,
+    so it pays more the longer the object stays away: 0.072 here, 0.093 over 100 steps."""
+    goal, contact = push_returns(TaskConfig())
+    assert goal == pytest.approx(0.15 * math.log(1.45), rel=1e-5)
+    assert contact == pytest.approx(0.03 * (math.log(1.45) - math.log(1.15)), rel=1e-5)
+    paper_goal, paper_contact = push_returns(PAPER)
+    assert paper_goal + paper_contact > goal + contact
+    assert paper_goal + paper_contact == pytest.approx(0.072, abs=0.002)
