@@ -21,6 +21,9 @@ ACTUATOR_NAMES = tuple(f"fr3_motor{i}" for i in range(1, 8))
 EE_SITE = "ee"
 """Site (MuJoCo) and frame (Pinocchio) at the centre of the paddle's contact face."""
 
+PADDLE_BODY = "fr3_paddle"
+"""Body of the paddle that replaces the gripper (its tube and plate)."""
+
 ROBOT_CONTYPE = 2
 """contype of every robot geom: scene geoms (contype 1) do not match it..."""
 

@@ -124,6 +124,8 @@ class Episodes:
     """(K, len(PHYSICS_PARAM_NAMES)): the columns PHYSICS_PARAM_NAMES names."""
     near_start: np.ndarray
     """(K,) bool: the arm started near the object."""
+    start_fallback: np.ndarray
+    """(K,) bool: no drawn start was collision-free; the arm starts retracted (or at home)."""
 
 
 def draw_episodes(
@@ -151,7 +153,7 @@ def draw_episodes(
     near = rng.random(count) < p_near_init  # (K,)
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
-    q = _arm_starts(
+    q, fallback = _arm_starts(
         rng, physics, kinematics, env_ids, near, placement.start_pos, placement.start_quat,
         radius, cuboids, config,
     )  # fmt: skip
@@ -160,7 +162,9 @@ def draw_episodes(
         draws["mass"], draws["friction"], draws["restitution"], draws["hand_friction"],
         scenes.friction, library.scale[entry],
     ], axis=1).astype(np.float32)  # fmt: skip
-    return Episodes(env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near)
+    return Episodes(
+        env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near, fallback
+    )
 
 
 def _scenes_and_placements(
@@ -249,13 +253,16 @@ def _arm_starts(
     object_radius: np.ndarray,
     cuboids: robot_init.Cuboids,
     config: SimConfig,
-) -> np.ndarray:
-    """(K, J) collision-free arm starts: near or random draws, then the fallbacks."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """(K, J) collision-free arm starts: near or random draws, then the fallbacks; and (K,)
+    whether each environment fell back."""
     init = config.robot_init
     q = np.tile(robot_init.RETRACTED, (len(env_ids), 1))
     pending = np.ones(len(env_ids), dtype=bool)
+    fell_back = np.zeros(len(env_ids), dtype=bool)
     draws = [None] * init.rounds + [robot_init.RETRACTED, Q_HOME]
     for round_index, fallback in enumerate(draws):
+        fell_back |= pending & (fallback is not None)
         rows = np.flatnonzero(pending)
         if len(rows) == 0:
             break
@@ -267,10 +274,16 @@ def _arm_starts(
                 chosen = rows[is_near]
                 scene = robot_init.Cuboids(*(field[chosen] for field in vars(cuboids).values()))
                 targets = robot_init.near_targets(
-                    rng, object_pos[chosen], object_radius[chosen], scene, init
+                    rng, object_pos[chosen], object_radius[chosen], scene, init, round_index
                 )
-                spread = init.ik_seed_spread if round_index else 0.0  # home first
-                start = robot_init.ik_seeds(rng, len(is_near), spread, init.range_fraction)
+                start, found = robot_init.near_seeds(
+                    rng, robot_init.posture_buffer(init.posture_count, init.range_fraction),
+                    targets, object_pos[chosen], object_radius[chosen], scene,
+                    init.posture_candidates, nearest=round_index == 0,
+                )  # fmt: skip
+                start[~found] = robot_init.ik_seeds(
+                    rng, int((~found).sum()), init.ik_seed_spread, init.range_fraction
+                )
                 candidate[is_near], distance = robot_init.solve_ik(kinematics, start, targets, init)
                 reached[is_near] = distance <= init.ik_tolerance
         else:
@@ -282,4 +295,4 @@ def _arm_starts(
         pending[rows[ok]] = False
     if pending.any():
         log.warning("%d arm start(s) in contact after every draw: retracted", int(pending.sum()))
-    return q
+    return q, fell_back
