@@ -15,15 +15,20 @@ import pytest
 import torch
 
 from hamnet.fr3.limits import Q_HOME
+from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import build
+from hamnet.policy.shell import PolicyShell, ShellConfig
 from hamnet.proto.trainer_pb2 import Schedule
+from hamnet.runtime.codec import encode
 from hamnet.runtime.counter import AUTHORS_NUM_ENVS, UNIT
+from hamnet.runtime.service import ServiceIdentity
 from hamnet.safety import shell as safety_shell
 from hamnet.safety.config import with_profile
 from hamnet.safety.pipeline import SafetyCore
 from hamnet.sim import shell as sim_shell
 from hamnet.sim.curriculum import CurriculumConfig, curriculum_values
-from tests.scripted import wire
+from tests.policy.wire import announcement
+from tests.scripted import ScriptedService, wire
 
 VECTORIZED_STEPS = (0, 1_000, 100_000, 1_953_125, 2_000_000)
 """Counters in the authors' unit; 1_953_125 x 1024 = 2e9 transitions, 2e6 ends their run."""
@@ -82,3 +87,24 @@ def test_log_std_after_two_billion_transitions() -> None:
     assert float(policy.log_std[0]) == pytest.approx(-1.117, abs=1e-3)
     policy.set_env_transitions(61_440_000)  # 3% of training
     assert float(policy.log_std[0]) == pytest.approx(-0.4 - 59 * 0.000367)
+
+
+def test_policy_service_follows_the_counter_across_new_weights() -> None:
+    """The service sets its log std from each Schedule, and keeps it when new weights (which
+    carry the log std they were saved with) arrive."""
+    counter = 500 * 2**20
+    messages = iter([
+        ("schedule", Schedule(env_transitions=counter)),
+        ("weights", announcement(build("mlp", seed=1), 1)),
+    ])  # fmt: skip
+
+    def script(published):
+        item = next(messages, None)
+        return "end" if item is None else (item[0], encode(item[1]))
+
+    service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
+    shell = PolicyShell(service, build("mlp", seed=0), 0, ShellConfig(student_pose_noise=False))
+    shell.run()
+    assert shell.version == 1 and shell.env_transitions == counter
+    want = log_std_at(counter, shell.policy.config.log_std)
+    torch.testing.assert_close(shell.policy.log_std, torch.full_like(shell.policy.log_std, want))

@@ -1,8 +1,9 @@
 """The policy service's Zenoh shell: one batch of actions for every paired state and tokens.
 
 Consumes `sim/<w>/state` (RobotState k), `perception/<w>/tokens` (PerceptionTokens k, the
-same step), `sim/<w>/scene` (EnvCode of reset environments, for the EnvCode oracle) and
-`trainer/weights` (WeightsAnnouncement). Produces `policy/<w>/action` (PolicyAction k:
+same step), `sim/<w>/scene` (EnvCode of reset environments, for the EnvCode oracle),
+`trainer/weights` (WeightsAnnouncement) and `trainer/schedule` (Schedule: the log std follows
+its `env_transitions`; until one arrives, the weights' own log std serves). Produces `policy/<w>/action` (PolicyAction k:
 `header.step` = k, `header.policy_version` = the weights' version, raw action, log-prob,
 values, module weights). State and tokens are paired by step (`Pairing`); a state sent
 again after its answer gets the same answer again. The network inputs come from the one
@@ -38,7 +39,7 @@ from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState, Scene
-from hamnet.proto.trainer_pb2 import WeightsAnnouncement
+from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
@@ -51,6 +52,7 @@ STATE = contract.topic("sim/<w>/state")
 TOKENS = contract.topic("perception/<w>/tokens")
 SCENE = contract.topic("sim/<w>/scene")
 WEIGHTS = contract.topic("trainer/weights")
+SCHEDULE = contract.topic("trainer/schedule")
 ACTION = contract.topic("policy/<w>/action")
 
 
@@ -204,6 +206,10 @@ class PolicyShell:
                         decoder=lambda k, p: decode_scene(parse(Scene, p), model.env_code_dim))
         inbox.subscribe("weights", WEIGHTS.key(ns),
                         decoder=lambda k, p: parse(WeightsAnnouncement, p))  # fmt: skip
+        inbox.subscribe("schedule", SCHEDULE.key(ns),
+                        decoder=lambda k, p: int(parse(Schedule, p).env_transitions))
+        self.env_transitions: int | None = None
+        """The trainer's counter (hamnet.runtime.counter), None before its first Schedule."""
         self.action = service.publisher(ACTION.key(ns, w=w))
         self.pairing: Pairing[StateIn, TokensIn] = Pairing(self.config.pending)
         self.generator = torch.Generator(self.device).manual_seed(self.config.seed)
@@ -231,6 +237,9 @@ class PolicyShell:
     def _handle(self, name: str, value: Any) -> None:
         if name == "weights":
             self._on_weights(value)
+        elif name == "schedule":
+            self.env_transitions = value
+            self.policy.set_env_transitions(value)
         elif name == "scene":
             self._on_scene(*value)
         elif name == "state":
@@ -309,6 +318,8 @@ class PolicyShell:
                       error, self.version)  # fmt: skip
             return
         self.policy, self.spare, self.version = self.spare, self.policy, version
+        if self.env_transitions is not None:
+            self.policy.set_env_transitions(self.env_transitions)
         log.info("serving weights version %d", version)
 
     def _load_spare(self, message: WeightsAnnouncement) -> None:
