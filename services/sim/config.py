@@ -13,7 +13,7 @@ from hamnet.sim.curriculum import CurriculumConfig
 from hamnet.sim.objects.config import ObjectLibraryConfig
 from hamnet.sim.objects.randomization import ObjectRandomization
 from hamnet.sim.placement import PlacementConfig
-from hamnet.sim.robot import TIMESTEP
+from hamnet.sim.robot import TIMESTEP, JointDynamicsRandomization
 from hamnet.sim.robot_init import RobotInitConfig
 from hamnet.sim.scene_config import SceneConfig
 from hamnet.sim.task_config import TaskConfig
@@ -45,6 +45,7 @@ class SimConfig:
     scene: SceneConfig = field(default_factory=SceneConfig)
     placement: PlacementConfig = field(default_factory=PlacementConfig)
     robot_init: RobotInitConfig = field(default_factory=RobotInitConfig)
+    joint_dynamics: JointDynamicsRandomization = field(default_factory=JointDynamicsRandomization)
     task: TaskConfig = field(default_factory=TaskConfig)
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
 

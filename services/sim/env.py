@@ -60,7 +60,7 @@ class Observation:
     goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
     object_pose: np.ndarray  # (B, 7), privileged
     object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
-    physics_params: np.ndarray  # (B, 6), privileged (see episodes.Episodes)
+    physics_params: np.ndarray  # (B, P), privileged (episodes.PHYSICS_PARAM_NAMES)
 
 
 @dataclass(frozen=True)
@@ -145,7 +145,7 @@ class VectorEnv:
         self.object_index = np.zeros(b, dtype=np.int64)
         self.goal_pos = np.zeros((b, 3))
         self.goal_quat = np.tile([1.0, 0.0, 0.0, 0.0], (b, 1))
-        self.physics_params = np.zeros((b, 6), dtype=np.float32)
+        self.physics_params = np.zeros((b, len(draw.PHYSICS_PARAM_NAMES)), dtype=np.float32)
         self.start_pose = np.zeros((b, 7), dtype=np.float32)
         self.workspace = (np.full((b, 3), -np.inf), np.full((b, 3), np.inf))
         self.scene_arrays: dict[str, np.ndarray] = {

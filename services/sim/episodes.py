@@ -17,7 +17,7 @@ from typing import TypeVar
 import numpy as np
 
 from hamnet.fr3.limits import Q_HOME
-from hamnet.sim import quaternion, robot_init
+from hamnet.sim import quaternion, robot, robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.objects.randomization import ObjectRandomization, max_rule_frictions
@@ -102,10 +102,12 @@ def _rotate(points: np.ndarray, quat: np.ndarray) -> np.ndarray:
 
 PHYSICS_PARAM_NAMES = (
     "object_mass", "object_friction", "object_restitution", "robot_friction", "scene_friction",
-    "object_scale",
+    "object_scale", *robot.JOINT_DYNAMICS_NAMES,
 )  # fmt: skip
 """Columns of `Episodes.physics_params` (RobotState.privileged.physics_params); the policy
-sizes its input from this tuple, so a new column lands here only."""
+sizes its input from this tuple, so a new column lands here only. The paper's nu (R^6, Table
+tab:state_components) plus the object's scale and the arm's joint-dynamics factors
+(`robot.py`), which the teacher needs once those vary per episode."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,6 +152,8 @@ def draw_episodes(
     solref = restitution_solref(draws["restitution"])
     physics.set_object(env_ids, entry, draws["mass"], object_friction, solref)
     physics.set_robot_friction(env_ids, robot_friction)
+    joint_dynamics = robot.draw_joint_dynamics(rng, config.joint_dynamics, count)  # (K, 3)
+    physics.set_joint_dynamics(env_ids, joint_dynamics)
     near = rng.random(count) < p_near_init  # (K,)
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
@@ -160,7 +164,7 @@ def draw_episodes(
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
     params = np.stack([
         draws["mass"], draws["friction"], draws["restitution"], draws["hand_friction"],
-        scenes.friction, library.scale[entry],
+        scenes.friction, library.scale[entry], *joint_dynamics.T,
     ], axis=1).astype(np.float32)  # fmt: skip
     return Episodes(
         env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near, fallback

@@ -35,6 +35,7 @@ class BatchPhysics:
             "geom_contype", "geom_conaffinity", "geom_friction", "geom_solref",
             "body_mass", "body_inertia", "body_ipos", "body_iquat",
             "actuator_gainprm", "actuator_biasprm", "actuator_forcerange",
+            "dof_armature", "dof_damping", "dof_frictionloss",
         )  # fmt: skip
         self.robot_geoms = np.flatnonzero(np.isin(world.model.geom_bodyid, world.robot_bodies))
         """Geoms of the arm's moving bodies (their friction is set per environment)."""
@@ -112,6 +113,20 @@ class BatchPhysics:
         """Sliding friction (K,) of every geom of the arm's moving bodies in `env_ids` (K,)."""
         geoms = self.robot_geoms
         self.fields["geom_friction"][env_ids[:, None], geoms[None, :], 0] = friction[:, None]
+
+    def set_joint_dynamics(self, env_ids: np.ndarray, scale: np.ndarray) -> None:
+        """Scale the arm's armature, damping and Coulomb friction of `env_ids` from the model
+        file's values (`robot.draw_joint_dynamics`).
+
+        Args:
+            env_ids: (K,) environments; scale: (K, 3) factors on armature, damping, friction.
+        """
+        dofs = self.world.robot_dof
+        rows = np.ix_(env_ids, dofs)
+        nominal = self.world.model
+        for column, name in enumerate(("dof_armature", "dof_damping", "dof_frictionloss")):
+            self.fields[name][rows] = getattr(nominal, name)[dofs] * scale[:, column, None]
+        self.batch.set_const(env_ids)  # armature enters the constants mj_setConst derives
 
     def set_gains(self, kp: np.ndarray, kd: np.ndarray, tau_limit: np.ndarray) -> None:
         """Impedance gains and torque clip of every environment until the next call.

@@ -33,6 +33,8 @@ impedance loop, whose torque stays fixed over a step (0.1x armature: 0.42 rad at
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
@@ -41,6 +43,45 @@ TIMESTEP = 0.0025
 
 INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 """MuJoCo integrator (the model file's `<option integrator>`)."""
+
+JOINT_DYNAMICS_NAMES = ("joint_armature_scale", "joint_damping_scale", "joint_friction_scale")
+"""The per-episode scale factors on the model's armature, damping and frictionloss, in the
+order of `draw_joint_dynamics`'s columns (also columns of the physics parameters)."""
+
+
+@dataclass(frozen=True)
+class JointDynamicsRandomization:
+    """Per-episode factors on the FR3's identified joint parameters (model file: Menagerie's
+    armature, damping and Coulomb friction), one factor per parameter for all seven joints,
+    uniform in each range. The authors train with one fixed identification
+    (ham/src/ham/env/robot/franka.py:937-984, `joint_param_file`, rss_train.yaml:119) and do
+    not randomize these; ranges are ours: wide enough to cover an identification on another
+    arm or at another temperature, narrow enough that the 2.5 ms timestep keeps its margin at
+    the low armature end (module docstring)."""
+
+    armature: tuple[float, float] = (0.7, 1.3)
+    """Factor on the armature (0.195 / 0.074 kg m^2), the term the timestep depends on."""
+    damping: tuple[float, float] = (0.5, 2.0)
+    """Factor on the viscous damping (0.21 N m s/rad); small next to any kd = rho sqrt(kp)
+    >= 0.95, so a wide range costs nothing."""
+    friction: tuple[float, float] = (0.5, 1.5)
+    """Factor on the Coulomb friction (1.137 ... 0.248 N m): harmonic-drive friction changes
+    by tens of percent with temperature and load."""
+
+    def __post_init__(self) -> None:
+        for name in ("armature", "damping", "friction"):
+            low, high = getattr(self, name)
+            if not 0.0 < low <= high:
+                raise ValueError(f"{name} must be 0 < low <= high, got {(low, high)}")
+
+
+def draw_joint_dynamics(
+    rng: np.random.Generator, ranges: JointDynamicsRandomization, count: int
+) -> np.ndarray:
+    """(count, 3) factors on armature, damping and friction (`JOINT_DYNAMICS_NAMES`)."""
+    bounds = np.array([ranges.armature, ranges.damping, ranges.friction])  # (3, 2)
+    return rng.uniform(bounds[:, 0], bounds[:, 1], size=(count, 3))
+
 
 def impedance_torque(
     q: np.ndarray, qdot: np.ndarray, q_ref: np.ndarray, kp: np.ndarray, rho: np.ndarray

@@ -63,7 +63,7 @@ def encode_state(obs: Observation, step: int) -> RobotState:
     for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
         to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
     privileged = message.privileged
-    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, 6)
+    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, P)
         to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))
     return message
 

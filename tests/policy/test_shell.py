@@ -16,6 +16,7 @@ from hamnet.policy.weights import to_bytes
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError
+from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from tests.policy.inputs import random_robot
 from tests.policy.wire import announcement, scene_message, state_message, tokens_message
 from tests.scripted import ScriptedService, wire
@@ -53,7 +54,8 @@ def run(policy, messages: list[tuple[str, object]]) -> tuple[list, PolicyShell]:
 
 
 def test_state_and_tokens_decode_to_what_was_sent() -> None:
-    state = decode_state(wire(state_message(5, B)), privileged=True, physics_params=6)
+    width = len(PHYSICS_PARAM_NAMES)
+    state = decode_state(wire(state_message(5, B)), privileged=True, physics_params=width)
     robot = random_robot(B, seed=5)
     assert state.step == 5 and state.episode_ids.shape == (B,)
     for name in ("q", "ee_pose", "object_velocity", "physics_params"):
@@ -66,10 +68,11 @@ def test_a_state_without_privileged_block_is_refused() -> None:
     """Teacher and student alike need the object pose (the student's is the estimator's)."""
     message = state_message(1, B)
     message.ClearField("privileged")
+    width = len(PHYSICS_PARAM_NAMES)
     for privileged in (True, False):
         with pytest.raises(PayloadError, match="privileged"):
-            decode_state(message, privileged=privileged, physics_params=6)
-    student = decode_state(state_message(1, B), privileged=False, physics_params=6).robot
+            decode_state(message, privileged=privileged, physics_params=width)
+    student = decode_state(state_message(1, B), privileged=False, physics_params=width).robot
     assert student.object_pose is not None and student.physics_params is None
 
 

@@ -8,11 +8,16 @@ import pytest
 
 from hamnet.fr3 import limits as fr3_limits
 from hamnet.sim import robot_init
+from hamnet.sim.config import SimConfig
+from hamnet.sim.env import VectorEnv
+from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.scene import sample_scenes
 from hamnet.sim.scene_config import SceneConfig
 from hamnet.sim.world import build_world
+
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 FOLDED = np.array([0.0, -1.5, 0.0, -2.8, 0.0, 1.5, 0.78])
 """Arm folded up and back, out of the way of anything on the table."""
@@ -150,3 +155,48 @@ def test_a_reset_arm_feels_no_constraint_force_but_contacts(world) -> None:
     reaching_down = np.array([0.0, 1.2, 0.0, -0.3, 0.0, 1.5, 0.78])  # paddle far below the top
     physics.set_state(envs[:1], reaching_down[None], lifted[:1], quat[:1])
     assert robot_init.arm_in_contact(physics, envs).tolist() == [True, False]
+
+
+def test_joint_dynamics_are_scaled_per_environment(world) -> None:
+    """Each environment's armature, damping and friction are the model file's times its own
+    factors, and the armature reaches the dynamics: a free joint-1 swing under the same
+    torque is slower with more armature."""
+    num_envs = 3
+    physics, scenes, envs = physics_with_scenes(world, num_envs)
+    scale = np.array([[0.7, 0.5, 0.5], [1.0, 1.0, 1.0], [1.3, 2.0, 1.5]])  # (B, 3)
+    physics.set_joint_dynamics(envs, scale)
+    dofs = world.robot_dof
+    for env in envs:
+        model = physics.batch.get_model(int(env))
+        for column, name in enumerate(("dof_armature", "dof_damping", "dof_frictionloss")):
+            expected = getattr(world.model, name)[dofs] * scale[env, column]
+            np.testing.assert_allclose(getattr(model, name)[dofs], expected)
+    lifted = np.stack([scenes.centre[:, 0, 0], scenes.centre[:, 0, 1], scenes.table_top + 0.2], 1)
+    physics.set_state(envs, np.tile(FOLDED, (num_envs, 1)), lifted, np.tile(IDENTITY, (3, 1)))
+    kp = np.full((num_envs, 7), 200.0)
+    physics.set_gains(kp, 2.0 * np.sqrt(kp), np.tile(fr3_limits.FR3.tau_max, (num_envs, 1)))
+    target = np.tile(FOLDED, (num_envs, 1))
+    target[:, 0] += 0.3
+    physics.step(np.repeat(target[:, None, :], 8, axis=1), substeps=1)  # 20 ms
+    moved = physics.qpos[:, world.robot_qpos[0]] - FOLDED[0]  # (B,)
+    assert moved[0] > moved[1] > moved[2] > 0.0
+
+
+def test_episodes_report_their_joint_dynamics_factors() -> None:
+    """The drawn factors are within the configured ranges, differ between environments,
+    are written into the batch and are reported as columns of the physics parameters."""
+    config = SimConfig(num_envs=8, nthread=1)
+    env = VectorEnv(config)
+    observation = env.reset(seed=4)
+    params = dict(zip(PHYSICS_PARAM_NAMES, observation.physics_params.T, strict=True))
+    ranges = config.joint_dynamics
+    dofs = env.world.robot_dof
+    for name, field, bounds in (
+        ("joint_armature_scale", "dof_armature", ranges.armature),
+        ("joint_damping_scale", "dof_damping", ranges.damping),
+        ("joint_friction_scale", "dof_frictionloss", ranges.friction),
+    ):
+        assert ((params[name] >= bounds[0]) & (params[name] <= bounds[1])).all()
+        assert np.ptp(params[name]) > 0.05
+        written = env.physics.fields[field][:, dofs] / getattr(env.world.model, field)[dofs]
+        np.testing.assert_allclose(written, np.tile(params[name][:, None], (1, 7)), rtol=1e-6)
