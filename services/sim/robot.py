@@ -9,26 +9,28 @@ rho in [0.3, 2.0], on top of the gravity compensation the FR3 does itself. Why 2
 
 - It divides both clocks of the design: 5 physics steps per 80 Hz torque tick (the authors'
   0.0125 s) and 40 per 10 Hz policy action.
-- Impedance loop. The FR3's reflected motor inertia (armature 0.21-0.61 kg m^2) dominates
-  each joint's inertia, so with the nominal model a 0.2 rad step converges with kp=200 and
-  rho=0.3 or 2 at every timestep up to 12.5 ms, torque recomputed each step or held for an
-  80 Hz tick. The margin shows when armature is randomised down to 0.1x: with kp=200, rho=2
-  the worst error over the last 0.5 s of 3 s is 0.007 rad at 2 ms, 0.024 at 2.5 ms, 0.063 at
-  5 ms and 0.47 at 10 ms; holding the torque for a whole 80 Hz tick leaves 0.45-0.68 rad at
-  any timestep. So the sim recomputes the impedance torque every physics step (400 Hz).
+- Impedance loop. The FR3's reflected motor inertia (armature 0.195 kg m^2 on joints 1-4,
+  0.074 on 5-7, Menagerie's identification) is a large part of each joint's inertia. A
+  0.2 rad step with kp=200, rho=0.3 or 2, torque recomputed every physics step, settles to
+  within 0.0025 rad (the Coulomb friction's dead band, frictionloss/kp <= 0.006 rad) at every
+  timestep up to 5 ms with the nominal armature; at the low end of its per-episode
+  randomization (0.7x, `JointDynamicsRandomization`) up to 3.125 ms, then 0.021 rad at 5 ms,
+  0.043 at 6.25 ms and 0.11 at 10 ms (rho=2). 2.5 ms keeps a 2x margin. Holding the torque
+  for a whole 80 Hz tick leaves 0.08-0.14 rad at any timestep (rho=2), so the sim evaluates
+  the impedance at every physics step (400 Hz; MuJoCo's actuators do it, `world.py`).
 - Contact. A 5 cm, 0.1 kg box dropped on a table rests (speed < 1e-8 m/s, 0.11 mm
-  penetration) at 1-10 ms. Swept by the paddle at about 1.2 m/s, the box ends 27-31 mm from a
-  0.2 ms reference at 1-5 ms (the impact is chaotic), 47 mm at 6.25 ms, but 1.1 m away at
-  10 ms (ejected at 4.3 m/s), and at 12.5 ms MuJoCo must soften every contact (its default
-  solref time constant, 0.02 s, needs a timestep <= 0.01 s). 2.5 ms keeps a 4x margin on
+  penetration) at 1-10 ms. Swept by the paddle at about 1.2 m/s, the box ends 5-18 mm from a
+  0.2 ms reference at 1-3.125 ms (the impact is chaotic), 20-34 mm at 5-6.25 ms, 121 mm at
+  10 ms and 315 mm at 12.5 ms, where MuJoCo must also soften every contact (its default
+  solref time constant, 0.02 s, needs a timestep <= 0.01 s). 2.5 ms keeps a 2-4x margin on
   both and leaves room for stiffer contacts (time constants down to 5 ms).
-- Cost: about 8 us per step (FR3, table, one box, one core), 0.3 ms of physics per action.
-`implicitfast` gives the same trajectories as `Euler` for this model today (joint damping is
-implicit in both and the motors have no velocity term) at the same cost; it is chosen because
-it also integrates any velocity-dependent actuator force (a kv term) implicitly. RK4 survives
-the 10 ms sweep, at 3.7x the cost per step (about four 2.5 ms steps), but it cannot help the
-impedance loop, whose torque stays fixed over a step (0.1x armature: 0.42 rad at 10 ms), and
-10 ms divides neither clock.
+- Cost: about 11 us per step (FR3, table, one box, one core; 8 us before the joints' Coulomb
+  friction added seven constraint rows), 0.45 ms of physics per action.
+`implicitfast` gives the same trajectories as `Euler` for this model (joint damping is
+implicit in both and these motors have no velocity term) at the same cost; it is chosen
+because it also integrates the velocity term of the sim's impedance actuators (kd)
+implicitly. RK4 costs 3.6x per step (40 us) and cannot help the impedance loop, whose torque
+stays fixed over a step; 10 ms divides neither clock.
 """
 
 from __future__ import annotations
