@@ -17,8 +17,10 @@ builds one `VectorEnv`, resets it, and measures in the same run, alternating rou
 Produces a table on stdout, a progress line per configuration on stderr and, as the last
 stdout line, one JSON object: `ratio_vs_raw` (our physics steps/s over raw at the largest
 environment count, all threads; goal >= 0.85), `thread_scaling` (ours, largest count,
-most threads over one thread; goal >= 1.7), `env_steps_per_s_64`, reset costs, and every
-row under `results`.
+most threads over one thread; goal >= 1.7), `env_steps_per_s_64`, reset costs,
+`near_start_fallback_rate` (near starts that found no collision-free arm posture and start
+retracted, every start near, the curriculum's first ceiling mix; goal <= 0.05; `_end`: its
+last mix) and every row under `results`.
 
     .venv/bin/python benchmarks/sim.py --quick     # < 1 min on 2 cores
     .venv/bin/python benchmarks/sim.py             # full sweep
@@ -42,7 +44,9 @@ from mujoco.batch import Batch
 
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
+from hamnet.sim.curriculum import curriculum_values, scene_config_at
 from hamnet.sim.env import VectorEnv
+from hamnet.sim.episodes import draw_episodes
 
 
 @dataclass(frozen=True)
@@ -68,11 +72,19 @@ class SimBenchConfig:
     num_objects: int = 16
     """Procedural objects in the library (the sim's default)."""
     seed: int = 0
+    fallback_draws: int = 6
+    """Episodes per environment (largest count, every start near) for the fallback rate of
+    near starts, per ceiling mix (quick: 2)."""
 
     @property
     def measured_steps(self) -> int:
         """Policy steps per configuration and path."""
         return 30 if self.quick else self.steps
+
+    @property
+    def measured_fallback_draws(self) -> int:
+        """Episodes per environment and ceiling mix for the near-start fallback rate."""
+        return 2 if self.quick else self.fallback_draws
 
 
 def progress(message: str) -> None:
@@ -195,6 +207,30 @@ def print_table(rows: list[dict]) -> None:
           "step of ours; ratio: ours over raw physics steps/s)")  # fmt: skip
 
 
+def near_start_fallbacks(config: SimBenchConfig, num_envs: int) -> dict[str, float]:
+    """Share of near starts that fall back to the retracted pose (`Episodes.start_fallback`)
+    with every start near, `fallback_draws` episodes per environment, the ceilings mixed as
+    at the curriculum's start (p_tight 1/3, the figure named) and at its end (5/6); and the
+    wall time of such a draw per environment, ms."""
+    sim = SimConfig(num_envs=num_envs, nthread=1, num_objects=config.num_objects, seed=config.seed)
+    env = VectorEnv(sim)
+    ids = np.arange(num_envs)
+    figures = {}
+    end = sim.curriculum.start_step + sim.curriculum.num_steps
+    for name, counter in (("start", 0), ("end", end)):
+        values = curriculum_values(counter, sim.curriculum)
+        scene = scene_config_at(values, sim.scene)
+        started, fallbacks = time.perf_counter(), []
+        for _ in range(config.measured_fallback_draws):
+            drawn = draw_episodes(env.rng, env.physics, env.kinematics, env.library, ids, sim,
+                                  scene, p_near_init=1.0)  # fmt: skip
+            fallbacks.append(drawn.start_fallback)
+        elapsed = time.perf_counter() - started
+        figures[f"near_start_fallback_rate_{name}"] = round(float(np.mean(fallbacks)), 4)
+        figures[f"near_start_draw_ms_{name}"] = round(1e3 * elapsed / np.size(fallbacks), 3)
+    return figures
+
+
 def main(config: SimBenchConfig) -> dict:
     """Run the sweep; returns the JSON figures."""
     started = time.monotonic()
@@ -209,6 +245,8 @@ def main(config: SimBenchConfig) -> dict:
             )
             rows.append(row)
     print_table(rows)
+    fallbacks = near_start_fallbacks(config, max(config.num_envs))
+    progress(f"near starts: {fallbacks}")
     largest, most, fewest = max(config.num_envs), max(config.threads), min(config.threads)
     at = {(r["num_envs"], r["nthread"]): r for r in rows}
     top, single = at[(largest, most)], at[(largest, fewest)]
@@ -229,6 +267,8 @@ def main(config: SimBenchConfig) -> dict:
         f"raw_physics_steps_per_s_{largest}": top["raw"]["physics_steps_per_s"],
         f"reset_share_{largest}": top["ours"]["reset_share"],
         "reset_ms_median": round(float(np.median(reset_ms)), 3) if reset_ms else None,
+        "near_start_fallback_rate": fallbacks["near_start_fallback_rate_start"],
+        **fallbacks,
         "largest_num_envs": largest,
         "threads": list(config.threads),
         "results": rows,
@@ -245,6 +285,7 @@ def main(config: SimBenchConfig) -> dict:
     figures["goals"] = {
         "ratio_vs_raw_at_least_0.85": figures["ratio_vs_raw"] >= 0.85,
         "thread_scaling_at_least_1.7": figures["thread_scaling"] >= 1.7,
+        "near_start_fallback_rate_at_most_0.05": figures["near_start_fallback_rate"] <= 0.05,
     }
     return figures
 
