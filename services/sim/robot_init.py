@@ -58,9 +58,14 @@ class RobotInitConfig:
     """Room the paddle needs around its target, along each cuboid's axes, m: about its
     plate's half diagonal sideways, its thickness up and down."""
     near_gap_growth: float = 0.04
-    """Added to the gap at each further draw, m: under a tight ceiling no posture fits beside
-    the object (fallbacks 52% there), so later draws move the target out, towards the
-    case's open front."""
+    """Added to the gap at each further draw, m: under a tight ceiling often no posture fits
+    beside the object (30-50% fallbacks there), so later draws move the target out, towards
+    the case's open front."""
+    near_gap_max: float = 0.2
+    """Largest gap however many draws failed, m. The paper puts the end-effector within 0.1 m
+    of the object (line 319); a 0.1 m cap leaves 5% of near starts retracted at the
+    curriculum's first ceiling mix and 15% at its last (tight ceilings), 0.2 m leaves 1.6%
+    and 4.2%, with 10-17% of near starts 0.15-0.2 m away (docs/sim.md)."""
     posture_count: int = 32768
     """Arm postures in the in-process buffer of IK seeds (`posture_buffer`), drawn uniformly
     within `range_fraction` of the joint ranges once per process."""
@@ -117,6 +122,7 @@ def near_targets(
     count, tries = len(object_pos), config.near_directions
     angle = rng.uniform(0.0, 2.0 * np.pi, size=(count, tries))  # (K, T)
     gap = rng.uniform(*config.near_gap, size=(count, tries)) + draw * config.near_gap_growth
+    gap = np.minimum(gap, config.near_gap_max)  # (K, T)
     distance = planar_radius[:, None] + gap  # (K, T)
     lift = rng.uniform(*config.near_lift, size=(count, tries))  # (K, T)
     offset = np.stack([np.cos(angle) * distance, np.sin(angle) * distance, lift], axis=2)

@@ -132,3 +132,17 @@ def test_few_near_starts_fall_back_to_the_retracted_pose() -> None:
         for _ in range(2)
     ]  # fmt: skip
     assert np.mean(fallbacks) <= 0.05
+
+
+def test_later_draws_widen_the_gap_up_to_its_cap() -> None:
+    """Draw 0 keeps the paddle 2-8 cm beyond the object's radius; each later draw moves it
+    out by `near_gap_growth`, never beyond `near_gap_max`."""
+    rng = np.random.default_rng(4)
+    config = RobotInitConfig()
+    object_pos = np.tile([0.55, 0.0, 0.05], (100, 1))
+    free = Cuboids(np.zeros((100, 1, 3)), np.tile(IDENTITY, (100, 1, 1)), np.full((100, 1, 3), 0.01),
+                   np.zeros((100, 1), bool))  # fmt: skip
+    for draw, low, high in ((0, 0.02, 0.08), (2, 0.10, 0.16), (20, 0.2, 0.2)):
+        targets = near_targets(rng, object_pos, np.full(100, 0.03), free, config, draw)
+        gap = np.linalg.norm((targets - object_pos)[:, :2], axis=1) - 0.03
+        assert (gap >= low - 1e-9).all() and (gap <= min(high, config.near_gap_max) + 1e-9).all()
