@@ -140,8 +140,8 @@ def test_later_draws_widen_the_gap_up_to_its_cap() -> None:
     rng = np.random.default_rng(4)
     config = RobotInitConfig()
     object_pos = np.tile([0.55, 0.0, 0.05], (100, 1))
-    free = Cuboids(np.zeros((100, 1, 3)), np.tile(IDENTITY, (100, 1, 1)), np.full((100, 1, 3), 0.01),
-                   np.zeros((100, 1), bool))  # fmt: skip
+    free = Cuboids(np.zeros((100, 1, 3)), np.tile(IDENTITY, (100, 1, 1)),
+                   np.full((100, 1, 3), 0.01), np.zeros((100, 1), bool))  # fmt: skip
     for draw, low, high in ((0, 0.02, 0.08), (2, 0.10, 0.16), (20, 0.2, 0.2)):
         targets = near_targets(rng, object_pos, np.full(100, 0.03), free, config, draw)
         gap = np.linalg.norm((targets - object_pos)[:, :2], axis=1) - 0.03
