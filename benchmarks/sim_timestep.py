@@ -22,7 +22,6 @@ import numpy as np
 
 from hamnet.fr3 import model as fr3_model
 from hamnet.fr3.limits import Q_HOME
-from hamnet.sim import robot
 from hamnet.sim.robot import JointDynamicsRandomization, impedance_torque
 
 TIMESTEPS = (0.001, 0.002, 0.0025, 0.003125, 0.005, 0.00625, 0.01, 0.0125)
