@@ -38,7 +38,8 @@ class PolicyServiceConfig:
     in its metadata). Required unless --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and
-    demos only: one of hamnet, hamnet-nogate, hamnet-envcode, mlp, hyper, sm, student."""
+    demos only: one of hamnet, hamnet-paper, hamnet-nogate, hamnet-envcode, mlp, hyper, sm,
+    student."""
     print_params: bool = False
     """Print the parameter counts of every architecture next to the paper's, then exit."""
     loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)

@@ -86,12 +86,12 @@ class ModelConfig:
     gates: bool = True
     """Per-unit gates 1 + linear(z_tau) on every base-network layer (off: the ablation)."""
     bias_weights: bool = True
-    """Give biases their own softmax over modules and their own gates, as the authors' code
-    does (every parameter tensor gets one: hypernet_modular.py:1029-1049, scale_bias in
-    rss_train.yaml:335); False: one softmax and one gate per layer, as the paper writes."""
-    mlp_hidden: tuple[int, ...] = (917, 459, 459, 229)
-    """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.195 so that
-    the MLP has as many parameters as our HAMnet (3.547 M), as the paper sized its MLP "to
+    """Give biases their own softmax over modules, as the authors' code does (every
+    parameter tensor gets one: hypernet_modular.py:1029-1049); False: one softmax per
+    layer, as the paper writes. The gates stay one per unit (docs/policy.md)."""
+    mlp_hidden: tuple[int, ...] = (847, 424, 424, 212)
+    """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.103 so that
+    the MLP has as many parameters as our HAMnet (3.252 M), as the paper sized its MLP "to
     match the number of trainable parameters" (Appendix baseline-arch)."""
     hyper_rank: int = 16
     """Rank k of the hypernetwork baseline's generated weights W = W_l W_r."""

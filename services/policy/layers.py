@@ -104,9 +104,6 @@ class CrossAttention(nn.Module):
         return self.out(heads)
 
 
-Gates = tuple[Tensor, Tensor] | None
-"""Per-unit gates of one modular layer: (B, I) for the weight product, (B, I) for the bias."""
-
 MIXTURE_CHUNK = 1024
 """Rows of the batch mixed at a time. The (rows, M*J) scaled inputs of a whole large batch
 (67 MB per layer at 8192) fall out of the CPU caches; chunks of 512-1024 rows trained 15-20%
@@ -121,15 +118,20 @@ def _scaled(x: Tensor, weights: Tensor) -> Tensor:
 class _ModuleMixture(torch.autograd.Function):
     """y = (w (x) x) @ W_stacked: the contraction over modules, with a hand-written backward
     (autograd's reduces two materialised (B, M, J) products; here the input gradient is a
-    batched mat-vec, measured faster on the CPU). Works `MIXTURE_CHUNK` rows at a time and
-    recomputes the scaled inputs in the backward instead of keeping them."""
+    batched mat-vec, measured faster on the CPU). Works `MIXTURE_CHUNK` rows at a time and,
+    beyond one chunk, recomputes the scaled inputs in the backward instead of keeping them."""
 
     @staticmethod
     def forward(ctx, x: Tensor, weights: Tensor, stacked: Tensor) -> Tensor:
-        ctx.save_for_backward(x, weights, stacked)
         out = x.new_empty(len(x), stacked.shape[1])  # (B, I)
-        for rows in _chunks(len(x)):
-            torch.mm(_scaled(x[rows], weights[rows]), stacked, out=out[rows])
+        chunks = _chunks(len(x))
+        for rows in chunks:
+            scaled = _scaled(x[rows], weights[rows])  # (rows, M*J)
+            torch.mm(scaled, stacked, out=out[rows])
+        # A batch of one chunk keeps its scaled inputs for the backward (2-3% of HAMnet's
+        # training step at batch 1024); larger batches recompute them chunk by chunk.
+        ctx.scaled = scaled if len(chunks) == 1 else None
+        ctx.save_for_backward(x, weights, stacked)
         return out
 
     @staticmethod
@@ -141,7 +143,8 @@ class _ModuleMixture(torch.autograd.Function):
         grad_stacked = torch.zeros_like(stacked) if ctx.needs_input_grad[2] else None  # (M*J, I)
         for rows in _chunks(len(x)):
             if grad_stacked is not None:
-                grad_stacked.addmm_(_scaled(x[rows], weights[rows]).T, grad[rows])
+                scaled = ctx.scaled if ctx.scaled is not None else _scaled(x[rows], weights[rows])
+                grad_stacked.addmm_(scaled.T, grad[rows])
             if inputs:
                 grad_scaled = (grad[rows] @ stacked.T).view(-1, weights.shape[1], x.shape[1])
                 grad_x[rows] = (weights[rows].unsqueeze(1) @ grad_scaled).squeeze(1)
@@ -154,9 +157,10 @@ def _chunks(batch: int) -> list[slice]:
 
 
 class ModularLinear(nn.Module):
-    """A bank of M linear modules mixed per sample: y = g_W * (sum_m w_m W_m x) +
-    g_b * (sum_m v_m b_m), with separate module weights w, v and gates g_W, g_b for the
-    weights and the bias, as the authors' GateModMLP (gate_mod_mlp.py:181-200).
+    """A bank of M linear modules mixed per sample: y = g * (sum_m w_m W_m x + sum_m v_m b_m),
+    with separate module weights w, v for the weights and the bias, as the authors'
+    GateModMLP (gate_mod_mlp.py:181-200), and one per-unit gate g (the paper's; the authors
+    also give the bias its own gate, see docs/policy.md).
 
     The mixture is one contraction over the module axis: the sample's module weights scale
     copies of its input, (B, M*J), which one GEMM maps through the stacked modules
@@ -171,24 +175,21 @@ class ModularLinear(nn.Module):
         self.weight = nn.Parameter(torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound))
         self.bias = nn.Parameter(torch.empty(num_modules, out_dim).uniform_(-bound, bound))
 
-    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Gates) -> Tensor:
+    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gate: Tensor | None) -> Tensor:
         """Mix the modules for each sample.
 
         Args:
             x: (B, J) inputs.
             weights: (B, M) softmax over modules for the weight matrices.
             bias_weights: (B, M) softmax over modules for the biases.
-            gates: per-unit gates (B, I) of the weight product and of the bias, or None.
+            gate: (B, I) per-unit gates, or None.
 
         Returns:
-            (B, I) outputs: g_W * (sum_m w_m W_m x) + g_b * (sum_m v_m b_m).
+            (B, I) outputs.
         """
         stacked = self.weight.view(-1, self.out_dim)  # (M*J, I)
-        y = _ModuleMixture.apply(x, weights, stacked)  # (B, I)
-        bias = bias_weights @ self.bias  # (B, I)
-        if gates is None:
-            return y + bias
-        return torch.addcmul(bias * gates[1], y, gates[0])
+        y = _ModuleMixture.apply(x, weights, stacked) + bias_weights @ self.bias  # (B, I)
+        return y if gate is None else y * gate
 
 
 class ModularMLP(nn.Module):
@@ -206,9 +207,9 @@ class ModularMLP(nn.Module):
         return [layer.out_dim for layer in self.layers]
 
     def forward(
-        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Sequence[Gates]
+        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gates: Sequence[Tensor | None]
     ) -> Tensor:
-        """(B, J) -> (B, out) with (B, L, M) module weights and, per layer, its gates
+        """(B, J) -> (B, out) with (B, L, M) module weights and, per layer, its gates (B, D_l)
         (None: ungated; the output layer never has any, hypernet_modular.py:956-962)."""
         for index, layer in enumerate(self.layers):
             x = layer(x, weights[:, index], bias_weights[:, index], gates[index])

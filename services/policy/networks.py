@@ -139,11 +139,11 @@ class HAMNet(nn.Module):
         self.num_layers = len(self.actor.layers) + len(self.critic.layers)
         # One linear layer for every header (one GEMM): module logits for the weights and
         # (when they have their own) the biases, then the gates of every hidden layer's
-        # units, for the weight product and the bias. The output layers have no gates
-        # (scale_last false, hypernet_modular.py:956-962).
+        # units. The output layers have no gates (scale_last false, hypernet_modular.py:
+        # 956-962).
         logits, bias_logits = self.num_layers * m, self.num_layers * m * config.bias_weights
         hidden = self.actor.out_dims[:-1] + self.critic.out_dims[:-1]
-        self.gate_dims = hidden * (1 + config.bias_weights) if config.gates else []
+        self.gate_dims = hidden if config.gates else []
         self.head_dims = [logits, bias_logits, sum(self.gate_dims)]
         self.heads = nn.Linear(z, sum(self.head_dims))
         with torch.no_grad():  # gates start near 1 (hypernet_modular.py:328-331)
@@ -169,25 +169,25 @@ class HAMNet(nn.Module):
             h = self.base_gru(x, previous[:, z.shape[1] :])  # (B, H_base)
             memory, x = torch.cat((z, h), dim=-1), torch.cat((x, h), dim=-1)
         b, m = z.shape[0], self.config.num_modules
-        weight_logits, bias_logits, gate_logits = torch.split(self.heads(z), self.head_dims, -1)
-        weights = torch.softmax(weight_logits.view(b, self.num_layers, m), dim=-1)  # (B, L, M)
-        bias_weights = weights
-        if self.config.bias_weights:
-            bias_weights = torch.softmax(bias_logits.view(b, self.num_layers, m), dim=-1)
+        heads = self.heads(z)  # (B, L*M [+ L*M] + gates)
+        logits = self.head_dims[0] + self.head_dims[1]
+        # One softmax over every (layer, parameter) row of M logits; contiguous rows are
+        # several times faster than the strided split.
+        softmax = torch.softmax(heads[:, :logits].contiguous().view(b, -1, m), dim=-1)
+        weights = softmax[:, : self.num_layers]  # (B, L, M)
+        bias_weights = softmax[:, self.num_layers :] if self.config.bias_weights else weights
+        gate_logits = heads[:, logits:]
         gates = self._gates(gate_logits)
         la = len(self.actor.layers)
         mean = self.actor(x, weights[:, :la], bias_weights[:, :la], gates[:la])
         values = self.critic(x, weights[:, la:], bias_weights[:, la:], gates[la:])
         return NetworkOutput(mean, values, weights, memory)
 
-    def _gates(self, logits: Tensor) -> list:
-        """Per layer (actor's, then critic's): (weight gate, bias gate), each (B, D_l), or
-        None for the ungated output layers (and every layer without gates)."""
+    def _gates(self, logits: Tensor) -> list[Tensor | None]:
+        """Per layer (actor's, then critic's): its gates (B, D_l), or None for the ungated
+        output layers (and every layer without gates)."""
         la, lc = len(self.actor.layers), len(self.critic.layers)
         if not self.config.gates:
             return [None] * (la + lc)
-        gates = torch.split(1.0 + logits, self.gate_dims, dim=-1)
-        hidden = (la - 1) + (lc - 1)
-        bias = gates[hidden:] if self.config.bias_weights else gates[:hidden]
-        pairs = list(zip(gates[:hidden], bias))
-        return pairs[: la - 1] + [None] + pairs[la - 1 :] + [None]
+        gates = list(torch.split(1.0 + logits, self.gate_dims, dim=-1))
+        return gates[: la - 1] + [None] + gates[la - 1 :] + [None]

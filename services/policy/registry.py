@@ -52,7 +52,7 @@ register("hamnet-paper", HAMNet, "HAMnet as the paper's text sizes it: cross-att
 register("hamnet-nogate", HAMNet, "HAMnet without gates (ablation)", "not reported", gates=False)
 register("hamnet-envcode", HAMNet, "EnvCode-HAMnet: oracle scene code instead of scene tokens",
          "not reported", scene_input="env_code")  # fmt: skip
-register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (917, 459, 459, 229), the paper's "
+register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (847, 424, 424, 212), the paper's "
          "(768, 384, 384, 192) scaled to HAMnet's parameter count",
          "1.76 M (Table tab:mlp-scale), matched to HAMnet")  # fmt: skip
 register("hyper", HyperNetwork, "UniCORN-HYPER: low-rank hypernetwork (rank 16)", "not reported")

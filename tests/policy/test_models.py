@@ -41,12 +41,12 @@ def test_hamnet_reports_one_softmax_per_actor_and_critic_layer() -> None:
     assert policy.act(random_inputs(policy, B)).module_weights.shape == (B, 10, 8)
 
 
-def naive_modular(layer: ModularLinear, x, weights, bias_weights, gates):
-    """Per-sample reference: build each sample's gated weight matrix and bias, then multiply."""
-    gate, bias_gate = gates if gates is not None else (1.0, 1.0)
+def naive_modular(layer: ModularLinear, x, weights, bias_weights, gate):
+    """Per-sample reference: build each sample's weight matrix, then multiply."""
     matrices = torch.einsum("bm,mji->bji", weights, layer.weight)  # (B, J, I)
     bias = bias_weights @ layer.bias  # (B, I)
-    return torch.bmm(x.unsqueeze(1), matrices).squeeze(1) * gate + bias * bias_gate
+    y = torch.bmm(x.unsqueeze(1), matrices).squeeze(1) + bias
+    return y if gate is None else y * gate
 
 
 @pytest.mark.parametrize("chunk", [1024, 3])
@@ -59,11 +59,11 @@ def test_module_contraction_equals_per_sample_weight_matrices(chunk: int, monkey
     layer = layer.double()
     weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
     bias_weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
-    gates = tuple(1 + 0.1 * torch.randn(B, 11, dtype=torch.float64) for _ in range(2))
-    torch.testing.assert_close(layer(x, weights, bias_weights, gates), naive_modular(layer, x, weights, bias_weights, gates))
+    gate = 1 + 0.1 * torch.randn(B, 11, dtype=torch.float64)
+    torch.testing.assert_close(layer(x, weights, bias_weights, gate), naive_modular(layer, x, weights, bias_weights, gate))
     # The hand-written backward against autograd through the naive reference.
-    inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, *gates)]
-    assert torch.autograd.gradcheck(lambda x, w, v, g, h: layer(x, w, v, (g, h)), inputs)
+    inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, gate)]
+    assert torch.autograd.gradcheck(lambda *a: layer(*a), inputs)
 
 
 def test_hamnet_forward_equals_naive_reference_to_1e5() -> None:
@@ -185,8 +185,8 @@ def test_hamnet_biases_have_their_own_softmax_and_the_output_layers_no_gates() -
     _, weights, bias_weights, gates = captured["args"]
     assert not torch.allclose(weights, bias_weights)
     assert gates[-1] is None and len(gates) == len(network.actor.layers)
-    for (gate, bias_gate), width in zip(gates[:-1], network.actor.out_dims):
-        assert gate.shape == bias_gate.shape == (B, width) and not torch.allclose(gate, bias_gate)
+    for gate, width in zip(gates[:-1], network.actor.out_dims):
+        assert gate.shape == (B, width) and not torch.allclose(gate, torch.ones_like(gate))
 
 
 def test_modulation_reads_the_emb_token_last() -> None:

@@ -78,8 +78,10 @@ def test_hot_reload_under_load_serves_every_step_from_one_version(spawn, transpo
     assert all(len(copies) == 1 for step, copies in answers.items() if step)
     versions = [answers[step][0].header.policy_version for step in range(STEPS + 1)]
     assert versions == sorted(versions) and versions[-1] == 3 and CORRUPT_VERSION not in versions
+    previous = None  # every step continues the episode of step 0: it follows step - 1
     for step in range(STEPS + 1):
         message = answers[step][0]
-        got = np.frombuffer(message.action.data, np.float32).reshape(B, 21)
-        want = expected(models[message.header.policy_version], step)
-        torch.testing.assert_close(torch.from_numpy(got.copy()), want, atol=1e-5, rtol=1e-5)
+        got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
+        want = expected(models[message.header.policy_version], step, previous=previous)
+        torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+        previous = got
