@@ -6,10 +6,12 @@ scene or the object is rejected and drawn again, up to a bounded number of round
 retracted configuration (`RETRACTED`, then home) is the fallback of an environment that
 never found one.
 
-"near": damped-least-squares IK, batched over environments, puts the paddle's contact face
-at a point beside the object (at its height, a random horizontal direction, `near_gap`
-metres beyond its planar radius). "random": uniform within the central part of each joint
-range.
+"near": damped-least-squares IK puts the paddle's contact face at a point beside the object
+(a little above its centre, a random horizontal direction, `near_gap` metres beyond its
+planar radius, further at each failed draw). The IK starts from a posture of a buffer drawn
+once per process (`posture_buffer`, like the authors' precomputed IK solutions): one whose
+paddle is near the target and whose arm, covered by spheres, clears the scene's cuboids and
+the object (`near_seeds`). "random": uniform within the central part of each joint range.
 """
 
 from __future__ import annotations
@@ -45,10 +47,9 @@ class RobotInitConfig:
     ik_tolerance: float = 0.03
     """A near start must bring the paddle within this distance of its target, m."""
     ik_seed_spread: float = 0.6
-    """The IK starts from home in the first draw, then from home plus N(0, this) per joint,
-    rad: from home alone it finds the same arm posture again and again, and when that
-    posture's elbow or wrist is in a wall or ceiling every draw fails (fallbacks with every
-    start near: 29% from home only, 25% with this spread)."""
+    """When no buffer posture near the target clears the scene, the IK starts from home
+    plus N(0, this) per joint, rad: from home alone it finds the same arm posture again and
+    again, and when that posture's elbow or wrist is in a wall or ceiling every draw fails."""
     rounds: int = 8
     """Draws per environment before falling back to the home configuration."""
     near_directions: int = 8
