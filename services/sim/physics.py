@@ -2,9 +2,10 @@
 
 Per-environment differences are per-simulation model fields (`Batch.expand`): scene cuboids,
 the object's parts and inertia, contact parameters, the arm's joint armature, damping and
-friction, and its impedance gains and torque clip. One policy step is one `Batch.rollout` call: MuJoCo steps every environment on
-all threads with the GIL released, evaluating the impedance law at every physics step while
-`q_ref` follows the command's reference samples (zero-order hold per sample).
+friction, and its impedance gains and torque clip. One policy step is one `Batch.rollout`
+call: MuJoCo steps every environment on all threads with the GIL released, evaluating the
+impedance law at every physics step while `q_ref` follows the command's reference samples
+(zero-order hold per sample).
 """
 
 from __future__ import annotations
