@@ -27,7 +27,7 @@ from hamnet.sim.shell import encode_scene, encode_state
 from tests.scripted import ScriptedService, wire
 
 B = 2
-ENCODER = EncoderConfig(width=32, depth=1, heads=2, tokenizer_hidden=16)
+ENCODER = EncoderConfig(width=32, depth=1, heads=2, tokenizer_hidden=(16,))
 CLOUDS = CloudConfig(scene_pool=1024)
 
 
