@@ -34,6 +34,16 @@ class Carry:
     """(B, H) recurrent memory of a student; None for a feed-forward policy."""
 
 
+def robot_observation(observation, device="cpu") -> RobotObservation:
+    """The `RobotObservation` of a `hamnet.sim.env.Observation` (numpy, (B, ...) fields of
+    the same names): the trainer's in-process path, without the wire."""
+    fields = ("q", "dq", "ee_pose", "goal_pose", "object_pose", "object_velocity", "physics_params")
+    return RobotObservation(**{
+        name: torch.as_tensor(getattr(observation, name), dtype=torch.float32, device=device)
+        for name in fields
+    })  # fmt: skip
+
+
 def initial_carry(config: ModelConfig, memory_width: int, batch: int, device="cpu") -> Carry:
     """The carry of `batch` environments before their first step."""
     memory = torch.zeros(batch, memory_width, device=device) if memory_width else None

@@ -34,6 +34,7 @@ def parameter_table() -> str:
         "hyper/routing networks, base networks). actor+critic: the base networks' own weights",
         "(HAMnet: its module banks; hyper: the heads that generate them). The paper gives",
         "counts only in Table tab:mlp-scale (MLP 768-384-384-192: 1.76 M, matched to HAMnet);",
-        "our MLP is those widths x 1.103, matched to our HAMnet's total the same way.",
+        "our MLP is those widths x 1.103, matched to our HAMnet's total the same way. With",
+        "the authors' 196-wide base input, HAMnet's base networks hold 1.742 M (paper: 1.76 M).",
     ]
     return "\n".join(lines)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import torch
 
 from hamnet.policy import inputs as builder
+from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.registry import build
 from tests.policy.inputs import random_robot
 
@@ -45,3 +46,25 @@ def test_env_code_cache_grows_to_the_largest_id() -> None:
     cache = builder.store_env_code(cache, torch.tensor([0]), 2 * torch.ones(1, 25))
     assert cache.shape == (3, 25)
     assert cache[:, 0].tolist() == [2.0, 0.0, 1.0]
+
+
+def test_the_trainer_builds_inputs_from_the_sim_in_process() -> None:
+    """The in-process seam: VectorEnv observations -> the same builder -> an action, for the
+    teacher and the student, with the widths the spec names."""
+    from hamnet.sim.config import SimConfig
+    from hamnet.sim.env import VectorEnv
+
+    env = VectorEnv(SimConfig(num_envs=B, num_objects=2, nthread=1))
+    observation = env.observe()
+    robot = builder.robot_observation(observation)
+    ids = torch.from_numpy(observation.episode_ids).long()
+    steps = torch.from_numpy(observation.episode_step).long()
+    for name in ("hamnet", "student"):
+        policy = build(name, seed=0)
+        carry = builder.initial_carry(policy.config, policy.memory_width, B)
+        carry = builder.begin_step(carry, ids, steps)
+        inputs = builder.policy_inputs(policy.config, carry, robot, tokens(),
+                                       pose_noise=PoseNoiseConfig())  # fmt: skip
+        assert inputs.observation.context.shape == (B, policy.config.observation.width("context"))
+        action = policy.act(inputs)
+        assert action.action.shape == (B, 21) and torch.isfinite(action.action).all()
