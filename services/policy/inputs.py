@@ -62,7 +62,8 @@ def begin_step(carry: Carry, episode_ids: Tensor, episode_step: Tensor) -> Carry
         episode_step: (B,) policy steps since each episode started (0 at its first).
     """
     if len(episode_ids) != len(carry.episode_ids):
-        raise ValueError(f"carry of {len(carry.episode_ids)} environments, step of {len(episode_ids)}")
+        raise ValueError(f"carry of {len(carry.episode_ids)} environments, "
+                         f"step of {len(episode_ids)}")  # fmt: skip
     keep = ((episode_step != 0) & (episode_ids == carry.episode_ids)).unsqueeze(1)  # (B, 1)
     memory = None if carry.memory is None else carry.memory * keep
     return Carry(episode_ids, carry.previous_action * keep, memory)

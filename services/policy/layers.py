@@ -3,7 +3,8 @@ module bank whose per-sample mixture is a contraction over the module axis.
 
 Hidden layers of the actor, critic and modulation networks are Linear -> LayerNorm (no
 affine, as in the authors' code) -> tanh; output layers are linear. The cross-attention
-embeddings use the authors' Linear -> LayerNorm -> GELU. Shapes: B batch, N tokens, D token width, M modules, J in, I out.
+embeddings use the authors' Linear -> LayerNorm -> GELU.
+Shapes: B batch, N tokens, D token width, M modules, J in, I out.
 """
 
 from __future__ import annotations
@@ -175,7 +176,9 @@ class ModularLinear(nn.Module):
         self.weight = nn.Parameter(torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound))
         self.bias = nn.Parameter(torch.empty(num_modules, out_dim).uniform_(-bound, bound))
 
-    def forward(self, x: Tensor, weights: Tensor, bias_weights: Tensor, gate: Tensor | None) -> Tensor:
+    def forward(
+        self, x: Tensor, weights: Tensor, bias_weights: Tensor, gate: Tensor | None
+    ) -> Tensor:
         """Mix the modules for each sample.
 
         Args:

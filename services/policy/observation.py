@@ -168,7 +168,9 @@ def relative_goal(object_pose: Tensor, goal_pose: Tensor) -> Tensor:
     return torch.cat((goal_pose[..., :3] - object_pose[..., :3], six_d(rotation)), dim=-1)
 
 
-def estimated_pose(pose: Tensor, noise: PoseNoiseConfig, generator: torch.Generator | None) -> Tensor:
+def estimated_pose(
+    pose: Tensor, noise: PoseNoiseConfig, generator: torch.Generator | None
+) -> Tensor:
     """(B, 7) a pose estimator's reading of the true (B, 7) poses: Gaussian position error
     and a rotation by a Gaussian rotation vector, applied in the world frame."""
     b = pose.shape[0]
@@ -204,7 +206,9 @@ def _pieces(robot: RobotObservation, previous_action: Tensor, spec: ObservationS
     return pieces
 
 
-def assemble(robot: RobotObservation, previous_action: Tensor, spec: ObservationSpec) -> Observation:
+def assemble(
+    robot: RobotObservation, previous_action: Tensor, spec: ObservationSpec
+) -> Observation:
     """The network inputs of one batch of robot states.
 
     Args:

@@ -30,7 +30,7 @@ import torch
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.policy import inputs as builder
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import PoseNoiseConfig, RobotObservation
+from hamnet.policy.observation import POSE_WIDTH, VELOCITY_WIDTH, PoseNoiseConfig, RobotObservation
 from hamnet.policy.pairing import Pairing
 from hamnet.policy.policy import Action, Policy
 from hamnet.policy.registry import build
@@ -104,12 +104,12 @@ def decode_state(message: RobotState, privileged: bool, physics_params: int) -> 
     block = message.privileged
     extra = {"object_pose": _floats(block, "object_pose", (b, 7))}
     if privileged:
-        extra["object_velocity"] = _floats(block, "object_velocity", (b, 6))
+        extra["object_velocity"] = _floats(block, "object_velocity", (b, VELOCITY_WIDTH))
         extra["physics_params"] = _floats(block, "physics_params", (b, physics_params))
     robot = RobotObservation(
         q=q,
         dq=_floats(message, "dq", (b, J)),
-        ee_pose=_floats(message, "ee_pose", (b, 9)),
+        ee_pose=_floats(message, "ee_pose", (b, POSE_WIDTH)),
         goal_pose=_floats(message, "goal_pose", (b, 7)),
         **extra,
     )
