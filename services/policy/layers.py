@@ -149,7 +149,7 @@ class _ModuleMixture(torch.autograd.Function):
             if inputs:
                 grad_scaled = (grad[rows] @ stacked.T).view(-1, weights.shape[1], x.shape[1])
                 grad_x[rows] = (weights[rows].unsqueeze(1) @ grad_scaled).squeeze(1)
-                grad_weights[rows] = (grad_scaled * x[rows].unsqueeze(1)).sum(2)  # bmm: slower
+                grad_weights[rows] = (grad_scaled @ x[rows].unsqueeze(2)).squeeze(2)  # (rows, M)
         return grad_x, grad_weights, grad_stacked
 
 
