@@ -39,7 +39,9 @@ def expected(policy, step: int, env_code: np.ndarray | None = None, previous=Non
         return policy.act(inputs, deterministic=True).action
 
 
-def run(policy, messages: list[tuple[str, object]]) -> tuple[list, PolicyShell]:
+def run(
+    policy, messages: list[tuple[str, object]], pose_noise: bool = False
+) -> tuple[list, PolicyShell]:
     """Feed `messages` to a shell serving `policy` (version 0); returns published actions."""
     items = iter(messages)
 
@@ -48,7 +50,8 @@ def run(policy, messages: list[tuple[str, object]]) -> tuple[list, PolicyShell]:
         return "end" if item is None else (item[0], encode(item[1]))
 
     service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
-    shell = PolicyShell(service, policy, 0, ShellConfig(deterministic=True, student_pose_noise=False))
+    config = ShellConfig(deterministic=True, student_pose_noise=pose_noise)
+    shell = PolicyShell(service, policy, 0, config)
     shell.run()
     return [message for topic, message in service.published if topic == "action"], shell
 
@@ -154,3 +157,15 @@ def test_student_memory_restarts_with_each_episode() -> None:
     fresh = expected(policy, 1).numpy()
     np.testing.assert_allclose(got[1], fresh[1], atol=1e-5)
     assert not np.allclose(got[0], fresh[0], atol=1e-4)
+
+
+def test_a_student_against_the_sim_sees_a_noisy_pose_unless_told_otherwise() -> None:
+    """The sim's true pose stands in for the estimator's: with the error model on (the
+    default) the student's action differs from the one on the exact pose; off, it equals it."""
+    policy = build("student", seed=0)
+    messages = [("state", state_message(0, B)), ("tokens", tokens_message(0, B))]
+    exact, _ = run(policy, messages)
+    noisy, _ = run(policy, messages, pose_noise=True)
+    action = lambda m: np.frombuffer(m.action.data, np.float32).reshape(B, 21)  # noqa: E731
+    np.testing.assert_allclose(action(exact[0]), expected(policy, 0).numpy(), atol=1e-5)
+    assert not np.allclose(action(noisy[0]), action(exact[0]), atol=1e-4)
