@@ -18,7 +18,7 @@ class PrivilegedState(_message.Message):
     def __init__(self, object_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_velocity: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., physics_params: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
 
 class RobotState(_message.Message):
-    __slots__ = ("header", "episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose", "privileged")
+    __slots__ = ("header", "episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose", "privileged", "object_pose_estimate")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     EPISODE_IDS_FIELD_NUMBER: _ClassVar[int]
     EPISODE_STEP_FIELD_NUMBER: _ClassVar[int]
@@ -28,6 +28,7 @@ class RobotState(_message.Message):
     EE_POSE_FIELD_NUMBER: _ClassVar[int]
     GOAL_POSE_FIELD_NUMBER: _ClassVar[int]
     PRIVILEGED_FIELD_NUMBER: _ClassVar[int]
+    OBJECT_POSE_ESTIMATE_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     episode_ids: _common_pb2.Tensor
     episode_step: _common_pb2.Tensor
@@ -37,7 +38,8 @@ class RobotState(_message.Message):
     ee_pose: _common_pb2.Tensor
     goal_pose: _common_pb2.Tensor
     privileged: PrivilegedState
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_step: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., q: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., dq: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., tau: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., ee_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., privileged: _Optional[_Union[PrivilegedState, _Mapping]] = ...) -> None: ...
+    object_pose_estimate: _common_pb2.Tensor
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_step: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., q: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., dq: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., tau: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., ee_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., privileged: _Optional[_Union[PrivilegedState, _Mapping]] = ..., object_pose_estimate: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
 
 class Scene(_message.Message):
     __slots__ = ("header", "env_ids", "episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active", "object_ids", "object_scale", "start_pose", "goal_pose", "env_code", "object_points")

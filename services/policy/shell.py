@@ -3,13 +3,15 @@
 Consumes `sim/<w>/state` (RobotState k), `perception/<w>/tokens` (PerceptionTokens k, the
 same step), `sim/<w>/scene` (EnvCode of reset environments, for the EnvCode oracle),
 `trainer/weights` (WeightsAnnouncement) and `trainer/schedule` (Schedule: the log std follows
-its `env_transitions`; until one arrives, the weights' own log std serves). Produces `policy/<w>/action` (PolicyAction k:
+its `env_transitions`; until one arrives, the weights' own log std serves). Produces
+`policy/<w>/action` (PolicyAction k:
 `header.step` = k, `header.policy_version` = the weights' version, raw action, log-prob,
 values, module weights). State and tokens are paired by step (`Pairing`); a state sent
 again after its answer gets the same answer again. The network inputs come from the one
 input builder (`hamnet.policy.inputs`: previous action, memory resets, EnvCode cache).
-A student reads the object pose from the privileged block, where the sim stands in for the
-real robot's pose estimator (the estimator's error model is added unless switched off).
+A student reads `RobotState.object_pose_estimate`, the object pose a pose estimator reports on
+the real robot (the sim publishes its true pose there, and the estimator's error model is
+added unless switched off); only a teacher reads the privileged block.
 
 Hot reload: an announcement is checked (sha256, metadata, architecture, config, tensor
 shapes, finiteness) and loaded into a second copy of the network, which replaces the serving
@@ -89,8 +91,8 @@ def _floats(owner, name: str, shape) -> torch.Tensor:
 
 
 def decode_state(message: RobotState, privileged: bool, physics_params: int) -> StateIn:
-    """RobotState k: a teacher (`privileged`) reads the whole privileged block, a student
-    only its object pose (the pose estimator's stand-in).
+    """RobotState k: a teacher (`privileged`) reads the privileged block, a student the
+    pose estimator's object pose (`object_pose_estimate`), as on the real robot.
 
     Args:
         physics_params: P, the width of the physics parameters.
@@ -99,13 +101,17 @@ def decode_state(message: RobotState, privileged: bool, physics_params: int) -> 
     """
     q = _floats(message, "q", (None, J))  # (B, J)
     b = len(q)
-    if not message.HasField("privileged"):
-        raise PayloadError("missing", "RobotState.privileged is needed for the object pose")
-    block = message.privileged
-    extra = {"object_pose": _floats(block, "object_pose", (b, 7))}
     if privileged:
-        extra["object_velocity"] = _floats(block, "object_velocity", (b, VELOCITY_WIDTH))
-        extra["physics_params"] = _floats(block, "physics_params", (b, physics_params))
+        if not message.HasField("privileged"):
+            raise PayloadError("missing", "RobotState.privileged is needed by a teacher")
+        block = message.privileged
+        extra = {
+            "object_pose": _floats(block, "object_pose", (b, 7)),
+            "object_velocity": _floats(block, "object_velocity", (b, VELOCITY_WIDTH)),
+            "physics_params": _floats(block, "physics_params", (b, physics_params)),
+        }
+    else:
+        extra = {"object_pose": _floats(message, "object_pose_estimate", (b, 7))}
     robot = RobotObservation(
         q=q,
         dq=_floats(message, "dq", (b, J)),

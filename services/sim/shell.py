@@ -62,6 +62,7 @@ def encode_state(obs: Observation, step: int) -> RobotState:
     to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
     for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
         to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
+    to_tensor(obs.object_pose.astype(np.float32), message.object_pose_estimate)  # (B, 7), exact
     privileged = message.privileged
     for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, P)
         to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))

@@ -15,7 +15,7 @@ from hamnet.policy.shell import PolicyShell, ShellConfig, decode_state, decode_t
 from hamnet.policy.weights import to_bytes
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
-from hamnet.runtime.tensor import PayloadError
+from hamnet.runtime.tensor import PayloadError, to_tensor
 from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from tests.policy.inputs import random_robot
 from tests.policy.wire import announcement, scene_message, state_message, tokens_message
@@ -67,15 +67,18 @@ def test_state_and_tokens_decode_to_what_was_sent() -> None:
     assert [t.shape for t in tokens.tokens] == [(B, 17, 128)] * 3
 
 
-def test_a_state_without_privileged_block_is_refused() -> None:
-    """Teacher and student alike need the object pose (the student's is the estimator's)."""
+def test_a_student_reads_the_pose_estimate_and_never_the_privileged_block() -> None:
+    """On the real robot there is no privileged block: a teacher refuses such a state, a
+    student takes its object pose from `object_pose_estimate` (moved here to tell them apart)."""
     message = state_message(1, B)
     message.ClearField("privileged")
+    estimate = np.tile(np.array([0.6, 0.1, 0.2, 1.0, 0.0, 0.0, 0.0], np.float32), (B, 1))
+    to_tensor(estimate, message.object_pose_estimate)
     width = len(PHYSICS_PARAM_NAMES)
-    for privileged in (True, False):
-        with pytest.raises(PayloadError, match="privileged"):
-            decode_state(message, privileged=privileged, physics_params=width)
-    student = decode_state(state_message(1, B), privileged=False, physics_params=width).robot
+    with pytest.raises(PayloadError, match="privileged"):
+        decode_state(message, privileged=True, physics_params=width)
+    student = decode_state(message, privileged=False, physics_params=width).robot
+    torch.testing.assert_close(student.object_pose, torch.from_numpy(estimate))
     assert student.object_pose is not None and student.physics_params is None
 
 

@@ -21,7 +21,8 @@ def _f32(tensor: torch.Tensor, out) -> None:
 
 
 def state_message(step: int, batch: int, episode_ids=None, episode_step=None) -> RobotState:
-    """RobotState `step` with the privileged block; random but reproducible per step."""
+    """RobotState `step` with the privileged block and the pose estimate (the exact pose, as
+    the sim sends it); random but reproducible per step."""
     robot = random_robot(batch, seed=step)
     message = RobotState(header=Header(step=step))
     ids = np.zeros(batch, np.int64) if episode_ids is None else np.asarray(episode_ids, np.int64)
@@ -32,6 +33,7 @@ def state_message(step: int, batch: int, episode_ids=None, episode_step=None) ->
         _f32(getattr(robot, name), getattr(message, name))
     for name in ("object_pose", "object_velocity", "physics_params"):
         _f32(getattr(robot, name), getattr(message.privileged, name))
+    _f32(robot.object_pose, message.object_pose_estimate)
     return message
 
 
