@@ -81,9 +81,11 @@ def main() -> None:
 
     cached_s = timed(lambda: core.step(pose), repeats)
     uncached_s = timed(uncached, repeats)
+    cuboids = scenes.cuboids
     culling_s = timed(lambda: sample_surface(cuboids, config.num_points, config.grid), repeats)
     union_envs = min(b, 8 if args.quick else b)
-    rows = [{name: s[name][i][s["active"][i]] for name in ("centre", "quat", "half_extent")} for i in range(union_envs)]
+    rows = [{"centre": s.cuboid_centre[i][s.cuboid_active[i]], "quat": s.cuboid_quat[i][s.cuboid_active[i]],
+             "half_extent": s.cuboid_half_extent[i][s.cuboid_active[i]]} for i in range(union_envs)]  # fmt: skip
     union_s = timed(lambda: [union_sample(row, config.num_points) for row in rows], max(1, repeats // 3))
     union_per_env = union_s / union_envs
     culling_per_env = culling_s / b
