@@ -6,6 +6,7 @@ from the field docstrings.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,6 +59,17 @@ class SimConfig:
                 f"policy_period_s / control_samples must be a multiple of the {TIMESTEP} s "
                 "physics timestep"
             )
+
+    @property
+    def start_goal_placement(self) -> PlacementConfig:
+        """`placement` with its start/goal separations raised to the task's success thresholds,
+        so no episode starts already solved (the authors' `avoid_direct_suc`) whatever the
+        success preset."""
+        return dataclasses.replace(
+            self.placement,
+            min_position_separation=max(self.placement.min_position_separation, self.task.success_radius),
+            min_orientation_separation=max(self.placement.min_orientation_separation, self.task.success_angle),
+        )
 
     @property
     def physics_steps_per_sample(self) -> int:

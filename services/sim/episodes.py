@@ -199,7 +199,7 @@ def _scenes_and_placements(
         new_scenes = sample_scenes(rng, height[tries], scene_config)
         new_placement = sample_placements(
             rng, new_scenes, library.stable_quat[drawn], library.planar_radius[drawn],
-            library.rest_height[drawn], library.top_height[drawn], config.placement,
+            library.rest_height[drawn], library.top_height[drawn], config.start_goal_placement,
             pose_weight=library.probability[drawn],
         )  # fmt: skip
         valid = new_placement.valid.reshape(len(rows), per_round)  # (R, per_round)

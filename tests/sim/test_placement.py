@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from hamnet.sim import quaternion
+from hamnet.sim.config import SimConfig
 from hamnet.sim.placement import Placement, PlacementConfig, sample_placements
 from hamnet.sim.scene import SceneBatch, sample_scenes
 from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.task_config import TASK_PRESETS
 
 B = 256
 K = 3
@@ -228,3 +230,14 @@ def test_orientations_are_drawn_by_their_weights() -> None:
     drawn = _categorical(rng, weight, 4).ravel()
     assert set(np.unique(drawn)) == {0, 1}
     assert abs((drawn == 0).mean() - 0.7) < 0.02
+
+
+def test_start_goal_separation_never_falls_below_the_success_thresholds() -> None:
+    """With the paper's 0.1 m success radius and the default 0.05 m separation, a start 0.07 m
+    from its goal would count as solved before the first step; the sim's placement rule
+    raises the separation to the task's thresholds."""
+    config = SimConfig(task=TASK_PRESETS["paper"])
+    rule = config.start_goal_placement
+    assert rule.min_position_separation == config.task.success_radius == 0.1
+    assert rule.min_orientation_separation == config.task.success_angle
+    assert SimConfig().start_goal_placement.min_position_separation == SimConfig().placement.min_position_separation
