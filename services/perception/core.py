@@ -153,19 +153,21 @@ class Perception:
         self.episode_ids = update(self.episode_ids, scenes.episode_ids.to(self.device, torch.long))
 
     @torch.no_grad()
-    def step(self, object_pose: torch.Tensor) -> Percepts:
-        """Clouds and tokens of every environment with the object at `object_pose` (B, 7):
-        position (m) and quaternion wxyz."""
+    def step(self, object_pose: torch.Tensor, env_ids: torch.Tensor | None = None) -> Percepts:
+        """Clouds and tokens with the object at `object_pose`: position (m) and quaternion
+        wxyz, (B, 7) for every environment, or (K, 7) for the environments `env_ids` (K,)
+        only (a trainer bootstraps the value of the few episodes that timed out)."""
         config = self.config
+        rows = slice(None) if env_ids is None else env_ids.to(self.device)
         pose = object_pose.to(self.device, torch.float32)
-        keypoints = pose_points(self.keypoints, pose)  # (B, 64, 3)
-        local = local_cloud(self.scene_pool, keypoints, config.num_points)  # (B, P, 3)
+        keypoints = pose_points(self.keypoints[rows], pose)  # (B, 64, 3)
+        local = local_cloud(self.scene_pool[rows], keypoints, config.num_points)  # (B, P, 3)
         local = corrupt(local, config.noise_std, config.dropout, self.generator)
         return Percepts(
-            object_cloud=pose_points(self.object_points, pose),
-            environment_cloud=self.environment_cloud,
+            object_cloud=pose_points(self.object_points[rows], pose),
+            environment_cloud=self.environment_cloud[rows],
             local_cloud=local,
-            object_tokens=self.object_tokens,
+            object_tokens=self.object_tokens[rows],
             local_tokens=self.encoder(local),
-            global_tokens=self.global_tokens,
+            global_tokens=self.global_tokens[rows],
         )

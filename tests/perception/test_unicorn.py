@@ -168,3 +168,16 @@ def test_a_checkpoint_of_the_pooled_tokenizer_fails_with_the_reason(tmp_path) ->
               metadata={"hamnet.encoder.config": old, "hamnet.encoder.version": "1"})  # fmt: skip
     with pytest.raises(CheckpointError, match="invalid encoder metadata.*tokenizer_hidden"):
         load_checkpoint(tmp_path / "old.safetensors")
+
+
+def test_a_step_of_some_environments_equals_those_rows_of_a_full_step() -> None:
+    """The trainer bootstraps timed-out episodes from a step of those environments only: it
+    must see exactly their rows of a full step (noise off, so the two are comparable)."""
+    config = CloudConfig(num_points=128, scene_pool=512, num_keypoints=16, noise_std=0.0, dropout=0.0)
+    core = Perception(UniCORN(SMALL), 3, config)
+    core.start_episodes(EpisodeScenes(torch.arange(3), torch.arange(3), one_scene(3), torch.rand(3, 128, 3) * 0.05))
+    pose = torch.tensor([[0.5, 0.0, 0.45, 1.0, 0.0, 0.0, 0.0]]).repeat(3, 1)
+    pose[:, 0] += torch.tensor([0.0, 0.1, -0.1])
+    whole, some = core.step(pose), core.step(pose[[2, 0]], torch.tensor([2, 0]))
+    for name in ("object_cloud", "environment_cloud", "local_cloud", "object_tokens", "local_tokens", "global_tokens"):
+        torch.testing.assert_close(getattr(some, name), getattr(whole, name)[[2, 0]], atol=1e-5, rtol=1e-5)
