@@ -15,6 +15,7 @@ T tries, R regions.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -35,6 +36,9 @@ class PlacementConfig:
     rss_train.yaml:122, scaled by sample_thresh 1.0, rss_train.yaml:132-134)."""
     min_orientation_separation: float = 0.1
     """... or this far from its orientation, rad: the success angle (rss_train.yaml:123)."""
+    max_position_separation: float = math.inf
+    """A start farther than this from the goal's position is refused, m: caps the push
+    distance of an easy training stage (inf: no cap, as the paper and the authors)."""
     require_both_separations: bool = False
     """True: the start must differ in position and in orientation (no in-place
     reorientation or pure translation: stricter than the authors)."""
@@ -53,6 +57,8 @@ class PlacementConfig:
     def __post_init__(self) -> None:
         if self.min_position_separation < 0 or self.min_orientation_separation < 0:
             raise ValueError("separations must be >= 0")
+        if self.max_position_separation <= self.min_position_separation:
+            raise ValueError("max_position_separation must exceed min_position_separation")
         if self.elevated_goal_bias <= 0:
             raise ValueError("elevated_goal_bias must be > 0 (1 means no bias)")
         if self.max_tries < 1 or self.max_scene_draws < 1:
@@ -138,6 +144,7 @@ def sample_placements(
     far = distance >= config.min_position_separation  # (B, T)
     turned = angle >= config.min_orientation_separation  # (B, T)
     separated = (far & turned) if config.require_both_separations else (far | turned)
+    separated &= distance <= config.max_position_separation
     start = _pick(start._replace(valid=start.valid & separated))
     return Placement(
         goal_pos=goal.pos,

@@ -1,0 +1,45 @@
+"""Training stages: named sim configurations, each a complete `SimConfig`.
+
+- "full": the paper's procedural domain with the authors' configuration (every default).
+- "easy": a first stage where every success needs directed pushing (issue 12): a flat table
+  (no raised plates), no walls or ceiling, the arm always starting near the object, goals on
+  the table 0.08 to 0.2 m from the start whatever the orientation, and success within
+  0.05 m and 0.3 rad. The position threshold is the authors' (their reported success rates);
+  the angle is 3x theirs because pushing a box over a flat table to within 0.1 rad of a
+  random yaw is a second skill (in a calibration run 52% of timeouts had the object turned
+  past 0.1 rad).
+
+`stage_config(name)` gives the stage; command-line flags change any field on top of it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from hamnet.sim.config import SimConfig
+from hamnet.sim.curriculum import CurriculumConfig
+from hamnet.sim.placement import PlacementConfig
+from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.task_config import TaskConfig
+
+_EASY = SimConfig(
+    scene=SceneConfig(p_top_plate=0.0, p_wall=0.0, p_ceiling=0.0),
+    placement=PlacementConfig(
+        min_position_separation=0.08,
+        min_orientation_separation=math.inf,
+        max_position_separation=0.2,
+    ),
+    curriculum=CurriculumConfig(p_near_init_start=1.0, p_near_init_end=1.0),
+    task=dataclasses.replace(TaskConfig(), success_radius=0.05, success_angle=0.3),
+)
+
+STAGES: dict[str, SimConfig] = {"full": SimConfig(), "easy": _EASY}
+"""Every stage by name."""
+
+
+def stage_config(name: str, **changes) -> SimConfig:
+    """The SimConfig of stage `name`, with top-level fields changed (num_envs, seed, ...)."""
+    if name not in STAGES:
+        raise ValueError(f"unknown stage {name!r}; stages: {', '.join(STAGES)}")
+    return dataclasses.replace(STAGES[name], **changes)
