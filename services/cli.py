@@ -34,6 +34,7 @@ COMMANDS: tuple[Command, ...] = (
     Command("policy", "HAMnet and baseline inference with hot-reloaded weights", "hamnet.policy.cli", 5),
     Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", "hamnet.safety.cli", 4),
     Command("trainer", "PPO and DAgger from streamed rollouts", None, None),
+    Command("train", "PPO in one process: sim, perception, policy and safety cores, no Zenoh", "hamnet.trainer.cli", 12),
     Command("monitor", "live Rerun view of the whole stack", "hamnet.monitor.cli", 7),
     Command("record", "record topics to MCAP (`hamnet record info FILE` summarises one)", "hamnet.recorder.cli", 7),
     Command("replay", "replay an MCAP recording onto Zenoh", "hamnet.recorder.replay_cli", 7),

@@ -49,6 +49,8 @@ class Evaluation:
     """(B, R) value per reward term."""
     memory: Tensor | None
     """(B, H) next recurrent state, or None."""
+    mean: Tensor
+    """(B, A) mean of the action distribution (PPO's bound loss keeps it in range)."""
 
 
 def log_std_at(env_transitions: int, config: LogStdConfig) -> float:
@@ -99,7 +101,7 @@ class Policy(nn.Module):
         """Log-prob and entropy of `actions` (B, A) and the values, with gradients."""
         out = self.network(inputs)
         entropy = (self.log_std + 0.5 + _LOG_SQRT_2PI).sum().expand(actions.shape[0])  # (B,)
-        return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory)
+        return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory, out.mean)
 
     def _log_prob(self, action: Tensor, mean: Tensor) -> Tensor:
         """(B,) log N(action; mean, exp(log_std)^2), summed over the A components."""

@@ -1,0 +1,44 @@
+"""`hamnet train`: PPO in one process, with no Zenoh: the sim, perception, policy and the
+safety filter's training profile as in-process cores (`hamnet.trainer.rollout`), the update
+and the schedule counter (`hamnet.trainer.runner`).
+
+    hamnet train --stage easy --max-wall-clock-s 3600      # an hour on the easy stage
+    hamnet train --architecture mlp --num-envs 32          # a baseline, fewer environments
+
+It writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
+rate, episode length, KL, clip fraction, learning rate, env steps/s) and
+`<run-dir>/checkpoints/latest.safetensors` (serve it with `hamnet policy --checkpoint`),
+and prints a progress line every `--log-period-s`. Training from streamed rollouts (rollout
+workers and the service chain over Zenoh) is the trainer service, not built yet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Annotated
+
+from hamnet.runtime.cli import Flattened, LogConfig, parse
+from hamnet.runtime.logs import configure_logging
+from hamnet.trainer.runner import RunConfig, Runner
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One in-process training run."""
+
+    run: Annotated[RunConfig, Flattened] = field(default_factory=RunConfig)
+    logging: Annotated[LogConfig, Flattened] = field(default_factory=LogConfig)
+
+
+CONFIG = TrainConfig
+"""The config `hamnet train` parses."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet train` with command-line arguments `argv`; returns the exit status."""
+    config = parse(CONFIG, argv, "hamnet train", __doc__)
+    configure_logging("train", config.logging.log_level, config.logging.log_format)
+    metrics = Runner(config.run).run()
+    print(metrics)
+    return 0

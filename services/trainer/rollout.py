@@ -1,0 +1,165 @@
+"""The rollout worker's core: the in-process cores of sim, perception, policy and the safety
+filter's training profile in one loop, collecting T steps of B environments for PPO.
+
+This is the fast path of training (the pattern of Sample Factory's or IMPALA's actors): no
+messages between the cores, the same code as the services (`VectorEnv`, `Perception`,
+the policy's one input builder `hamnet.policy.inputs`, `SafetyFilter`). Per step it keeps
+what the learner needs: the policy inputs, action, log-probability, value per reward term,
+reward terms and episode ends, and for a truncated episode gamma * V(its final state), which
+the learner adds to that step's (scaled) reward as the authors bootstrap timeouts
+(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike. Shapes: T steps, B environments, A action, R reward terms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.policy import inputs as builder
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.policy import Policy
+from hamnet.safety.filter import SafetyFilter
+from hamnet.sim.env import Command, Observation, VectorEnv
+from hamnet.trainer.ppo import take_rows
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """T steps of B environments, time-major."""
+
+    inputs: PolicyInputs
+    """Policy inputs, every tensor (T * B, ...), step t's rows at [t * B, (t + 1) * B)."""
+    actions: Tensor
+    """(T, B, A) raw actions taken."""
+    log_prob: Tensor
+    """(T, B) their log-density under the acting policy."""
+    values: Tensor
+    """(T, B, R) values per reward term of the states acted in."""
+    rewards: Tensor
+    """(T, B, R) reward terms as the sim gave them."""
+    bootstrap: Tensor
+    """(T, B, R) gamma * V(final state) where an episode was truncated at step t, else 0."""
+    dones: Tensor
+    """(T, B) bool: the episode ended at this step (terminated or truncated)."""
+    next_values: Tensor
+    """(B, R) values of the states after the last step."""
+    success: Tensor
+    """(T, B) bool: the episode ended in success at this step."""
+
+
+def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
+    """Perception's input for the current episodes of `env_ids` (K,)."""
+    s = env.scenes(env_ids)
+    return EpisodeScenes.from_arrays(s.env_ids, s.episode_ids, s.cuboid_centre, s.cuboid_quat,
+                                     s.cuboid_half_extent, s.cuboid_active, s.object_points)  # fmt: skip
+
+
+def _tokens(percepts: Percepts) -> tuple[Tensor, Tensor, Tensor]:
+    return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
+
+
+def _cat_rows(trees: list) -> object:
+    """Concatenate trees of (B, ...) tensors (same structure) along rows: (len * B, ...)."""
+    first = trees[0]
+    if first is None:
+        return None
+    if isinstance(first, Tensor):
+        return torch.cat(trees, dim=0)
+    fields = {name: _cat_rows([getattr(tree, name) for tree in trees]) for name in vars(first)}
+    return type(first)(**fields)
+
+
+class RolloutWorker:
+    """B environments acting with a policy through the training profile's safety filter."""
+
+    def __init__(
+        self,
+        env: VectorEnv,
+        perception: Perception,
+        safety: SafetyFilter,
+        gamma: float,
+        seed: int = 0,
+    ) -> None:
+        if not env.num_envs == perception.num_envs == safety.num_envs:
+            raise ValueError("env, perception and safety must hold the same environments")
+        self.env, self.perception, self.safety, self.gamma = env, perception, safety, gamma
+        self.observation: Observation = env.reset(seed=seed)
+        every = np.arange(env.num_envs)
+        self.safety.start_episodes(every, self.observation.q.astype(np.float64))
+        self.perception.start_episodes(scenes_of(env, every))
+        self.percepts = self.perception.step(torch.as_tensor(self.observation.object_pose))
+        self.carry: builder.Carry | None = None
+        self.generator = torch.Generator().manual_seed(seed)
+
+    @torch.no_grad()
+    def collect(self, policy: Policy, steps: int, env_transitions: int) -> Rollout:
+        """Act `steps` times in every environment with `policy` (sampling).
+
+        Args:
+            policy: the acting policy (its log std already set for `env_transitions`).
+            steps: T.
+            env_transitions: the schedule counter at the start (safety's xi annealing).
+        """
+        b = self.env.num_envs
+        if self.carry is None:
+            self.carry = builder.initial_carry(policy.config, policy.memory_width, b)
+        records: dict[str, list] = {k: [] for k in ("inputs", "action", "log_prob", "values",
+                                                     "rewards", "bootstrap", "dones", "success")}  # fmt: skip
+        for t in range(steps):
+            inputs = self._inputs(policy)
+            acted = policy.act(inputs, generator=self.generator)
+            action = acted.action.numpy().astype(np.float64)  # (B, A)
+            obs = self.observation
+            safe = self.safety.command(action, obs.q.astype(np.float64), obs.dq.astype(np.float64),
+                                       env_transitions + t * b)  # fmt: skip
+            result = self.env.step(Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
+            self.carry = builder.end_step(self.carry, acted.action, acted.memory)
+            rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
+            bootstrap = torch.zeros_like(rewards)
+            timed_out = np.flatnonzero(result.truncated & ~result.terminated)
+            if len(timed_out):
+                final = self._final_values(policy, result.final_observation, timed_out)
+                bootstrap[timed_out] = self.gamma * final
+            self._start(result.reset_ids, result.observation)
+            for key, value in (("inputs", inputs), ("action", acted.action), ("log_prob", acted.log_prob),
+                               ("values", acted.values), ("rewards", rewards), ("bootstrap", bootstrap),
+                               ("dones", torch.as_tensor(result.terminated | result.truncated)),
+                               ("success", torch.as_tensor(result.success))):  # fmt: skip
+                records[key].append(value)
+        next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
+        stack = lambda key: torch.stack(records[key])  # noqa: E731
+        return Rollout(
+            inputs=_cat_rows(records["inputs"]), actions=stack("action"), log_prob=stack("log_prob"),
+            values=stack("values"), rewards=stack("rewards"), bootstrap=stack("bootstrap"),
+            dones=stack("dones"), next_values=next_values, success=stack("success"),
+        )  # fmt: skip
+
+    def _inputs(self, policy: Policy) -> PolicyInputs:
+        """The inputs of the current observation (zeroing the carry of new episodes)."""
+        obs = self.observation
+        self.carry = builder.begin_step(
+            self.carry, torch.as_tensor(obs.episode_ids), torch.as_tensor(obs.episode_step)
+        )
+        robot = builder.robot_observation(obs)
+        return builder.policy_inputs(policy.config, self.carry, robot, _tokens(self.percepts))
+
+    def _final_values(self, policy: Policy, final: Observation, env_ids: np.ndarray) -> Tensor:
+        """(K, R) values of the final states of the episodes in `env_ids` (K,), before their
+        caches make way for the next episodes."""
+        rows = torch.as_tensor(env_ids)
+        robot = take_rows(builder.robot_observation(final), rows)
+        percepts = self.perception.step(robot.object_pose, rows)
+        inputs = builder.policy_inputs(policy.config, take_rows(self.carry, rows), robot, _tokens(percepts))
+        return policy.act(inputs, deterministic=True).values
+
+    def _start(self, reset_ids: np.ndarray, observation: Observation) -> None:
+        """Take the step's observation; episodes that began get fresh caches and filters."""
+        if len(reset_ids):
+            self.safety.start_episodes(reset_ids, observation.q[reset_ids].astype(np.float64))
+            self.perception.start_episodes(scenes_of(self.env, reset_ids))
+        self.observation = observation
+        self.percepts = self.perception.step(torch.as_tensor(observation.object_pose))

@@ -1,0 +1,222 @@
+"""The in-process training loop: collect a rollout, compute per-term advantages, update PPO,
+advance the one schedule counter, log, checkpoint.
+
+Everything runs in one process (`hamnet trainer --inprocess`): the sim, perception, policy and
+the safety filter's training profile through `RolloutWorker`, then `ppo.update`. Rewards are
+scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
+bootstrap of truncated episodes is added after scaling, since values live in scaled units.
+Per iteration one JSON line goes to `<run_dir>/metrics.jsonl`; a progress line goes to the
+log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hamnet.perception.checkpoint import load_checkpoint
+from hamnet.perception.core import Perception
+from hamnet.perception.unicorn import UniCORN
+from hamnet.policy.registry import build
+from hamnet.policy.weights import save_checkpoint
+from hamnet.safety.config import with_profile
+from hamnet.safety.filter import SafetyFilter
+from hamnet.sim.env import VectorEnv
+from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.sim.stages import STAGES, stage_config
+from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.gae import gae
+from hamnet.trainer.normalization import ReturnScaler
+from hamnet.trainer.ppo import Batch, UpdateStats, update
+from hamnet.trainer.rollout import Rollout, RolloutWorker
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One training run in one process."""
+
+    stage: str = "easy"
+    """Training stage (`hamnet.sim.stages`): full or easy."""
+    architecture: str = "hamnet"
+    """Policy architecture (`hamnet policy --print-params` lists them)."""
+    num_envs: int = 64
+    """B: environments stepped together."""
+    steps_per_rollout: int = 8
+    """T: policy steps per environment between two updates (the authors' `rollout_size: 8`,
+    rss_train.yaml:166; the paper's "update frequency 8")."""
+    seed: int = 0
+    """Seed of the sim, the networks and the action noise."""
+    max_env_transitions: int = 2_048_000_000
+    """Stop after this many env_transitions (the authors' 2e6 vectorized steps of 1024)."""
+    max_wall_clock_s: float = math.inf
+    """Stop after this much wall-clock time, s."""
+    run_dir: Path = Path("runs/train")
+    """Where metrics.jsonl and checkpoints go."""
+    encoder_checkpoint: Path | None = None
+    """Pre-trained UniCORN weights (frozen); None: random weights, frozen (version 0)."""
+    physics_threads: int = 0
+    """Threads of the sim's physics, 0: every core (the networks use one torch thread: on 2
+    cores one thread per process beat two, and physics and networks take turns)."""
+    log_period_s: float = 10.0
+    """Seconds between two progress lines."""
+    checkpoint_period_s: float = 600.0
+    """Seconds between two checkpoints (one more is written at the end)."""
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+
+    def __post_init__(self) -> None:
+        if self.stage not in STAGES:
+            raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
+        if self.num_envs < 1 or self.steps_per_rollout < 1:
+            raise ValueError("num_envs and steps_per_rollout must be >= 1")
+
+
+class EpisodeTracker:
+    """Returns per reward term, lengths and outcomes of the episodes that ended."""
+
+    def __init__(self, num_envs: int, num_terms: int, window: int = 200) -> None:
+        self.returns = np.zeros((num_envs, num_terms))
+        self.lengths = np.zeros(num_envs, dtype=np.int64)
+        self.finished: deque[tuple[np.ndarray, int, bool]] = deque(maxlen=window)
+        """The last `window` episodes: (returns (R,), length, success)."""
+
+    def add(self, rollout: Rollout) -> None:
+        """Fold in T steps of sim rewards and ends."""
+        rewards, dones, success = rollout.rewards.numpy(), rollout.dones.numpy(), rollout.success.numpy()
+        for t in range(len(rewards)):
+            self.returns += rewards[t]
+            self.lengths += 1
+            for env in np.flatnonzero(dones[t]):
+                self.finished.append((self.returns[env].copy(), int(self.lengths[env]), bool(success[t, env])))
+                self.returns[env], self.lengths[env] = 0.0, 0
+
+    def summary(self) -> dict[str, float]:
+        """Means over the recorded episodes (NaN before the first one ends)."""
+        if not self.finished:
+            return {"episodes": 0, "success_rate": math.nan, "episode_length": math.nan}
+        returns = np.stack([r for r, _, _ in self.finished])  # (E, R)
+        out = {f"return/{name}": float(returns[:, i].mean()) for i, name in enumerate(REWARD_NAMES)}
+        out["return/total"] = float(returns.sum(1).mean())
+        out["episodes"] = len(self.finished)
+        out["success_rate"] = float(np.mean([s for _, _, s in self.finished]))
+        out["episode_length"] = float(np.mean([n for _, n, _ in self.finished]))
+        return out
+
+
+def build_worker(config: RunConfig) -> tuple[RolloutWorker, int]:
+    """The in-process cores of the run, and the encoder's version."""
+    sim = stage_config(config.stage, num_envs=config.num_envs, seed=config.seed,
+                       nthread=config.physics_threads)  # fmt: skip
+    env = VectorEnv(sim)
+    if config.encoder_checkpoint is not None:
+        encoder, version = load_checkpoint(config.encoder_checkpoint)
+    else:
+        torch.manual_seed(config.seed)
+        encoder, version = UniCORN(), 0
+    perception = Perception(encoder.requires_grad_(False), config.num_envs, seed=config.seed)
+    q = np.zeros((config.num_envs, 7))
+    safety = SafetyFilter(q, with_profile("training"))
+    return RolloutWorker(env, perception, safety, config.ppo.gamma, config.seed), version
+
+
+class Runner:
+    """Owns the run: worker, policy, optimizer, reward scaler, counters."""
+
+    def __init__(self, config: RunConfig) -> None:
+        self.config = config
+        torch.set_num_threads(1)
+        self.worker, self.encoder_version = build_worker(config)
+        self.policy = build(config.architecture, seed=config.seed)
+        self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
+        self.scaler = ReturnScaler(config.num_envs, config.ppo.gamma)
+        self.tracker = EpisodeTracker(config.num_envs, len(REWARD_NAMES))
+        self.env_transitions = 0
+        self.iteration = 0
+        self.action_bounds = (-torch.ones(self.policy.config.action_dim), torch.ones(self.policy.config.action_dim))
+        config.run_dir.mkdir(parents=True, exist_ok=True)
+        self.metrics_path = config.run_dir / "metrics.jsonl"
+
+    def iterate(self) -> dict[str, float]:
+        """One rollout and one PPO update; returns that iteration's metrics."""
+        started = time.perf_counter()
+        config, policy = self.config, self.policy
+        policy.set_env_transitions(self.env_transitions)
+        policy.eval()
+        rollout = self.worker.collect(policy, config.steps_per_rollout, self.env_transitions)
+        collected = time.perf_counter()
+        self.tracker.add(rollout)
+        stats = self._learn(rollout)
+        self.env_transitions += config.steps_per_rollout * config.num_envs
+        self.iteration += 1
+        done = time.perf_counter()
+        return {
+            "iteration": self.iteration,
+            "env_transitions": self.env_transitions,
+            "env_steps_per_s": config.steps_per_rollout * config.num_envs / (done - started),
+            "collect_s": collected - started,
+            "learn_s": done - collected,
+            "log_std": float(policy.log_std.mean()),
+            **dataclasses.asdict(stats),
+            "policy_lag": 0,
+            **self.tracker.summary(),
+        }
+
+    def _learn(self, rollout: Rollout) -> UpdateStats:
+        """Scale rewards, bootstrap, GAE per term, one PPO update."""
+        steps = len(rollout.rewards)
+        scaled = torch.stack([self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)])
+        rewards = scaled + rollout.bootstrap  # (T, B, R)
+        ppo = self.config.ppo
+        advantages, returns = gae(rewards, rollout.values, rollout.next_values, rollout.dones,
+                                  ppo.gamma, ppo.gae_lambda)  # fmt: skip
+        flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731  (T, B, ...) -> (T * B, ...)
+        batch = Batch(rollout.inputs, flat(rollout.actions), flat(rollout.log_prob), flat(advantages), flat(returns))
+        self.policy.train()
+        return update(self.policy.evaluate, self.policy.parameters(), self.optimizer, batch, self.action_bounds, ppo)
+
+    def checkpoint(self) -> Path:
+        """Write the policy's weights (loadable by `hamnet policy --checkpoint`)."""
+        path = self.config.run_dir / "checkpoints" / "latest.safetensors"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_checkpoint(path, self.policy, self.iteration)
+        return path
+
+    def run(self) -> Path:
+        """Iterate until a budget is spent; returns the metrics file."""
+        config = self.config
+        started = last_log = last_checkpoint = time.monotonic()
+        with self.metrics_path.open("a") as metrics:
+            while (self.env_transitions < config.max_env_transitions
+                   and time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
+                row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
+                metrics.write(json.dumps(row) + "\n")
+                metrics.flush()
+                now = time.monotonic()
+                if now - last_log >= config.log_period_s:
+                    log.info(progress_line(row))
+                    last_log = now
+                if now - last_checkpoint >= config.checkpoint_period_s:
+                    self.checkpoint()
+                    last_checkpoint = now
+        self.checkpoint()
+        return self.metrics_path
+
+
+def progress_line(row: dict[str, float]) -> str:
+    """One line a person reads while the run goes on."""
+    return (
+        f"it {row['iteration']} | {row['env_transitions'] / 1e6:.2f}M transitions | "
+        f"{row['env_steps_per_s']:.0f} env steps/s | success {row['success_rate']:.2f} over "
+        f"{row['episodes']} episodes | return {row.get('return/total', math.nan):.3f} | "
+        f"kl {row['approx_kl']:.4f} | lr {row['learning_rate']:.1e} | log std {row['log_std']:.2f}"
+    )
