@@ -8,8 +8,9 @@ and the schedule counter (`hamnet.trainer.runner`).
 It writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
 rate, episode length, KL, clip fraction, learning rate, env steps/s) and
 `<run-dir>/checkpoints/latest.safetensors` (serve it with `hamnet policy --checkpoint`),
-and prints a progress line every `--log-period-s`. Training from streamed rollouts (rollout
-workers and the service chain over Zenoh) is the trainer service, not built yet.
+and prints a progress line every `--log-period-s`. `hamnet train plot RUN_DIR` draws a run's
+learning curves as PNG. Training from streamed rollouts (rollout workers and the service chain
+over Zenoh) is the trainer service, not built yet.
 """
 
 from __future__ import annotations
@@ -36,7 +37,11 @@ CONFIG = TrainConfig
 
 
 def main(argv: Sequence[str]) -> int:
-    """Run `hamnet train` with command-line arguments `argv`; returns the exit status."""
+    """Run `hamnet train` (or `hamnet train plot`) with arguments `argv`; returns the exit status."""
+    if argv and argv[0] == "plot":
+        from hamnet.trainer.plot import main as plot_main  # matplotlib only when plotting
+
+        return plot_main(argv[1:])
     config = parse(CONFIG, argv, "hamnet train", __doc__)
     configure_logging("train", config.logging.log_level, config.logging.log_format)
     metrics = Runner(config.run).run()

@@ -104,7 +104,9 @@ def update(
 
     An epoch's step is skipped and the update ends once a minibatch's KL exceeds
     `early_stop_factor * kl_target`; after every evaluated minibatch the learning rate of
-    `optimizer` adapts to its KL (the authors' `_train_batch`, `ppo.py:567-596`).
+    `optimizer` adapts to its KL (the authors' `_train_batch`, `ppo.py:567-596`). Neither
+    happens on the first minibatch, whose KL is zero by construction: it would raise the
+    rate every update (the authors' `updated_policy` guard, `ppo.py:680-694`).
 
     Args:
         evaluate: evaluates actions with gradients under the current parameters.
@@ -135,7 +137,7 @@ def update(
             kl = approx_kl(out.log_prob.detach(), old).item()
             last = {**{k: v.item() for k, v in terms.items()}, "kl": kl,
                     "clip": clip_fraction(out.log_prob.detach(), old, config.clip).item()}  # fmt: skip
-            if kl > config.early_stop_factor * config.kl_target:
+            if steps and kl > config.early_stop_factor * config.kl_target:
                 lr = _adapt(optimizer, lr, kl, config)
                 stopped = True
                 break
@@ -145,7 +147,8 @@ def update(
             loss.backward()
             torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
             optimizer.step()
-            lr = _adapt(optimizer, lr, kl, config)
+            if steps:
+                lr = _adapt(optimizer, lr, kl, config)
             steps += 1
         if stopped:
             break

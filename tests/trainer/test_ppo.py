@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import pytest
 import torch
 from torch import Tensor, nn
 
@@ -72,8 +73,10 @@ def test_ppo_converges_to_the_known_optimum_of_a_two_term_bandit() -> None:
     assert stats.gradient_steps >= 1 and 1e-6 <= stats.learning_rate <= 1e-2
 
 
-def test_early_stopping_skips_the_step_that_would_overshoot_the_kl() -> None:
-    """Old log-probs far from the current ones give a KL above 0.024 at once: no step."""
+def test_the_first_minibatch_neither_stops_nor_moves_the_learning_rate() -> None:
+    """Its KL is zero when the old log-probs are the policy's own: counting it would raise the
+    rate on every update. Here the old log-probs are far off (KL above 0.024 at once): the
+    first step still happens, the second epoch stops, and only that KL lowers the rate."""
     torch.manual_seed(1)
     model = TinyActorCritic()
     before = [p.detach().clone() for p in model.parameters()]
@@ -83,9 +86,23 @@ def test_early_stopping_skips_the_step_that_would_overshoot_the_kl() -> None:
         old_log_prob = model.evaluate(states, actions).log_prob - 1.0
     batch = Batch(states, actions, old_log_prob, torch.randn(32, 2), torch.randn(32, 2))
     stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)), PPOConfig())
-    assert stats.early_stopped and stats.gradient_steps == 0
-    assert all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
-    assert stats.learning_rate < 3e-4
+    assert stats.early_stopped and stats.gradient_steps == 1
+    assert not all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
+    assert stats.learning_rate == pytest.approx(2e-4)
+
+
+def test_a_policy_that_stays_close_keeps_raising_the_rate_from_the_second_step() -> None:
+    """Zero advantages leave the policy where it is (KL stays ~0): 7 adaptations after the
+    first step, each x1.5, none on the first."""
+    model = TinyActorCritic()
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-5)
+    states, actions = torch.rand(16, 2), torch.rand(16, 2)
+    with torch.no_grad():
+        out = model.evaluate(states, actions)
+    batch = Batch(states, actions, out.log_prob, torch.zeros(16, 2), out.values)
+    stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)), PPOConfig())
+    assert stats.gradient_steps == 8 and not stats.early_stopped
+    assert stats.learning_rate == pytest.approx(1e-5 * 1.5**7)
 
 
 def test_take_rows_walks_tensors_dicts_and_dataclasses() -> None:

@@ -1,0 +1,73 @@
+"""Learning curves of a run as PNG: `hamnet train plot RUN_DIR [--out FILE]`.
+
+Reads `<run_dir>/metrics.jsonl` (one line per iteration) and draws, against env_transitions
+(the paper's x-axis), the success rate, the episode return per reward term, the episode
+length, and PPO's KL and learning rate: what a person checks to see whether a run learns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only: no display on a training machine
+import matplotlib.pyplot as plt  # noqa: E402
+
+from hamnet.sim.rewards import REWARD_NAMES  # noqa: E402
+
+
+def read_metrics(run_dir: Path) -> list[dict[str, float]]:
+    """Every iteration's metrics of a run, in order."""
+    path = run_dir / "metrics.jsonl"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist: is {run_dir} a run folder of hamnet train?")
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
+    """Write the curves of `rows` to `out` (PNG); returns `out`."""
+    x = [row["env_transitions"] / 1e6 for row in rows]
+    series = lambda key: [row.get(key, math.nan) for row in rows]  # noqa: E731
+    figure, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    panels = [
+        (axes[0, 0], "success rate (last episodes)", [("success_rate", "success")]),
+        (axes[0, 1], "episode return per reward term",
+         [(f"return/{name}", name) for name in REWARD_NAMES] + [("return/total", "total")]),
+        (axes[1, 0], "episode length (policy steps)", [("episode_length", "length")]),
+        (axes[1, 1], "PPO", [("approx_kl", "KL"), ("learning_rate", "learning rate"), ("clip_fraction", "clip fraction")]),
+    ]  # fmt: skip
+    for axis, name, keys in panels:
+        for key, label in keys:
+            axis.plot(x, series(key), label=label, linewidth=1.2)
+        axis.set_title(name)
+        axis.grid(alpha=0.3)
+        axis.legend(fontsize=8)
+    axes[1, 1].set_yscale("log")
+    for axis in axes[1]:
+        axis.set_xlabel("env transitions (millions)")
+    figure.suptitle(title)
+    figure.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(out, dpi=110)
+    plt.close(figure)
+    return out
+
+
+def main(argv: Sequence[str]) -> int:
+    """`hamnet train plot RUN_DIR [--out FILE]`; returns the exit status."""
+    parser = argparse.ArgumentParser(prog="hamnet train plot", description=__doc__.split("\n\n")[0])
+    parser.add_argument("run_dir", type=Path, help="a folder hamnet train wrote (its --run-dir)")
+    parser.add_argument("--out", type=Path, default=None, help="PNG to write (default RUN_DIR/curves.png)")
+    args = parser.parse_args(list(argv))
+    try:
+        rows = read_metrics(args.run_dir)
+    except FileNotFoundError as error:
+        print(f"hamnet train plot: {error}")
+        return 2
+    print(plot_run(rows, args.out or args.run_dir / "curves.png", str(args.run_dir)))
+    return 0
