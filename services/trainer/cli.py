@@ -6,8 +6,10 @@ and the schedule counter (`hamnet.trainer.runner`).
     hamnet train --architecture mlp --num-envs 32          # a baseline, fewer environments
 
 It writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
-rate, episode length, KL, clip fraction, learning rate, env steps/s) and
-`<run-dir>/checkpoints/latest.safetensors` (serve it with `hamnet policy --checkpoint`),
+rate, episode length, KL, clip fraction, learning rate, env steps/s),
+`<run-dir>/checkpoints/latest.safetensors` (serve it with `hamnet policy --checkpoint`) and,
+at the end, `<run-dir>/summary.json` (success rate of the final policy's mean on
+`--eval-episodes` held-out episodes, the curve, command, seed and commit),
 and prints a progress line every `--log-period-s`. `hamnet train plot RUN_DIR` draws a run's
 learning curves as PNG. Training from streamed rollouts (rollout workers and the service chain
 over Zenoh) is the trainer service, not built yet.
@@ -15,13 +17,18 @@ over Zenoh) is the trainer service, not built yet.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
 
 from hamnet.runtime.cli import Flattened, LogConfig, parse
 from hamnet.runtime.logs import configure_logging
+from hamnet.trainer.evaluate import success_rate
 from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.summary import write_summary
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -44,6 +51,11 @@ def main(argv: Sequence[str]) -> int:
         return plot_main(argv[1:])
     config = parse(CONFIG, argv, "hamnet train", __doc__)
     configure_logging("train", config.logging.log_level, config.logging.log_format)
-    metrics = Runner(config.run).run()
-    print(metrics)
+    runner = Runner(config.run)
+    runner.run()
+    rate = None
+    if config.run.eval_episodes:
+        rate = success_rate(runner.policy, config.run, config.run.eval_episodes, runner.env_transitions)
+        log.info("final success rate on %d held-out episodes: %.3f", config.run.eval_episodes, rate)
+    print(write_summary(config.run, rate))
     return 0

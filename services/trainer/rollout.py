@@ -96,13 +96,16 @@ class RolloutWorker:
         self.generator = torch.Generator().manual_seed(seed)
 
     @torch.no_grad()
-    def collect(self, policy: Policy, steps: int, env_transitions: int) -> Rollout:
-        """Act `steps` times in every environment with `policy` (sampling).
+    def collect(
+        self, policy: Policy, steps: int, env_transitions: int, deterministic: bool = False
+    ) -> Rollout:
+        """Act `steps` times in every environment with `policy`.
 
         Args:
             policy: the acting policy (its log std already set for `env_transitions`).
             steps: T.
             env_transitions: the schedule counter at the start (safety's xi annealing).
+            deterministic: act with the mean (evaluation) instead of sampling.
         """
         b = self.env.num_envs
         if self.carry is None:
@@ -111,7 +114,7 @@ class RolloutWorker:
                                                      "rewards", "bootstrap", "dones", "success")}  # fmt: skip
         for t in range(steps):
             inputs = self._inputs(policy)
-            acted = policy.act(inputs, generator=self.generator)
+            acted = policy.act(inputs, deterministic, self.generator)
             action = acted.action.numpy().astype(np.float64)  # (B, A)
             obs = self.observation
             safe = self.safety.command(action, obs.q.astype(np.float64), obs.dq.astype(np.float64),

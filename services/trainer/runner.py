@@ -72,6 +72,8 @@ class RunConfig:
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
     """Seconds between two checkpoints (one more is written at the end)."""
+    eval_episodes: int = 64
+    """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
 
     def __post_init__(self) -> None:
@@ -79,6 +81,8 @@ class RunConfig:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
         if self.num_envs < 1 or self.steps_per_rollout < 1:
             raise ValueError("num_envs and steps_per_rollout must be >= 1")
+        if self.eval_episodes < 0:
+            raise ValueError("eval_episodes must be >= 0")
 
 
 class EpisodeTracker:

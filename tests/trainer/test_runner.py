@@ -19,6 +19,7 @@ from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
+from hamnet.trainer.evaluate import success_rate
 from hamnet.trainer.rollout import RolloutWorker
 from hamnet.trainer.runner import RunConfig, Runner
 
@@ -66,3 +67,13 @@ def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
     weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
     assert weights.architecture == "hamnet" and weights.version == 2
     torch.testing.assert_close(weights.tensors["log_std"], runner.policy.log_std)
+
+
+def test_evaluation_plays_one_held_out_episode_per_environment() -> None:
+    """One whole episode per environment (at most the 300-step timeout), acting with the mean:
+    the rate is a multiple of 1/2 and the same on a second call."""
+    config = RunConfig(num_envs=B, physics_threads=1)
+    policy = build("hamnet", seed=0)
+    rate = success_rate(policy, config, episodes=2, env_transitions=0)
+    assert rate in (0.0, 0.5, 1.0)
+    assert success_rate(policy, config, episodes=2, env_transitions=0) == rate

@@ -1,0 +1,55 @@
+"""The summary of a finished run (`<run_dir>/summary.json`): what a learning result reports.
+
+Final success rate on held-out episodes, the budget spent, the learning curve's points, and
+how to reproduce it (command, seed, commit), next to the stage's definition.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from hamnet.sim.stages import stage_config
+from hamnet.trainer.plot import read_metrics
+from hamnet.trainer.runner import RunConfig
+
+CURVE_POINTS = 100
+"""Points of the learning curve kept in the summary (evenly spaced iterations)."""
+
+
+def commit() -> str:
+    """The git commit of the working tree this runs from, '' outside a checkout."""
+    result = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                            cwd=Path(__file__).parent, check=False)  # fmt: skip
+    return result.stdout.strip()
+
+
+def write_summary(config: RunConfig, final_success_rate: float | None) -> Path:
+    """Write `<run_dir>/summary.json` from the run's metrics; returns its path."""
+    rows = read_metrics(config.run_dir)
+    stride = max(1, len(rows) // CURVE_POINTS)
+    keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
+    sim = stage_config(config.stage)
+    summary = {
+        "final_success_rate": final_success_rate,
+        "eval_episodes": config.eval_episodes,
+        "stage": config.stage,
+        "stage_definition": {
+            "scene": dataclasses.asdict(sim.scene), "placement": dataclasses.asdict(sim.placement),
+            "task": dataclasses.asdict(sim.task), "curriculum": dataclasses.asdict(sim.curriculum),
+        },
+        "architecture": config.architecture,
+        "num_envs": config.num_envs,
+        "env_steps": rows[-1]["env_transitions"] if rows else 0,
+        "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,
+        "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
+        "command": " ".join(["hamnet", "train", *sys.argv[2:]]) if sys.argv[1:2] == ["train"] else " ".join(sys.argv),
+        "seed": config.seed,
+        "commit": commit(),
+    }
+    path = config.run_dir / "summary.json"
+    path.write_text(json.dumps(summary, indent=1, default=str) + "\n")
+    return path

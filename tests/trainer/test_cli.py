@@ -1,0 +1,27 @@
+"""`hamnet train` end to end at a tiny size, and `hamnet train plot` on its output."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from hamnet.trainer.cli import main
+
+
+def test_a_tiny_run_writes_metrics_checkpoint_summary_and_curves(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    args = ["--num-envs", "2", "--steps-per-rollout", "2", "--max-env-transitions", "8",
+            "--physics-threads", "1", "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
+    assert main(args) == 0
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["final_success_rate"] in (0.0, 0.5, 1.0) and summary["env_steps"] == 8
+    assert summary["stage"] == "easy" and summary["stage_definition"]["task"]["success_radius"] == 0.05
+    assert len(summary["curve"]) == 2 and summary["seed"] == 0
+    assert (run / "checkpoints" / "latest.safetensors").is_file()
+    assert main(["plot", str(run)]) == 0
+    assert (run / "curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_of_a_folder_without_metrics_says_so(tmp_path: Path, capsys) -> None:
+    assert main(["plot", str(tmp_path)]) == 2
+    assert "metrics.jsonl" in capsys.readouterr().out
