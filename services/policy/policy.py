@@ -1,6 +1,8 @@
 """The in-process policy core the service and the trainer share: a network plus the Gaussian
 actor around it (PPO's act and evaluate) and the log-std schedule.
 
+The observation is standardised by running statistics that are buffers too
+(`normalizer.InputNormalizer`): the trainer updates them, the weights carry them.
 The log std is a buffer, not a parameter: it follows `log_std_at(env_transitions)`,
 is saved with the weights, so the service samples with the trainer's current std, and is
 the same for every environment. Shapes: B batch, A action components, R reward terms,
@@ -9,6 +11,7 @@ L base-network layers, M modules, H recurrent memory.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -17,6 +20,7 @@ from torch import Tensor, nn
 
 from hamnet.policy.config import LogStdConfig, ModelConfig
 from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.normalizer import InputNormalizer
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -67,6 +71,8 @@ class Policy(nn.Module):
         super().__init__()
         self.architecture, self.config, self.network = architecture, config, network
         self.register_buffer("log_std", torch.full((config.action_dim,), config.log_std.initial))
+        self.normalizer = InputNormalizer(config.observation)
+        """Running statistics of the observation groups, saved with the weights."""
 
     @property
     def memory_width(self) -> int:
@@ -87,7 +93,7 @@ class Policy(nn.Module):
         self, inputs: PolicyInputs, deterministic: bool = False, generator: torch.Generator | None = None
     ) -> Action:
         """Actions for one batch: a sample (or the mean), its log-prob, values, modules."""
-        out = self.network(inputs)
+        out = self.network(self._standardised(inputs))
         std = self.log_std.exp().expand_as(out.mean)  # (B, A)
         if deterministic:
             action = out.mean
@@ -99,9 +105,13 @@ class Policy(nn.Module):
 
     def evaluate(self, inputs: PolicyInputs, actions: Tensor) -> Evaluation:
         """Log-prob and entropy of `actions` (B, A) and the values, with gradients."""
-        out = self.network(inputs)
+        out = self.network(self._standardised(inputs))
         entropy = (self.log_std + 0.5 + _LOG_SQRT_2PI).sum().expand(actions.shape[0])  # (B,)
         return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory, out.mean)
+
+    def _standardised(self, inputs: PolicyInputs) -> PolicyInputs:
+        """`inputs` with the observation standardised by the running statistics."""
+        return dataclasses.replace(inputs, observation=self.normalizer(inputs.observation))
 
     def _log_prob(self, action: Tensor, mean: Tensor) -> Tensor:
         """(B,) log N(action; mean, exp(log_std)^2), summed over the A components."""

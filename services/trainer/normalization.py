@@ -14,9 +14,11 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from hamnet.policy.normalizer import merge_moments
+
 
 class RunningMeanStd:
-    """Mean and variance of a stream of (N, *shape) batches (Chan et al.'s parallel update)."""
+    """Mean and variance of a stream of (N, *shape) batches (`merge_moments`)."""
 
     def __init__(self, shape: tuple[int, ...], eps: float = 1e-6) -> None:
         self.mean = torch.zeros(shape, dtype=torch.float64)
@@ -26,16 +28,8 @@ class RunningMeanStd:
 
     def update(self, batch: Tensor) -> None:
         """Fold (N, *shape) samples into the statistics."""
-        batch = batch.detach().to(torch.float64).reshape(-1, *self.mean.shape)
-        n = batch.shape[0]
-        if n == 0:
-            return
-        mean, var = batch.mean(dim=0), batch.var(dim=0, unbiased=False)
-        total = self.count + n
-        delta = mean - self.mean
-        self.mean = self.mean + delta * n / total
-        self.var = (self.var * self.count + var * n + delta.square() * self.count * n / total) / total
-        self.count = total
+        if len(batch):
+            self.mean, self.var, self.count = merge_moments(self.mean, self.var, self.count, batch)
 
     def normalize(self, x: Tensor, eps: float = 1e-6) -> Tensor:
         """(..., *shape) standardised, in x's dtype."""

@@ -5,6 +5,8 @@ Everything runs in one process (`hamnet trainer --inprocess`): the sim, percepti
 the safety filter's training profile through `RolloutWorker`, then `ppo.update`. Rewards are
 scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
 bootstrap of truncated episodes is added after scaling, since values live in scaled units.
+The policy's input statistics (`InputNormalizer`, saved with its weights) take in each
+rollout's observations after the update.
 Per iteration one JSON line goes to `<run_dir>/metrics.jsonl`; a progress line goes to the
 log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
 """
@@ -160,6 +162,7 @@ class Runner:
         collected = time.perf_counter()
         self.tracker.add(rollout)
         stats = self._learn(rollout)
+        policy.normalizer.update(rollout.inputs.observation)  # after: act and evaluate agreed
         self.env_transitions += config.steps_per_rollout * config.num_envs
         self.iteration += 1
         done = time.perf_counter()
