@@ -1,4 +1,5 @@
-"""The paper's baseline architectures (Sec. baseline-arch), on the same inputs as HAMnet.
+"""The paper's baseline architectures (Sec. baseline-arch), on the same inputs as HAMnet,
+and a state-only MLP (`StateMLP`), the plain PPO baseline of the learning result.
 
 - `MonolithicMLP` (UniCORN-MONO): the same cross-attentions, every summary concatenated
   with the state, actor and critic MLPs sized to match HAMnet's parameter count (the paper's
@@ -23,7 +24,13 @@ from torch import Tensor, nn
 
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.layers import MLP, hidden_activation
-from hamnet.policy.networks import ContextEncoder, NetworkOutput, ObjectEncoder, PolicyInputs
+from hamnet.policy.networks import (
+    ContextEncoder,
+    NetworkOutput,
+    ObjectEncoder,
+    PolicyInputs,
+    require,
+)
 
 
 def _no_modules(batch: int, like: Tensor) -> Tensor:
@@ -49,10 +56,30 @@ class MonolithicMLP(nn.Module):
 
     def forward(self, inputs: PolicyInputs) -> NetworkOutput:
         """Mean (B, A), values (B, R); no module weights (B, 0, 1)."""
-        summary = self.object.attention(inputs.observation.object_query, inputs.object_tokens)
+        summary = self.object.attention(inputs.observation.object_query, require(inputs.object_tokens, "object tokens"))
         x = torch.cat((self.context(inputs), summary), dim=-1)  # (B, F + E)
         mean = self.actor(x)
         return NetworkOutput(mean, self.critic(x), _no_modules(len(x), x), None)
+
+
+class StateMLP(nn.Module):
+    """A plain state-based baseline: MLPs (256, 256) over the privileged state alone (the
+    context group: robot, object and goal state, previous action, physics parameters), no
+    clouds. What a new user tries first; the learning result compares HAMnet against it."""
+
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        _feed_forward(config, "state-mlp")
+        if config.clouds or not config.privileged:
+            raise ValueError("state-mlp reads the privileged state and no clouds (clouds=False)")
+        width = config.observation.width("context")
+        self.actor = MLP((width, *config.state_hidden, config.action_dim))
+        self.critic = MLP((width, *config.state_hidden, config.num_values))
+
+    def forward(self, inputs: PolicyInputs) -> NetworkOutput:
+        """Mean (B, A), values (B, R); no module weights (B, 0, 1)."""
+        x = inputs.observation.context  # (B, F)
+        return NetworkOutput(self.actor(x), self.critic(x), _no_modules(len(x), x), None)
 
 
 class LowRankBase(nn.Module):

@@ -66,6 +66,9 @@ class ModelConfig:
     """Heads of the cross-attention over the object tokens (hypernet_modular.py:517)."""
     scene_heads: int = 4
     """Heads of the scene cross-attentions (num_head, rss_train.yaml:321)."""
+    clouds: bool = True
+    """The network reads UniCORN tokens (object and scene); False for the state-only
+    baseline, which a trainer runs without perception."""
     scene_input: SceneInput = "tokens"
     """tokens (UniCORN-HAMnet) or env_code (the EnvCode-oracle ablation)."""
     env_code_dim: int = 25
@@ -93,6 +96,8 @@ class ModelConfig:
     """Monolithic baseline widths: the paper's (768, 384, 384, 192) scaled by 1.103 so that
     the MLP has as many parameters as our HAMnet (3.252 M), as the paper sized its MLP "to
     match the number of trainable parameters" (Appendix baseline-arch)."""
+    state_hidden: tuple[int, ...] = (256, 256)
+    """State-only baseline widths (MLP 2 x 256, the plain PPO a new user tries first)."""
     hyper_rank: int = 16
     """Rank k of the hypernetwork baseline's generated weights W = W_l W_r."""
     routing_dim: int = 128
@@ -111,7 +116,7 @@ class ModelConfig:
                            (self.scene_attention_dim, self.scene_heads)):  # fmt: skip
             if heads < 1 or dim < 1 or dim % heads:
                 raise ValueError(f"attention dim {dim} is not a positive multiple of {heads} heads")
-        for name in ("modulation_hidden", "base_hidden", "mlp_hidden", "attention_out"):
+        for name in ("modulation_hidden", "base_hidden", "mlp_hidden", "attention_out", "state_hidden"):
             widths = getattr(self, name)
             if not widths or min(widths) < 1:
                 raise ValueError(f"{name} needs at least one positive width, got {widths}")

@@ -34,8 +34,9 @@ class PolicyInputs:
     """One batch of everything a policy network may read."""
 
     observation: Observation
-    object_tokens: Tensor
-    """(B, N, D) UniCORN tokens of the object cloud; the last token is [EMB]."""
+    object_tokens: Tensor | None
+    """(B, N, D) UniCORN tokens of the object cloud, the last token is [EMB]; None for a
+    network without clouds (`ModelConfig.clouds` False)."""
     local_tokens: Tensor | None = None
     """(B, N, D) tokens of the local (focal) scene cloud; None for the EnvCode oracle."""
     global_tokens: Tensor | None = None
@@ -60,7 +61,8 @@ class NetworkOutput:
     """(B, H) next recurrent state, or None."""
 
 
-def _require(value: Tensor | None, what: str) -> Tensor:
+def require(value: Tensor | None, what: str) -> Tensor:
+    """`value`, or a ValueError naming the input this architecture is missing."""
     if value is None:
         raise ValueError(f"this architecture needs {what} in its inputs")
     return value
@@ -90,12 +92,12 @@ class ContextEncoder(nn.Module):
         """(B, F) context features."""
         query = inputs.observation.scene_query  # (B, Q1)
         if self.tokens:
-            local = self.local_attention(query, _require(inputs.local_tokens, "local tokens"))
-            whole = self.global_attention(query, _require(inputs.global_tokens, "global tokens"))
+            local = self.local_attention(query, require(inputs.local_tokens, "local tokens"))
+            whole = self.global_attention(query, require(inputs.global_tokens, "global tokens"))
             scene = torch.cat((local, whole), dim=-1)  # (B, 2 E_out)
         else:
-            scene = _require(inputs.env_code, "the EnvCode")  # (B, 25)
-        embedding = inputs.object_tokens[:, -1]  # (B, D) [EMB]
+            scene = require(inputs.env_code, "the EnvCode")  # (B, 25)
+        embedding = require(inputs.object_tokens, "object tokens")[:, -1]  # (B, D) [EMB]
         return torch.cat((embedding, scene, inputs.observation.context), dim=-1)
 
 
@@ -114,7 +116,7 @@ class ObjectEncoder(nn.Module):
 
     def forward(self, inputs: PolicyInputs) -> Tensor:
         """(B, E_out + S) features."""
-        summary = self.attention(inputs.observation.object_query, inputs.object_tokens)
+        summary = self.attention(inputs.observation.object_query, require(inputs.object_tokens, "object tokens"))
         return torch.cat((summary, inputs.observation.base), dim=-1)
 
 
@@ -164,7 +166,7 @@ class HAMNet(nn.Module):
         x = self.object(inputs)  # (B, E + S)
         memory = None
         if self.config.recurrent:
-            previous = _require(inputs.memory, "the recurrent memory")  # (B, Z + H_base)
+            previous = require(inputs.memory, "the recurrent memory")  # (B, Z + H_base)
             z = self.modulation_gru(z, previous[:, : z.shape[1]])  # (B, Z)
             h = self.base_gru(x, previous[:, z.shape[1] :])  # (B, H_base)
             memory, x = torch.cat((z, h), dim=-1), torch.cat((x, h), dim=-1)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from hamnet.policy.baselines import HyperNetwork, MonolithicMLP, SoftModularization
+from hamnet.policy.baselines import HyperNetwork, MonolithicMLP, SoftModularization, StateMLP
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import Policy
@@ -57,6 +57,8 @@ register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (847, 424, 424, 212), the pape
          "1.76 M (Table tab:mlp-scale), matched to HAMnet")  # fmt: skip
 register("hyper", HyperNetwork, "UniCORN-HYPER: low-rank hypernetwork (rank 16)", "not reported")
 register("sm", SoftModularization, "UniCORN-SM: soft modularization", "not reported")
+register("state-mlp", StateMLP, "plain PPO baseline: MLP (256, 256) on the privileged state, "
+         "no clouds", "not in the paper", clouds=False)  # fmt: skip
 register("student", HAMNet, "student: HAMnet with GRUs, real-robot inputs only",
          "not reported", privileged=False, recurrent=True)  # fmt: skip
 

@@ -1,7 +1,8 @@
 """The rollout worker's core: the in-process cores of sim, perception, policy and the safety
 filter's training profile in one loop, collecting T steps of B environments for PPO.
 
-This is the fast path of training (the pattern of Sample Factory's or IMPALA's actors): no
+A policy without clouds (the state-only baseline) runs without perception. This is the
+fast path of training (the pattern of Sample Factory's or IMPALA's actors): no
 messages between the cores, the same code as the services (`VectorEnv`, `Perception`,
 the policy's one input builder `hamnet.policy.inputs`, `SafetyFilter`). Per step it keeps
 what the learner needs: the policy inputs, action, log-probability, value per reward term,
@@ -58,7 +59,10 @@ def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
                                      s.cuboid_half_extent, s.cuboid_active, s.object_points)  # fmt: skip
 
 
-def _tokens(percepts: Percepts) -> tuple[Tensor, Tensor, Tensor]:
+def _tokens(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
+    """Object, local and global tokens; None for a policy without clouds."""
+    if percepts is None:
+        return None, None, None
     return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
 
 
@@ -79,19 +83,19 @@ class RolloutWorker:
     def __init__(
         self,
         env: VectorEnv,
-        perception: Perception,
+        perception: Perception | None,
         safety: SafetyFilter,
         gamma: float,
         seed: int = 0,
     ) -> None:
-        if not env.num_envs == perception.num_envs == safety.num_envs:
+        if env.num_envs != safety.num_envs or (perception is not None and perception.num_envs != env.num_envs):
             raise ValueError("env, perception and safety must hold the same environments")
         self.env, self.perception, self.safety, self.gamma = env, perception, safety, gamma
         self.observation: Observation = env.reset(seed=seed)
         every = np.arange(env.num_envs)
         self.safety.start_episodes(every, self.observation.q.astype(np.float64))
-        self.perception.start_episodes(scenes_of(env, every))
-        self.percepts = self.perception.step(torch.as_tensor(self.observation.object_pose))
+        self.percepts: Percepts | None = None
+        self._perceive(every)
         self.carry: builder.Carry | None = None
         self.generator = torch.Generator().manual_seed(seed)
 
@@ -155,7 +159,7 @@ class RolloutWorker:
         caches make way for the next episodes."""
         rows = torch.as_tensor(env_ids)
         robot = take_rows(builder.robot_observation(final), rows)
-        percepts = self.perception.step(robot.object_pose, rows)
+        percepts = None if self.perception is None else self.perception.step(robot.object_pose, rows)
         inputs = builder.policy_inputs(policy.config, take_rows(self.carry, rows), robot, _tokens(percepts))
         return policy.act(inputs, deterministic=True).values
 
@@ -163,6 +167,13 @@ class RolloutWorker:
         """Take the step's observation; episodes that began get fresh caches and filters."""
         if len(reset_ids):
             self.safety.start_episodes(reset_ids, observation.q[reset_ids].astype(np.float64))
-            self.perception.start_episodes(scenes_of(self.env, reset_ids))
         self.observation = observation
-        self.percepts = self.perception.step(torch.as_tensor(observation.object_pose))
+        self._perceive(reset_ids)
+
+    def _perceive(self, started: np.ndarray) -> None:
+        """Percepts of the current observation; new caches for the episodes `started`."""
+        if self.perception is None:
+            return
+        if len(started):
+            self.perception.start_episodes(scenes_of(self.env, started))
+        self.percepts = self.perception.step(torch.as_tensor(self.observation.object_pose))

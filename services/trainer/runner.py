@@ -28,7 +28,7 @@ import torch
 from hamnet.perception.checkpoint import load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
-from hamnet.policy.registry import build
+from hamnet.policy.registry import architecture, build
 from hamnet.policy.weights import save_checkpoint
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
@@ -120,16 +120,19 @@ class EpisodeTracker:
 
 
 def build_worker(config: RunConfig) -> tuple[RolloutWorker, int]:
-    """The in-process cores of the run, and the encoder's version."""
+    """The in-process cores of the run, and the encoder's version (0: random weights; no
+    perception at all for a policy without clouds)."""
     sim = stage_config(config.stage, num_envs=config.num_envs, seed=config.seed,
                        nthread=config.physics_threads)  # fmt: skip
     env = VectorEnv(sim)
-    if config.encoder_checkpoint is not None:
-        encoder, version = load_checkpoint(config.encoder_checkpoint)
-    else:
-        torch.manual_seed(config.seed)
-        encoder, version = UniCORN(), 0
-    perception = Perception(encoder.requires_grad_(False), config.num_envs, seed=config.seed)
+    perception, version = None, 0
+    if architecture(config.architecture).config.clouds:
+        if config.encoder_checkpoint is not None:
+            encoder, version = load_checkpoint(config.encoder_checkpoint)
+        else:
+            torch.manual_seed(config.seed)
+            encoder = UniCORN()
+        perception = Perception(encoder.requires_grad_(False), config.num_envs, seed=config.seed)
     q = np.zeros((config.num_envs, 7))
     safety = SafetyFilter(q, with_profile("training"))
     return RolloutWorker(env, perception, safety, config.ppo.gamma, config.seed), version

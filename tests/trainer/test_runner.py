@@ -77,3 +77,12 @@ def test_evaluation_plays_one_held_out_episode_per_environment() -> None:
     rate = success_rate(policy, config, episodes=2, env_transitions=0)
     assert rate in (0.0, 0.5, 1.0)
     assert success_rate(policy, config, episodes=2, env_transitions=0) == rate
+
+
+def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
+    config = RunConfig(architecture="state-mlp", num_envs=B, steps_per_rollout=2, run_dir=tmp_path,
+                       max_env_transitions=4, physics_threads=1)  # fmt: skip
+    runner = Runner(config)
+    assert runner.worker.perception is None
+    runner.run()
+    assert read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
