@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from hamnet.policy.policy import Policy
-from hamnet.trainer.runner import RunConfig, build_worker
+from hamnet.trainer.runner import RunConfig, build_workers
 
 HELD_OUT_SEED_OFFSET = 1_000_003
 """Added to the training seed for evaluation environments (a prime, far from any run seed)."""
@@ -30,7 +30,7 @@ def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitio
         env_transitions: the schedule counter of the policy (safety's xi annealing).
     """
     held_out = dataclasses.replace(config, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes)
-    worker, _ = build_worker(held_out)
+    (worker,), _ = build_workers(held_out, groups=1)
     policy.eval()
     ended = np.zeros(episodes, dtype=bool)
     succeeded = np.zeros(episodes, dtype=bool)

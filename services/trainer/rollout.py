@@ -13,6 +13,8 @@ the learner adds to that step's (scaled) reward as the authors bootstrap timeout
 
 from __future__ import annotations
 
+import dataclasses
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,9 +24,9 @@ from torch import Tensor
 from hamnet.perception.core import EpisodeScenes, Perception, Percepts
 from hamnet.policy import inputs as builder
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.policy import Policy
+from hamnet.policy.policy import Action, Policy
 from hamnet.safety.filter import SafetyFilter
-from hamnet.sim.env import Command, Observation, VectorEnv
+from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
 from hamnet.trainer.ppo import take_rows
 
 
@@ -52,6 +54,15 @@ class Rollout:
     """(T, B) bool: the episode ended in success at this step."""
 
 
+@dataclass(frozen=True)
+class Pending:
+    """A step between its two halves: what the policy saw and did, and the command."""
+
+    inputs: PolicyInputs
+    acted: Action
+    command: Command
+
+
 def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
     """Perception's input for the current episodes of `env_ids` (K,)."""
     s = env.scenes(env_ids)
@@ -66,15 +77,67 @@ def _tokens(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Te
     return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
 
 
-def _cat_rows(trees: list) -> object:
-    """Concatenate trees of (B, ...) tensors (same structure) along rows: (len * B, ...)."""
+def _zip_trees(trees: list, join) -> object:
+    """One tree from trees of the same structure (dataclasses of tensors or None), each
+    tensor the `join` of the trees' tensors at that place."""
     first = trees[0]
     if first is None:
         return None
     if isinstance(first, Tensor):
-        return torch.cat(trees, dim=0)
-    fields = {name: _cat_rows([getattr(tree, name) for tree in trees]) for name in vars(first)}
+        return join(trees)
+    fields = {name: _zip_trees([getattr(tree, name) for tree in trees], join) for name in vars(first)}
     return type(first)(**fields)
+
+
+def _cat_rows(trees: list) -> object:
+    """Concatenate trees of (B, ...) tensors along rows: (len * B, ...), time-major."""
+    return _zip_trees(trees, lambda tensors: torch.cat(tensors, dim=0))
+
+
+def merge_environments(rollouts: list[Rollout]) -> Rollout:
+    """One rollout of the environments of several (same T), in the given order."""
+    steps = len(rollouts[0].actions)
+
+    def side_by_side(tensors: list[Tensor]) -> Tensor:
+        """(T * B_i, ...) rows of each, time-major -> (T * sum B_i, ...), time-major."""
+        per_step = [x.reshape(steps, -1, *x.shape[1:]) for x in tensors]  # (T, B_i, ...)
+        merged = torch.cat(per_step, dim=1)
+        return merged.reshape(-1, *merged.shape[2:])
+
+    fields = {
+        f.name: torch.cat([getattr(r, f.name) for r in rollouts], dim=0 if f.name == "next_values" else 1)
+        for f in dataclasses.fields(Rollout) if f.name != "inputs"
+    }  # fmt: skip
+    return Rollout(inputs=_zip_trees([r.inputs for r in rollouts], side_by_side), **fields)
+
+
+@torch.no_grad()
+def collect_overlapped(
+    workers: tuple[RolloutWorker, RolloutWorker],
+    policy: Policy,
+    steps: int,
+    env_transitions: int,
+) -> Rollout:
+    """`collect` of two workers whose physics and networks overlap: while one group's
+    physics steps in a background thread (MuJoCo releases the GIL), the other group's
+    perception, policy and safety run, so both cores stay busy. Environments of the first
+    worker come first in the merged rollout."""
+    first, second = workers
+    count = first.env.num_envs + second.env.num_envs
+    records: tuple[list, list] = ([], [])
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="physics") as physics:
+        pending = [first.act(policy, env_transitions)]
+        stepping = physics.submit(first.env.step, pending[0].command)
+        pending.append(second.act(policy, env_transitions))
+        for t in range(steps):
+            for index, (worker, other) in enumerate(((first, second), (second, first))):
+                result = stepping.result()
+                if index == 0 or t + 1 < steps:  # the other group's physics, in the background
+                    stepping = physics.submit(other.env.step, pending[1 - index].command)
+                records[index].append(worker.observe(policy, pending[index], result))
+                if t + 1 < steps:
+                    pending[index] = worker.act(policy, env_transitions + (t + 1) * count)
+    return merge_environments([first.finish(policy, records[0]), second.finish(policy, records[1])])
 
 
 class RolloutWorker:
@@ -111,39 +174,46 @@ class RolloutWorker:
             env_transitions: the schedule counter at the start (safety's xi annealing).
             deterministic: act with the mean (evaluation) instead of sampling.
         """
-        b = self.env.num_envs
-        if self.carry is None:
-            self.carry = builder.initial_carry(policy.config, policy.memory_width, b)
-        records: dict[str, list] = {k: [] for k in ("inputs", "action", "log_prob", "values",
-                                                     "rewards", "bootstrap", "dones", "success")}  # fmt: skip
+        records = []
         for t in range(steps):
-            inputs = self._inputs(policy)
-            acted = policy.act(inputs, deterministic, self.generator)
-            action = acted.action.numpy().astype(np.float64)  # (B, A)
-            obs = self.observation
-            safe = self.safety.command(action, obs.q.astype(np.float64), obs.dq.astype(np.float64),
-                                       env_transitions + t * b)  # fmt: skip
-            result = self.env.step(Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
-            self.carry = builder.end_step(self.carry, acted.action, acted.memory)
-            rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
-            bootstrap = torch.zeros_like(rewards)
-            timed_out = np.flatnonzero(result.truncated & ~result.terminated)
-            if len(timed_out):
-                final = self._final_values(policy, result.final_observation, timed_out)
-                bootstrap[timed_out] = self.gamma * final
-            self._start(result.reset_ids, result.observation)
-            for key, value in (("inputs", inputs), ("action", acted.action), ("log_prob", acted.log_prob),
-                               ("values", acted.values), ("rewards", rewards), ("bootstrap", bootstrap),
-                               ("dones", torch.as_tensor(result.terminated | result.truncated)),
-                               ("success", torch.as_tensor(result.success))):  # fmt: skip
-                records[key].append(value)
+            pending = self.act(policy, env_transitions + t * self.env.num_envs, deterministic)
+            records.append(self.observe(policy, pending, self.env.step(pending.command)))
+        return self.finish(policy, records)
+
+    def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
+        """The first half of a step: inputs, the policy's action and the safe command."""
+        if self.carry is None:
+            self.carry = builder.initial_carry(policy.config, policy.memory_width, self.env.num_envs)
+        inputs = self._inputs(policy)
+        acted = policy.act(inputs, deterministic, self.generator)
+        obs = self.observation
+        safe = self.safety.command(acted.action.numpy().astype(np.float64), obs.q.astype(np.float64),
+                                   obs.dq.astype(np.float64), env_transitions)  # fmt: skip
+        return Pending(inputs, acted, Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
+
+    def observe(self, policy: Policy, pending: Pending, result: StepResult) -> dict[str, object]:
+        """The second half, after `env.step(pending.command)`: bootstrap timeouts, start new
+        episodes, perceive; returns what the step records."""
+        acted = pending.acted
+        self.carry = builder.end_step(self.carry, acted.action, acted.memory)
+        rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
+        bootstrap = torch.zeros_like(rewards)
+        timed_out = np.flatnonzero(result.truncated & ~result.terminated)
+        if len(timed_out):
+            bootstrap[timed_out] = self.gamma * self._final_values(policy, result.final_observation, timed_out)
+        self._start(result.reset_ids, result.observation)
+        return {
+            "inputs": pending.inputs, "actions": acted.action, "log_prob": acted.log_prob,
+            "values": acted.values, "rewards": rewards, "bootstrap": bootstrap,
+            "dones": torch.as_tensor(result.terminated | result.truncated),
+            "success": torch.as_tensor(result.success),
+        }  # fmt: skip
+
+    def finish(self, policy: Policy, records: list[dict[str, object]]) -> Rollout:
+        """The rollout of the recorded steps, with the values of the states after them."""
         next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
-        stack = lambda key: torch.stack(records[key])  # noqa: E731
-        return Rollout(
-            inputs=_cat_rows(records["inputs"]), actions=stack("action"), log_prob=stack("log_prob"),
-            values=stack("values"), rewards=stack("rewards"), bootstrap=stack("bootstrap"),
-            dones=stack("dones"), next_values=next_values, success=stack("success"),
-        )  # fmt: skip
+        fields = {key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"}
+        return Rollout(inputs=_cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields)
 
     def _inputs(self, policy: Policy) -> PolicyInputs:
         """The inputs of the current observation (zeroing the carry of new episodes)."""

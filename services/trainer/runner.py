@@ -39,7 +39,7 @@ from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
 from hamnet.trainer.normalization import ReturnScaler
 from hamnet.trainer.ppo import Batch, UpdateStats, update
-from hamnet.trainer.rollout import Rollout, RolloutWorker
+from hamnet.trainer.rollout import Rollout, RolloutWorker, collect_overlapped
 
 log = logging.getLogger(__name__)
 
@@ -67,9 +67,12 @@ class RunConfig:
     """Where metrics.jsonl and checkpoints go."""
     encoder_checkpoint: Path | None = None
     """Pre-trained UniCORN weights (frozen); None: random weights, frozen (version 0)."""
+    overlap: bool = True
+    """Split the environments into two groups and step one group's physics while the other's
+    perception, policy and safety run (`rollout.collect_overlapped`): both cores stay busy."""
     physics_threads: int = 0
-    """Threads of the sim's physics, 0: every core (the networks use one torch thread: on 2
-    cores one thread per process beat two, and physics and networks take turns)."""
+    """Threads of the sim's physics without `overlap`, 0: every core (the networks use one
+    torch thread either way: on 2 cores one thread per process beat two)."""
     log_period_s: float = 10.0
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
@@ -83,6 +86,8 @@ class RunConfig:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
         if self.num_envs < 1 or self.steps_per_rollout < 1:
             raise ValueError("num_envs and steps_per_rollout must be >= 1")
+        if self.overlap and self.num_envs % 2:
+            raise ValueError("overlap splits the environments in two groups: num_envs must be even")
         if self.eval_episodes < 0:
             raise ValueError("eval_episodes must be >= 0")
 
@@ -119,23 +124,28 @@ class EpisodeTracker:
         return out
 
 
-def build_worker(config: RunConfig) -> tuple[RolloutWorker, int]:
-    """The in-process cores of the run, and the encoder's version (0: random weights; no
-    perception at all for a policy without clouds)."""
-    sim = stage_config(config.stage, num_envs=config.num_envs, seed=config.seed,
-                       nthread=config.physics_threads)  # fmt: skip
-    env = VectorEnv(sim)
-    perception, version = None, 0
+def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], int]:
+    """The in-process cores of the run, in `groups` groups of environments (each its own
+    sim, perception caches and filter), and the encoder's version (0: random weights; no
+    perception at all for a policy without clouds). The groups share one frozen encoder."""
+    size = config.num_envs // groups
+    encoder, version = None, 0
     if architecture(config.architecture).config.clouds:
         if config.encoder_checkpoint is not None:
             encoder, version = load_checkpoint(config.encoder_checkpoint)
         else:
             torch.manual_seed(config.seed)
             encoder = UniCORN()
-        perception = Perception(encoder.requires_grad_(False), config.num_envs, seed=config.seed)
-    q = np.zeros((config.num_envs, 7))
-    safety = SafetyFilter(q, with_profile("training"))
-    return RolloutWorker(env, perception, safety, config.ppo.gamma, config.seed), version
+        encoder.requires_grad_(False)
+    threads = 1 if groups > 1 else config.physics_threads  # the other core runs the networks
+    workers = []
+    for group in range(groups):
+        seed = config.seed + group
+        env = VectorEnv(stage_config(config.stage, num_envs=size, seed=seed, nthread=threads))
+        perception = None if encoder is None else Perception(encoder, size, seed=seed)
+        safety = SafetyFilter(np.zeros((size, 7)), with_profile("training"))
+        workers.append(RolloutWorker(env, perception, safety, config.ppo.gamma, seed))
+    return workers, version
 
 
 class Runner:
@@ -144,7 +154,7 @@ class Runner:
     def __init__(self, config: RunConfig) -> None:
         self.config = config
         torch.set_num_threads(1)
-        self.worker, self.encoder_version = build_worker(config)
+        self.workers, self.encoder_version = build_workers(config, 2 if config.overlap else 1)
         self.policy = build(config.architecture, seed=config.seed)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
         self.scaler = ReturnScaler(config.num_envs, config.ppo.gamma)
@@ -161,7 +171,10 @@ class Runner:
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
-        rollout = self.worker.collect(policy, config.steps_per_rollout, self.env_transitions)
+        if config.overlap:
+            rollout = collect_overlapped(tuple(self.workers), policy, config.steps_per_rollout, self.env_transitions)
+        else:
+            rollout = self.workers[0].collect(policy, config.steps_per_rollout, self.env_transitions)
         collected = time.perf_counter()
         self.tracker.add(rollout)
         stats = self._learn(rollout)

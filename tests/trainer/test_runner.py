@@ -20,7 +20,7 @@ from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
 from hamnet.trainer.evaluate import success_rate
-from hamnet.trainer.rollout import RolloutWorker
+from hamnet.trainer.rollout import RolloutWorker, collect_overlapped, merge_environments
 from hamnet.trainer.runner import RunConfig, Runner
 
 B = 2
@@ -30,6 +30,7 @@ def worker(timeout: int) -> RolloutWorker:
     sim = stage_config("easy", num_envs=B, num_objects=2, nthread=1)
     env = VectorEnv(dataclasses.replace(sim, task=dataclasses.replace(TaskConfig(), timeout=timeout)))
     safety = SafetyFilter(np.zeros((B, 7)), with_profile("training"))
+    torch.manual_seed(0)  # the same encoder in every worker
     return RolloutWorker(env, Perception(UniCORN(), B), safety, gamma=0.99)
 
 
@@ -83,6 +84,21 @@ def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
     config = RunConfig(architecture="state-mlp", num_envs=B, steps_per_rollout=2, run_dir=tmp_path,
                        max_env_transitions=4, physics_threads=1)  # fmt: skip
     runner = Runner(config)
-    assert runner.worker.perception is None
+    assert all(worker.perception is None for worker in runner.workers)
     runner.run()
     assert read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
+
+
+def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:
+    """Two groups stepped in turn with their physics in a thread must give, per group,
+    exactly the rollout that group gives alone (same seeds): the overlap changes timing,
+    never data. The merged rollout puts the first group's environments first."""
+    policy = build("hamnet", seed=0).eval()
+    alone = [worker(timeout=3).collect(policy, steps=4, env_transitions=0) for _ in range(2)]
+    merged = collect_overlapped((worker(timeout=3), worker(timeout=3)), policy, steps=4, env_transitions=0)
+    expected = merge_environments(alone)
+    for name in ("actions", "log_prob", "values", "rewards", "bootstrap", "dones", "next_values"):
+        torch.testing.assert_close(getattr(merged, name), getattr(expected, name), msg=name)
+    torch.testing.assert_close(merged.inputs.observation.context, expected.inputs.observation.context)
+    assert merged.actions.shape[:2] == (4, 2 * B)
+    torch.testing.assert_close(merged.actions[:, :B], alone[0].actions)
