@@ -53,6 +53,9 @@ class PlacementConfig:
     0.1 m bounding radius)."""
     random_yaw: bool = True
     """Turn each stable orientation by a uniform yaw about the world z axis."""
+    start_keeps_goal_orientation: bool = False
+    """The start takes the goal's stable pose and yaw, so reaching the goal is a pure
+    translation (an easy training stage); False: drawn independently, as the paper."""
 
     def __post_init__(self) -> None:
         if self.min_position_separation < 0 or self.min_orientation_separation < 0:
@@ -138,7 +141,8 @@ def sample_placements(
     goal = _pick(_candidates(rng, scene, area * np.where(elevated, bias, 1.0), objects, config))
 
     lower = scene.region_z < goal.surface_z[:, None]  # (B, R)
-    start = _candidates(rng, scene, area * np.where(lower, bias, 1.0), objects, config)
+    orientation = (goal.pose, goal.quat) if config.start_keeps_goal_orientation else None
+    start = _candidates(rng, scene, area * np.where(lower, bias, 1.0), objects, config, orientation)
     distance = np.linalg.norm(start.pos - goal.pos[:, None], axis=-1)  # (B, T), m
     angle = quaternion.angle_between(start.quat, goal.quat[:, None])  # (B, T), rad
     far = distance >= config.min_position_separation  # (B, T)
@@ -170,12 +174,18 @@ def _candidates(
     weight: np.ndarray,
     objects: tuple[np.ndarray, ...],
     config: PlacementConfig,
+    orientation: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> _Candidates:
     """T poses per environment: a stable orientation, a region drawn by `weight` (B, R), a
-    uniform point in it and a yaw; valid where the footprint is flat and under the ceiling."""
+    uniform point in it and a yaw; valid where the footprint is flat and under the ceiling.
+    `orientation`, a stable pose index (B,) and quaternion (B, 4), fixes every candidate's
+    orientation instead."""
     stable_quat, planar_radius, rest_height, top_height, pose_weight = objects
     shape = (planar_radius.shape[0], config.max_tries)
-    pose = _categorical(rng, pose_weight, shape[1])  # (B, T)
+    if orientation is None:
+        pose = _categorical(rng, pose_weight, shape[1])  # (B, T)
+    else:
+        pose = np.repeat(orientation[0][:, None], shape[1], axis=1)  # (B, T)
     region = _categorical(rng, weight, shape[1])  # (B, T)
     lo = np.take_along_axis(scene.region_lo, region[..., None], axis=1)  # (B, T, 2)
     hi = np.take_along_axis(scene.region_hi, region[..., None], axis=1)  # (B, T, 2)
@@ -190,9 +200,12 @@ def _candidates(
     z = surface_z + np.take_along_axis(rest_height, pose, axis=1)  # (B, T), m
     stable = np.take_along_axis(stable_quat, pose[..., None], axis=1)  # (B, T, 4)
     turn = quaternion.from_axis_angle(np.array([0.0, 0.0, 1.0]), yaw)  # (B, T, 4)
+    quat = quaternion.multiply(turn, stable)
+    if orientation is not None:
+        quat = np.repeat(orientation[1][:, None], shape[1], axis=1)  # (B, T, 4)
     return _Candidates(
         pos=np.concatenate([xy, z[..., None]], axis=-1),
-        quat=quaternion.multiply(turn, stable),
+        quat=quat,
         pose=pose,
         surface_z=surface_z,
         valid=valid,

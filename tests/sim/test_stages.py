@@ -18,8 +18,9 @@ def test_every_stage_steps(name: str) -> None:
 
 
 def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> None:
-    """Starts and goals 0.08-0.2 m apart on one flat table top, nothing but plates active,
-    every start near the object: a success cannot come without pushing it."""
+    """Starts and goals 0.08-0.2 m apart on one flat table top with the same orientation,
+    nothing but plates active, every start near the object: a success cannot come without
+    pushing it, and needs no turning."""
     env = VectorEnv(stage_config("easy", num_envs=16, num_objects=4, nthread=1))
     observation = env.reset(seed=3)
     scenes = env.scenes()
@@ -27,6 +28,8 @@ def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> 
     assert (distance >= 0.08 - 1e-6).all() and (distance <= 0.2 + 1e-6).all()
     raised = [i for i, name in enumerate(CUBOID_NAMES) if name.startswith(("ramp", "wall", "ceiling"))]
     assert not scenes.cuboid_active[:, raised].any()  # no ramp joins a raised plate: flat
+    np.testing.assert_allclose(np.abs((scenes.goal_pose[:, 3:] * scenes.start_pose[:, 3:]).sum(1)), 1.0, atol=1e-5)
+    np.testing.assert_allclose(scenes.goal_pose[:, 2], scenes.start_pose[:, 2], atol=1e-4)  # same face, flat
     assert env.schedule.p_near_init == 1.0
     assert env.config.task.success_radius == 0.05 and env.config.task.success_angle == 0.3
     assert observation.episode_step.tolist() == [0] * 16
