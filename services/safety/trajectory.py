@@ -140,7 +140,29 @@ class References:
         return ReferenceState(self.q_ref[:, -1], self.dq_ref[:, -1], self.ddq_ref[:, -1])
 
 
-class TrajectoryGenerator:
+class _Stoppable:
+    """Per-environment stop flags of a reference generator (watchdog, e-stop): a stopped
+    environment ignores its targets from the next `step` on, until `resume` or `reset`.
+    How it stops is the generator's: Ruckig brakes to rest, `TargetReferences` holds."""
+
+    _stopping: np.ndarray
+    """(B,) bool."""
+
+    @property
+    def stopping(self) -> np.ndarray:
+        """Environments stopping or stopped, (B,) bool (a copy)."""
+        return self._stopping.copy()
+
+    def stop(self, env_ids: np.ndarray) -> None:
+        """Stop these environments, (N,) int indices or a (B,) bool mask."""
+        self._stopping[env_ids] = True
+
+    def resume(self, env_ids: np.ndarray) -> None:
+        """Follow targets again from wherever the stop has brought these environments."""
+        self._stopping[env_ids] = False
+
+
+class TrajectoryGenerator(_Stoppable):
     """Batched jerk-limited reference generator: one Ruckig instance per environment.
 
     Holds each environment's reference state between calls; `step` advances all of them by one
@@ -175,24 +197,6 @@ class TrajectoryGenerator:
     def state(self) -> ReferenceState:
         """Where the next period starts, (B, J) each (copies)."""
         return ReferenceState(self._q.copy(), self._dq.copy(), self._ddq.copy())
-
-    @property
-    def stopping(self) -> np.ndarray:
-        """Environments braking to rest and holding, (B,) bool (a copy)."""
-        return self._stopping.copy()
-
-    def stop(self, env_ids: np.ndarray) -> None:
-        """Brake these environments to rest (time-optimal per joint) and hold, from the next
-        `step` on, ignoring their targets until `resume` or `reset` (watchdog, e-stop).
-
-        Args:
-            env_ids: environment indices, (N,) int, or a (B,) bool mask.
-        """
-        self._stopping[env_ids] = True
-
-    def resume(self, env_ids: np.ndarray) -> None:
-        """Follow targets again from wherever the stop has brought these environments."""
-        self._stopping[env_ids] = False
 
     def reset(
         self,
@@ -303,7 +307,7 @@ class TrajectoryGenerator:
         return samples, trajectory.duration <= self._times[-1]
 
 
-class TargetReferences:
+class TargetReferences(_Stoppable):
     """Stage 6 of the training and fine-tuning profiles: the joint target itself on every
     control sample, so the impedance controller receives it directly (the paper's MDP; the
     authors hold their jpos target over the 8 control steps of a policy step, franka.py:
@@ -322,19 +326,6 @@ class TargetReferences:
     def state(self) -> ReferenceState:
         """Where the next period starts, (B, J) each (copies): at rest on the last reference."""
         return ReferenceState(self._q.copy(), np.zeros_like(self._q), np.zeros_like(self._q))
-
-    @property
-    def stopping(self) -> np.ndarray:
-        """Environments holding their last reference, (B,) bool (a copy)."""
-        return self._stopping.copy()
-
-    def stop(self, env_ids: np.ndarray) -> None:
-        """Hold these environments' last reference from the next `step` on, until `resume`."""
-        self._stopping[env_ids] = True
-
-    def resume(self, env_ids: np.ndarray) -> None:
-        """Follow targets again."""
-        self._stopping[env_ids] = False
 
     def reset(
         self,
