@@ -11,7 +11,8 @@ rate, episode length, KL, clip fraction, learning rate, env steps/s),
 at the end, `<run-dir>/summary.json` (success rate of the final policy's mean on
 `--eval-episodes` held-out episodes, the curve, command, seed and commit),
 and prints a progress line every `--log-period-s`. `hamnet train plot RUN_DIR` draws a run's
-learning curves as PNG. Training from streamed rollouts (rollout workers and the service chain
+learning curves as PNG. With `--publish` the run also announces its weights, the schedule
+counter and its metrics on Zenoh (`hamnet.trainer.shell`). Training from streamed rollouts (rollout workers and the service chain
 over Zenoh) is the trainer service, not built yet.
 """
 
@@ -22,10 +23,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
 
-from hamnet.runtime.cli import Flattened, LogConfig, parse
-from hamnet.runtime.logs import configure_logging
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
 from hamnet.trainer.evaluate import success_rate
 from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.shell import TrainerPublisher
 from hamnet.trainer.summary import write_summary
 
 log = logging.getLogger(__name__)
@@ -35,8 +37,14 @@ log = logging.getLogger(__name__)
 class TrainConfig:
     """One in-process training run."""
 
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     run: Annotated[RunConfig, Flattened] = field(default_factory=RunConfig)
-    logging: Annotated[LogConfig, Flattened] = field(default_factory=LogConfig)
+    publish: bool = False
+    """Publish the weights, the schedule counter and every iteration's metrics on Zenoh
+    (`--namespace`): watch with `hamnet monitor --namespace NS`, serve the newest weights
+    with `hamnet policy`."""
+    weights_period_s: float = 10.0
+    """With --publish: seconds between two weight announcements (and one at the end)."""
 
 
 CONFIG = TrainConfig
@@ -49,10 +57,16 @@ def main(argv: Sequence[str]) -> int:
         from hamnet.trainer.plot import main as plot_main  # matplotlib only when plotting
 
         return plot_main(argv[1:])
-    config = parse(CONFIG, argv, "hamnet train", __doc__)
-    configure_logging("train", config.logging.log_level, config.logging.log_format)
+    config, identity = parse_service(CONFIG, argv, "train", __doc__)
     runner = Runner(config.run)
-    runner.run()
+    if config.publish:
+        with Service(identity, config.common.transport) as service:
+            publisher = TrainerPublisher(service, config.weights_period_s)
+            runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
+            if runner.last_row:
+                publisher.publish(runner.policy, runner.last_row, final=True)
+    else:
+        runner.run()
     rate = None
     if config.run.eval_episodes:
         rate = success_rate(runner.policy, config.run, config.run.eval_episodes, runner.env_transitions)

@@ -19,6 +19,7 @@ import logging
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -161,6 +162,8 @@ class Runner:
         self.tracker = EpisodeTracker(config.num_envs, len(REWARD_NAMES))
         self.env_transitions = 0
         self.iteration = 0
+        self.last_row: dict[str, float] = {}
+        """The metrics of the latest iteration (empty before the first)."""
         self.action_bounds = (-torch.ones(self.policy.config.action_dim), torch.ones(self.policy.config.action_dim))
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
@@ -214,16 +217,23 @@ class Runner:
         save_checkpoint(path, self.policy, self.iteration)
         return path
 
-    def run(self) -> Path:
-        """Iterate until a budget is spent; returns the metrics file."""
+    def run(
+        self,
+        on_iteration: Callable[[dict[str, float]], None] | None = None,
+        running: Callable[[], bool] = lambda: True,
+    ) -> Path:
+        """Iterate until a budget is spent or `running()` turns False; returns the metrics
+        file. `on_iteration` sees every iteration's metrics (a publisher, a test)."""
         config = self.config
         started = last_log = last_checkpoint = time.monotonic()
         with self.metrics_path.open("a") as metrics:
-            while (self.env_transitions < config.max_env_transitions
+            while (running() and self.env_transitions < config.max_env_transitions
                    and time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
-                row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
+                row = self.last_row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
                 metrics.write(json.dumps(row) + "\n")
                 metrics.flush()
+                if on_iteration is not None:
+                    on_iteration(row)
                 now = time.monotonic()
                 if now - last_log >= config.log_period_s:
                     log.info(progress_line(row))
