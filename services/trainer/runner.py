@@ -180,7 +180,7 @@ class Runner:
             rollout = self.workers[0].collect(policy, config.steps_per_rollout, self.env_transitions)
         collected = time.perf_counter()
         self.tracker.add(rollout)
-        stats = self._learn(rollout)
+        stats = self.learn(rollout)
         policy.normalizer.update(rollout.inputs.observation)  # after: act and evaluate agreed
         self.env_transitions += config.steps_per_rollout * config.num_envs
         self.iteration += 1
@@ -197,7 +197,7 @@ class Runner:
             **self.tracker.summary(),
         }
 
-    def _learn(self, rollout: Rollout) -> UpdateStats:
+    def learn(self, rollout: Rollout) -> UpdateStats:
         """Scale rewards, bootstrap, GAE per term, one PPO update."""
         steps = len(rollout.rewards)
         scaled = torch.stack([self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)])

@@ -1,0 +1,148 @@
+"""Training benchmark: env steps per second of PPO with learning included, against the physics
+ceiling of the same world, and where a step's time goes.
+
+Measures in one run, on the easy stage with HAMnet on its paper inputs:
+- inprocess: `hamnet train`'s loop (`Runner.iterate`: two groups of environments, one
+  group's physics overlapping the other's networks), learning included;
+- sequential: the same loop with one group (physics, then the networks), and the share of
+  each component in its step: sim, perception, policy, safety, learner;
+- physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
+  fields and state, stepped 40 physics steps per policy step and nothing else.
+
+Not measured yet: rollout workers over Zenoh and the service chain (the trainer service is
+not built); their ratios are null in the JSON line.
+
+Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
+with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
+`overlap_speedup`, `shares`, `workers_vs_inprocess` and `services_vs_inprocess`.
+
+    .venv/bin/python benchmarks/training.py --quick     # < 1 min on 2 cores
+    .venv/bin/python benchmarks/training.py             # more iterations
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from pathlib import Path
+from tempfile import TemporaryDirectory
+
+from mujoco.batch import Batch
+
+from hamnet.trainer.runner import RunConfig, Runner
+
+
+def progress(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def timed(function: Callable, seconds: dict[str, float], name: str) -> Callable:
+    """`function`, adding its wall time to `seconds[name]`."""
+
+    def wrapper(*args, **kwargs):
+        started = time.perf_counter()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            seconds[name] += time.perf_counter() - started
+
+    return wrapper
+
+
+def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
+    """Env steps/s of `iterations` iterations after one warm-up, learning included."""
+    runner = Runner(config)
+    runner.iterate()
+    started = time.perf_counter()
+    for _ in range(iterations):
+        runner.iterate()
+    steps = iterations * config.num_envs * config.steps_per_rollout
+    return steps / (time.perf_counter() - started), runner
+
+
+def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
+    """Share of a sequential step's wall time in each component."""
+    runner = Runner(config)
+    runner.iterate()
+    seconds: dict[str, float] = defaultdict(float)
+    (worker,) = runner.workers
+    worker.env.step = timed(worker.env.step, seconds, "sim")
+    worker.perception.step = timed(worker.perception.step, seconds, "perception")
+    worker.perception.start_episodes = timed(worker.perception.start_episodes, seconds, "perception")
+    worker.safety.command = timed(worker.safety.command, seconds, "safety")
+    runner.policy.act = timed(runner.policy.act, seconds, "policy")
+    runner.learn = timed(runner.learn, seconds, "learner")
+    started = time.perf_counter()
+    for _ in range(iterations):
+        runner.iterate()
+    total = time.perf_counter() - started
+    shares = {name: round(value / total, 3) for name, value in sorted(seconds.items())}
+    shares["other"] = round(1.0 - sum(shares.values()), 3)
+    return shares
+
+
+def physics_ceiling(config: RunConfig, steps: int) -> float:
+    """Env steps/s of raw MuJoCo on the run's world (40 physics steps per policy step)."""
+    runner = Runner(config)
+    env = runner.workers[0].env
+    physics = env.physics
+    raw = Batch(env.world.model, env.num_envs, nthread=0, persistent=True)
+    for name, values in physics.fields.items():
+        raw.expand(name)[:] = values
+    raw.set_const()
+    raw.bind("qpos")[:] = physics.qpos
+    raw.bind("qvel")[:] = physics.qvel
+    raw.bind("ctrl")[:] = physics.qpos[:, env.world.robot_qpos]
+    raw.forward()
+    nstep = env.config.physics_steps_per_sample * env.config.control_samples
+    raw.step(nstep=nstep)
+    started = time.perf_counter()
+    for _ in range(steps):
+        raw.step(nstep=nstep)
+    return env.num_envs * steps / (time.perf_counter() - started)
+
+
+def main() -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="few iterations (under a minute)")
+    parser.add_argument("--num-envs", type=int, default=64)
+    args = parser.parse_args()
+    iterations = 3 if args.quick else 20
+    with TemporaryDirectory() as run_dir:
+        config = RunConfig(num_envs=args.num_envs, run_dir=Path(run_dir))
+        inprocess, _ = loop_rate(config, iterations)
+        progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
+        sequential_config = RunConfig(num_envs=args.num_envs, run_dir=Path(run_dir), overlap=False)
+        sequential, _ = loop_rate(sequential_config, iterations)
+        progress(f"in-process, one group: {sequential:.0f} env steps/s")
+        shares = component_shares(sequential_config, iterations)
+        progress(f"shares of a sequential step: {shares}")
+        ceiling = physics_ceiling(sequential_config, 5 if args.quick else 30)
+        progress(f"physics ceiling: {ceiling:.0f} env steps/s")
+    return {
+        "benchmark": "training",
+        "mode": "quick" if args.quick else "full",
+        "num_envs": args.num_envs,
+        "stage": config.stage,
+        "architecture": config.architecture,
+        "inprocess_env_steps_per_s": round(inprocess, 1),
+        "sequential_env_steps_per_s": round(sequential, 1),
+        "overlap_speedup": round(inprocess / sequential, 3),
+        "physics_ceiling_env_steps_per_s": round(ceiling, 1),
+        "inprocess_vs_physics_ceiling": round(inprocess / ceiling, 3),
+        "shares": shares,
+        "workers_vs_inprocess": None,
+        "services_vs_inprocess": None,
+        "not_measured": "rollout workers and the service chain over Zenoh (trainer service not built)",
+        "goals": {"inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33},
+        "cpus": os.cpu_count(),
+    }
+
+
+if __name__ == "__main__":
+    print(json.dumps(main()), flush=True)
