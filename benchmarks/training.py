@@ -34,6 +34,7 @@ from tempfile import TemporaryDirectory
 
 from mujoco.batch import Batch
 
+from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
 
 
@@ -114,10 +115,11 @@ def main() -> dict:
     args = parser.parse_args()
     iterations = 3 if args.quick else 20
     with TemporaryDirectory() as run_dir:
-        config = RunConfig(num_envs=args.num_envs, run_dir=Path(run_dir))
+        sim = stage_config("easy", num_envs=args.num_envs)
+        config = RunConfig(sim=sim, run_dir=Path(run_dir))
         inprocess, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
-        sequential_config = RunConfig(num_envs=args.num_envs, run_dir=Path(run_dir), overlap=False)
+        sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False)
         sequential, _ = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
         shares = component_shares(sequential_config, iterations)

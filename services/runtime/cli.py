@@ -41,13 +41,17 @@ class CommonConfig:
     logging: Annotated[LogConfig, Flattened] = field(default_factory=LogConfig)
 
 
-def parse(config_type: type[C], argv: Sequence[str], prog: str, description: str) -> C:
-    """Build `config_type` from `argv`; `--help` prints every option with its docstring."""
+def parse(
+    config_type: type[C], argv: Sequence[str], prog: str, description: str, default: C | None = None
+) -> C:
+    """Build `config_type` from `argv`, starting from `default` (the type's defaults when
+    None); `--help` prints every option with its docstring."""
     return tyro.cli(  # type: ignore[call-overload]
         config_type,
         args=list(argv),
         prog=prog,
         description=description,
+        default=default,
     )
 
 
@@ -59,14 +63,14 @@ class HasCommon(Protocol):
 
 
 def parse_service(
-    config_type: type[S], argv: Sequence[str], service: str, description: str
+    config_type: type[S], argv: Sequence[str], service: str, description: str, default: S | None = None
 ) -> tuple[S, ServiceIdentity]:
-    """Parse a service's command line and set up its logging.
+    """Parse a service's command line (from `default`, if given) and set up its logging.
 
     Returns:
         The config and who the service is on the network (`service/worker`).
     """
-    config = parse(config_type, argv, f"hamnet {service}", description)
+    config = parse(config_type, argv, f"hamnet {service}", description, default)
     logging = config.common.logging
     identity = ServiceIdentity(service, config.common.worker)
     configure_logging(identity.source, logging.log_level, logging.log_format)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Literal
 
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumConfig
@@ -34,7 +35,10 @@ _EASY = SimConfig(
     task=dataclasses.replace(TaskConfig(), success_radius=0.05, success_angle=0.3),
 )
 
-STAGES: dict[str, SimConfig] = {"full": SimConfig(), "easy": _EASY}
+StageName = Literal["full", "easy"]
+"""The names of the stages (command lines offer exactly these)."""
+
+STAGES: dict[StageName, SimConfig] = {"full": SimConfig(), "easy": _EASY}
 """Every stage by name."""
 
 

@@ -3,7 +3,9 @@ safety filter's training profile as in-process cores (`hamnet.trainer.rollout`),
 and the schedule counter (`hamnet.trainer.runner`).
 
     hamnet train --stage easy --max-wall-clock-s 3600      # an hour on the easy stage
-    hamnet train --architecture mlp --num-envs 32          # a baseline, fewer environments
+    hamnet train --architecture state-mlp                  # the plain state-based baseline
+    hamnet train --stage full --sim.task.timeout 200       # any sim field, on top of a stage
+    hamnet train --sim.num-envs 32 --sim.seed 3            # environments and seed
 
 It writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
 rate, episode length, KL, clip fraction, learning rate, env steps/s),
@@ -18,13 +20,17 @@ over Zenoh) is the trainer service, not built yet.
 
 from __future__ import annotations
 
+import argparse
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
 
+import tyro
+
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
+from hamnet.sim.stages import STAGES, stage_config
 from hamnet.trainer.evaluate import success_rate
 from hamnet.trainer.runner import RunConfig, Runner
 from hamnet.trainer.shell import TrainerPublisher
@@ -38,7 +44,9 @@ class TrainConfig:
     """One in-process training run."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
-    run: Annotated[RunConfig, Flattened] = field(default_factory=RunConfig)
+    run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
+    """The run (`--stage`, `--architecture`, ...; the environments under `--sim.*`, PPO under
+    `--ppo.*`)."""
     publish: bool = False
     """Publish the weights, the schedule counter and every iteration's metrics on Zenoh
     (`--namespace`): watch with `hamnet monitor --namespace NS`, serve the newest weights
@@ -51,13 +59,25 @@ CONFIG = TrainConfig
 """The config `hamnet train` parses."""
 
 
+def stage_default(argv: Sequence[str]) -> TrainConfig:
+    """The defaults of a run on the stage `--stage` names in `argv` (easy when absent), so
+    every `--sim.*` flag changes that stage's value."""
+    known, _ = _STAGE_FLAG.parse_known_args(list(argv))
+    stage = known.stage if known.stage in STAGES else "easy"  # tyro reports a bad name
+    return TrainConfig(run=RunConfig(stage=stage, sim=stage_config(stage, num_envs=64)))
+
+
+_STAGE_FLAG = argparse.ArgumentParser(add_help=False)
+_STAGE_FLAG.add_argument("--stage", default="easy")
+
+
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet train` (or `hamnet train plot`) with arguments `argv`; returns the exit status."""
     if argv and argv[0] == "plot":
         from hamnet.trainer.plot import main as plot_main  # matplotlib only when plotting
 
         return plot_main(argv[1:])
-    config, identity = parse_service(CONFIG, argv, "train", __doc__)
+    config, identity = parse_service(CONFIG, argv, "train", __doc__, default=stage_default(argv))
     runner = Runner(config.run)
     if config.publish:
         with Service(identity, config.common.transport) as service:

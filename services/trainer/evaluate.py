@@ -29,7 +29,8 @@ def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitio
         episodes: how many episodes, one per environment.
         env_transitions: the schedule counter of the policy (safety's xi annealing).
     """
-    held_out = dataclasses.replace(config, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes)
+    sim = dataclasses.replace(config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes)
+    held_out = dataclasses.replace(config, sim=sim)
     (worker,), _ = build_workers(held_out, groups=1)
     policy.eval()
     ended = np.zeros(episodes, dtype=bool)

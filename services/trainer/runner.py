@@ -33,9 +33,10 @@ from hamnet.policy.registry import architecture, build
 from hamnet.policy.weights import save_checkpoint
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
+from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.rewards import REWARD_NAMES
-from hamnet.sim.stages import STAGES, stage_config
+from hamnet.sim.stages import STAGES, StageName, stage_config
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
 from hamnet.trainer.normalization import ReturnScaler
@@ -49,17 +50,18 @@ log = logging.getLogger(__name__)
 class RunConfig:
     """One training run in one process."""
 
-    stage: str = "easy"
-    """Training stage (`hamnet.sim.stages`): full or easy."""
+    stage: StageName = "easy"
+    """Training stage (`hamnet.sim.stages`): full or easy. It sets the defaults of every
+    `--sim.*` flag; those flags change any field on top of it."""
+    sim: SimConfig = field(default_factory=lambda: stage_config("easy", num_envs=64))
+    """The environments: count (`--sim.num-envs`, default 64), seed of the sim, the networks
+    and the action noise (`--sim.seed`), physics threads without `overlap`
+    (`--sim.nthread`), scenes, placement, task and curriculum: the stage's, with any change."""
     architecture: str = "hamnet"
     """Policy architecture (`hamnet policy --print-params` lists them)."""
-    num_envs: int = 64
-    """B: environments stepped together."""
     steps_per_rollout: int = 8
     """T: policy steps per environment between two updates (the authors' `rollout_size: 8`,
     rss_train.yaml:166; the paper's "update frequency 8")."""
-    seed: int = 0
-    """Seed of the sim, the networks and the action noise."""
     max_env_transitions: int = 2_048_000_000
     """Stop after this many env_transitions (the authors' 2e6 vectorized steps of 1024)."""
     max_wall_clock_s: float = math.inf
@@ -71,9 +73,6 @@ class RunConfig:
     overlap: bool = True
     """Split the environments into two groups and step one group's physics while the other's
     perception, policy and safety run (`rollout.collect_overlapped`): both cores stay busy."""
-    physics_threads: int = 0
-    """Threads of the sim's physics without `overlap`, 0: every core (the networks use one
-    torch thread either way: on 2 cores one thread per process beat two)."""
     log_period_s: float = 10.0
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
@@ -82,11 +81,21 @@ class RunConfig:
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
 
+    @property
+    def num_envs(self) -> int:
+        """B: environments stepped together (the sim's)."""
+        return self.sim.num_envs
+
+    @property
+    def seed(self) -> int:
+        """Seed of the sim, the networks and the action noise (the sim's)."""
+        return self.sim.seed
+
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
-        if self.num_envs < 1 or self.steps_per_rollout < 1:
-            raise ValueError("num_envs and steps_per_rollout must be >= 1")
+        if self.steps_per_rollout < 1:
+            raise ValueError("steps_per_rollout must be >= 1")
         if self.overlap and self.num_envs % 2:
             raise ValueError("overlap splits the environments in two groups: num_envs must be even")
         if self.eval_episodes < 0:
@@ -138,11 +147,11 @@ def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], 
             torch.manual_seed(config.seed)
             encoder = UniCORN()
         encoder.requires_grad_(False)
-    threads = 1 if groups > 1 else config.physics_threads  # the other core runs the networks
+    threads = 1 if groups > 1 else config.sim.nthread  # the other core runs the networks
     workers = []
     for group in range(groups):
         seed = config.seed + group
-        env = VectorEnv(stage_config(config.stage, num_envs=size, seed=seed, nthread=threads))
+        env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
         perception = None if encoder is None else Perception(encoder, size, seed=seed)
         safety = SafetyFilter(np.zeros((size, 7)), with_profile("training"))
         workers.append(RolloutWorker(env, perception, safety, config.ppo.gamma, seed))

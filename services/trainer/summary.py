@@ -12,7 +12,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hamnet.sim.stages import stage_config
 from hamnet.trainer.plot import read_metrics
 from hamnet.trainer.runner import RunConfig
 
@@ -32,7 +31,7 @@ def write_summary(config: RunConfig, final_success_rate: float | None) -> Path:
     rows = read_metrics(config.run_dir)
     stride = max(1, len(rows) // CURVE_POINTS)
     keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
-    sim = stage_config(config.stage)
+    sim = config.sim
     summary = {
         "final_success_rate": final_success_rate,
         "eval_episodes": config.eval_episodes,

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import typing
+
 import numpy as np
 import pytest
 
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.scene import CUBOID_NAMES
-from hamnet.sim.stages import STAGES, stage_config
+from hamnet.sim.stages import STAGES, StageName, stage_config
 
 
 @pytest.mark.parametrize("name", sorted(STAGES))
@@ -38,3 +40,7 @@ def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> 
 def test_an_unknown_stage_names_the_known_ones() -> None:
     with pytest.raises(ValueError, match="easy"):
         stage_config("hard")
+
+
+def test_the_stage_names_are_the_registered_stages() -> None:
+    assert set(typing.get_args(StageName)) == set(STAGES)

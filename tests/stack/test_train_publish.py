@@ -25,9 +25,9 @@ def test_an_in_process_run_publishes_weights_counter_and_metrics(spawn, transpor
     inbox.subscribe("schedule", SCHEDULE.key(ns), Schedule)
     inbox.subscribe("metrics", METRICS.key(ns), Metrics)
     train = spawn(
-        "train", "--publish", "--num-envs", str(B), "--steps-per-rollout", str(T),
-        "--max-env-transitions", str(ITERATIONS * B * T), "--eval-episodes", "0",
-        "--physics-threads", "1", "--run-dir", str(tmp_path), *transport_args(transport),
+        "train", "--publish", "--sim.num-envs", str(B), "--sim.num-objects", "2", "--sim.nthread", "1",
+        "--steps-per-rollout", str(T), "--max-env-transitions", str(ITERATIONS * B * T),
+        "--eval-episodes", "0", "--run-dir", str(tmp_path), *transport_args(transport),
     )  # fmt: skip
     received: dict[str, list] = {"weights": [], "schedule": [], "metrics": []}
     deadline = time.monotonic() + 120

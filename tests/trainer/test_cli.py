@@ -10,12 +10,15 @@ from hamnet.trainer.cli import main
 
 def test_a_tiny_run_writes_metrics_checkpoint_summary_and_curves(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    args = ["--num-envs", "2", "--steps-per-rollout", "2", "--max-env-transitions", "8",
-            "--physics-threads", "1", "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
+    args = ["--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",
+            "--sim.task.lambda-r", "0.3", "--steps-per-rollout", "2", "--max-env-transitions", "8",
+            "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
     assert main(args) == 0
     summary = json.loads((run / "summary.json").read_text())
     assert summary["final_success_rate"] in (0.0, 0.5, 1.0) and summary["env_steps"] == 8
     assert summary["stage"] == "easy" and summary["stage_definition"]["task"]["success_radius"] == 0.05
+    assert summary["stage_definition"]["task"]["lambda_r"] == 0.3  # a --sim.* flag over the stage
+    assert summary["stage_definition"]["placement"]["start_keeps_goal_orientation"]
     assert len(summary["curve"]) == 2 and summary["seed"] == 0
     assert (run / "checkpoints" / "latest.safetensors").is_file()
     assert main(["plot", str(run)]) == 0

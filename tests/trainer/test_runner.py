@@ -26,6 +26,11 @@ from hamnet.trainer.runner import RunConfig, Runner
 B = 2
 
 
+def tiny_sim():
+    """The easy stage with B environments, two objects, one physics thread."""
+    return stage_config("easy", num_envs=B, num_objects=2, nthread=1)
+
+
 def worker(timeout: int) -> RolloutWorker:
     sim = stage_config("easy", num_envs=B, num_objects=2, nthread=1)
     env = VectorEnv(dataclasses.replace(sim, task=dataclasses.replace(TaskConfig(), timeout=timeout)))
@@ -57,8 +62,7 @@ def test_only_timeouts_are_bootstrapped_and_every_end_is_a_done() -> None:
 
 
 def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
-    config = RunConfig(num_envs=B, steps_per_rollout=2, run_dir=tmp_path, max_env_transitions=8,
-                       physics_threads=1)  # fmt: skip
+    config = RunConfig(sim=tiny_sim(), steps_per_rollout=2, run_dir=tmp_path, max_env_transitions=8)
     runner = Runner(config)
     metrics = runner.run()
     rows = [json.loads(line) for line in metrics.read_text().splitlines()]
@@ -73,7 +77,7 @@ def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
 def test_evaluation_plays_one_held_out_episode_per_environment() -> None:
     """One whole episode per environment (at most the 300-step timeout), acting with the mean:
     the rate is a multiple of 1/2 and the same on a second call."""
-    config = RunConfig(num_envs=B, physics_threads=1)
+    config = RunConfig(sim=tiny_sim())
     policy = build("hamnet", seed=0)
     rate = success_rate(policy, config, episodes=2, env_transitions=0)
     assert rate in (0.0, 0.5, 1.0)
@@ -81,8 +85,8 @@ def test_evaluation_plays_one_held_out_episode_per_environment() -> None:
 
 
 def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
-    config = RunConfig(architecture="state-mlp", num_envs=B, steps_per_rollout=2, run_dir=tmp_path,
-                       max_env_transitions=4, physics_threads=1)  # fmt: skip
+    config = RunConfig(architecture="state-mlp", sim=tiny_sim(), steps_per_rollout=2, run_dir=tmp_path,
+                       max_env_transitions=4)  # fmt: skip
     runner = Runner(config)
     assert all(worker.perception is None for worker in runner.workers)
     runner.run()
