@@ -70,9 +70,11 @@ class RunConfig:
     """Where metrics.jsonl and checkpoints go."""
     encoder_checkpoint: Path | None = None
     """Pre-trained UniCORN weights (frozen); None: random weights, frozen (version 0)."""
-    overlap: bool = True
+    overlap: bool | None = None
     """Split the environments into two groups and step one group's physics while the other's
-    perception, policy and safety run (`rollout.collect_overlapped`): both cores stay busy."""
+    perception, policy and safety run (`rollout.collect_overlapped`), so both cores stay
+    busy; None: when the policy reads clouds (1.18x for HAMnet at 64 environments in
+    `benchmarks/training.py`; a policy without perception is faster on all physics threads)."""
     log_period_s: float = 10.0
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
@@ -80,6 +82,13 @@ class RunConfig:
     eval_episodes: int = 64
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
+
+    @property
+    def overlapped(self) -> bool:
+        """Whether the run collects in two overlapped groups (`overlap`, resolved)."""
+        if self.overlap is None:
+            return architecture(self.architecture).config.clouds
+        return self.overlap
 
     @property
     def num_envs(self) -> int:
@@ -96,7 +105,7 @@ class RunConfig:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
         if self.steps_per_rollout < 1:
             raise ValueError("steps_per_rollout must be >= 1")
-        if self.overlap and self.num_envs % 2:
+        if self.overlapped and self.num_envs % 2:
             raise ValueError("overlap splits the environments in two groups: num_envs must be even")
         if self.eval_episodes < 0:
             raise ValueError("eval_episodes must be >= 0")
@@ -164,7 +173,7 @@ class Runner:
     def __init__(self, config: RunConfig) -> None:
         self.config = config
         torch.set_num_threads(1)
-        self.workers, self.encoder_version = build_workers(config, 2 if config.overlap else 1)
+        self.workers, self.encoder_version = build_workers(config, 2 if config.overlapped else 1)
         self.policy = build(config.architecture, seed=config.seed)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
         self.scaler = ReturnScaler(config.num_envs, config.ppo.gamma)
@@ -183,7 +192,7 @@ class Runner:
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
-        if config.overlap:
+        if config.overlapped:
             rollout = collect_overlapped(tuple(self.workers), policy, config.steps_per_rollout, self.env_transitions)
         else:
             rollout = self.workers[0].collect(policy, config.steps_per_rollout, self.env_transitions)
