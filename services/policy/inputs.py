@@ -20,6 +20,7 @@ from torch import Tensor
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import PoseNoiseConfig, RobotObservation, assemble, estimated_pose
+from hamnet.policy.policy import Policy
 
 
 @dataclass(frozen=True)
@@ -44,13 +45,13 @@ def robot_observation(observation, device="cpu") -> RobotObservation:
     })  # fmt: skip
 
 
-def initial_carry(config: ModelConfig, memory_width: int, batch: int, device="cpu") -> Carry:
-    """The carry of `batch` environments before their first step."""
-    memory = torch.zeros(batch, memory_width, device=device) if memory_width else None
+def initial_carry(policy: Policy, batch: int) -> Carry:
+    """The carry of `batch` environments before their first step, on the policy's device."""
+    like = policy.log_std
     return Carry(
-        episode_ids=torch.full((batch,), -1, dtype=torch.int64, device=device),
-        previous_action=torch.zeros(batch, config.action_dim, device=device),
-        memory=memory,
+        episode_ids=torch.full((batch,), -1, dtype=torch.int64, device=like.device),
+        previous_action=like.new_zeros(batch, policy.config.action_dim),
+        memory=policy.initial_memory(batch),
     )
 
 

@@ -301,7 +301,7 @@ class PolicyShell:
         })  # fmt: skip
         b, config = len(state.episode_ids), self.policy.config
         if self.carry is None or len(self.carry.episode_ids) != b:
-            self.carry = builder.initial_carry(config, self.policy.memory_width, b, self.device)
+            self.carry = builder.initial_carry(self.policy, b)
         ids = torch.from_numpy(state.episode_ids).to(self.device)
         steps = torch.from_numpy(state.episode_step).to(self.device)
         self.carry = builder.begin_step(self.carry, ids, steps)

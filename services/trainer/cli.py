@@ -30,9 +30,9 @@ import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
-from hamnet.sim.stages import STAGES, stage_config
+from hamnet.sim.stages import STAGES
 from hamnet.trainer.evaluate import success_rate
-from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
 from hamnet.trainer.summary import write_summary
 
@@ -64,7 +64,7 @@ def stage_default(argv: Sequence[str]) -> TrainConfig:
     every `--sim.*` flag changes that stage's value."""
     known, _ = _STAGE_FLAG.parse_known_args(list(argv))
     stage = known.stage if known.stage in STAGES else "easy"  # tyro reports a bad name
-    return TrainConfig(run=RunConfig(stage=stage, sim=stage_config(stage, num_envs=64)))
+    return TrainConfig(run=RunConfig(stage=stage, sim=stage_sim(stage)))
 
 
 _STAGE_FLAG = argparse.ArgumentParser(add_help=False)

@@ -10,7 +10,6 @@ components, R reward terms.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -28,6 +27,7 @@ from hamnet.trainer.losses import (
     policy_loss,
     value_loss,
 )
+from hamnet.trainer.trees import take_rows
 
 
 class Evaluated(Protocol):
@@ -75,20 +75,6 @@ class UpdateStats:
     """After the update's adaptations."""
     gradient_steps: int
     early_stopped: bool
-
-
-def take_rows(tree: Any, rows: Tensor) -> Any:
-    """The rows `rows` (K,) of every tensor in a tree of tensors, dicts and dataclasses."""
-    if tree is None:
-        return None
-    if isinstance(tree, Tensor):
-        return tree[rows]
-    if isinstance(tree, dict):
-        return {key: take_rows(value, rows) for key, value in tree.items()}
-    if dataclasses.is_dataclass(tree):
-        changes = {f.name: take_rows(getattr(tree, f.name), rows) for f in dataclasses.fields(tree)}
-        return dataclasses.replace(tree, **changes)
-    raise TypeError(f"cannot take rows of a {type(tree).__name__}")
 
 
 def update(

@@ -8,7 +8,8 @@ the policy's one input builder `hamnet.policy.inputs`, `SafetyFilter`). Per step
 what the learner needs: the policy inputs, action, log-probability, value per reward term,
 reward terms and episode ends, and for a truncated episode gamma * V(its final state), which
 the learner adds to that step's (scaled) reward as the authors bootstrap timeouts
-(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike. Shapes: T steps, B environments, A action, R reward terms.
+(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike.
+Shapes: T steps, B environments, A action, R reward terms.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.policy import Action, Policy
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
-from hamnet.trainer.ppo import take_rows
+from hamnet.trainer.trees import take_rows, zip_trees
 
 
 @dataclass(frozen=True)
@@ -77,21 +78,9 @@ def _tokens(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Te
     return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
 
 
-def _zip_trees(trees: list, join) -> object:
-    """One tree from trees of the same structure (dataclasses of tensors or None), each
-    tensor the `join` of the trees' tensors at that place."""
-    first = trees[0]
-    if first is None:
-        return None
-    if isinstance(first, Tensor):
-        return join(trees)
-    fields = {name: _zip_trees([getattr(tree, name) for tree in trees], join) for name in vars(first)}
-    return type(first)(**fields)
-
-
 def _cat_rows(trees: list) -> object:
     """Concatenate trees of (B, ...) tensors along rows: (len * B, ...), time-major."""
-    return _zip_trees(trees, lambda tensors: torch.cat(tensors, dim=0))
+    return zip_trees(trees, lambda tensors: torch.cat(tensors, dim=0))
 
 
 def merge_environments(rollouts: list[Rollout]) -> Rollout:
@@ -108,7 +97,7 @@ def merge_environments(rollouts: list[Rollout]) -> Rollout:
         f.name: torch.cat([getattr(r, f.name) for r in rollouts], dim=0 if f.name == "next_values" else 1)
         for f in dataclasses.fields(Rollout) if f.name != "inputs"
     }  # fmt: skip
-    return Rollout(inputs=_zip_trees([r.inputs for r in rollouts], side_by_side), **fields)
+    return Rollout(inputs=zip_trees([r.inputs for r in rollouts], side_by_side), **fields)
 
 
 @torch.no_grad()
@@ -183,7 +172,7 @@ class RolloutWorker:
     def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
         """The first half of a step: inputs, the policy's action and the safe command."""
         if self.carry is None:
-            self.carry = builder.initial_carry(policy.config, policy.memory_width, self.env.num_envs)
+            self.carry = builder.initial_carry(policy, self.env.num_envs)
         inputs = self._inputs(policy)
         acted = policy.act(inputs, deterministic, self.generator)
         obs = self.observation

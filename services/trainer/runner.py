@@ -1,7 +1,7 @@
 """The in-process training loop: collect a rollout, compute per-term advantages, update PPO,
 advance the one schedule counter, log, checkpoint.
 
-Everything runs in one process (`hamnet trainer --inprocess`): the sim, perception, policy and
+Everything runs in one process (`hamnet train`): the sim, perception, policy and
 the safety filter's training profile through `RolloutWorker`, then `ppo.update`. Rewards are
 scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
 bootstrap of truncated episodes is added after scaling, since values live in scaled units.
@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.perception.checkpoint import load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
@@ -46,6 +47,15 @@ from hamnet.trainer.rollout import Rollout, RolloutWorker, collect_overlapped
 log = logging.getLogger(__name__)
 
 
+NUM_ENVS = 64
+"""Environments of a run unless `--sim.num-envs` says otherwise."""
+
+
+def stage_sim(stage: StageName) -> SimConfig:
+    """The environments of a run on `stage`: the stage with `NUM_ENVS` environments."""
+    return stage_config(stage, num_envs=NUM_ENVS)
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """One training run in one process."""
@@ -53,7 +63,7 @@ class RunConfig:
     stage: StageName = "easy"
     """Training stage (`hamnet.sim.stages`): full or easy. It sets the defaults of every
     `--sim.*` flag; those flags change any field on top of it."""
-    sim: SimConfig = field(default_factory=lambda: stage_config("easy", num_envs=64))
+    sim: SimConfig = field(default_factory=lambda: stage_sim("easy"))
     """The environments: count (`--sim.num-envs`, default 64), seed of the sim, the networks
     and the action noise (`--sim.seed`), physics threads without `overlap`
     (`--sim.nthread`), scenes, placement, task and curriculum: the stage's, with any change."""
@@ -162,7 +172,7 @@ def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], 
         seed = config.seed + group
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
         perception = None if encoder is None else Perception(encoder, size, seed=seed)
-        safety = SafetyFilter(np.zeros((size, 7)), with_profile("training"))
+        safety = SafetyFilter(np.zeros((size, NUM_JOINTS)), with_profile("training"))
         workers.append(RolloutWorker(env, perception, safety, config.ppo.gamma, seed))
     return workers, version
 

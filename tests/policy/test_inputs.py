@@ -20,7 +20,7 @@ def tokens() -> tuple[torch.Tensor, ...]:
 
 def test_new_episodes_zero_their_previous_action_and_memory_only() -> None:
     policy = build("student", seed=0)
-    carry = builder.initial_carry(policy.config, policy.memory_width, B)
+    carry = builder.initial_carry(policy, B)
     carry = builder.begin_step(carry, torch.zeros(B, dtype=torch.int64), torch.zeros(B))
     carry = builder.end_step(carry, torch.ones(B, 21), torch.ones(B, policy.memory_width))
     # env 1 starts a new episode (new id), env 2 restarts (step 0), env 0 continues.
@@ -31,7 +31,7 @@ def test_new_episodes_zero_their_previous_action_and_memory_only() -> None:
 
 def test_the_previous_action_changes_the_next_action() -> None:
     policy = build("hamnet", seed=0)
-    carry = builder.initial_carry(policy.config, 0, B)
+    carry = builder.initial_carry(policy, B)
     carry = builder.begin_step(carry, torch.zeros(B, dtype=torch.int64), torch.zeros(B))
     robot = random_robot(B)
     first = policy.act(builder.policy_inputs(policy.config, carry, robot, tokens()), True)
@@ -61,7 +61,7 @@ def test_the_trainer_builds_inputs_from_the_sim_in_process() -> None:
     steps = torch.from_numpy(observation.episode_step).long()
     for name in ("hamnet", "student"):
         policy = build(name, seed=0)
-        carry = builder.initial_carry(policy.config, policy.memory_width, B)
+        carry = builder.initial_carry(policy, B)
         carry = builder.begin_step(carry, ids, steps)
         inputs = builder.policy_inputs(policy.config, carry, robot, tokens(),
                                        pose_noise=PoseNoiseConfig())  # fmt: skip

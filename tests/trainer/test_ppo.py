@@ -11,7 +11,8 @@ from torch import Tensor, nn
 
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
-from hamnet.trainer.ppo import Batch, take_rows, update
+from hamnet.trainer.ppo import Batch, update
+from hamnet.trainer.trees import take_rows
 
 B, T, LOG_STD = 64, 4, math.log(0.3)
 
