@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import torch
 
+from hamnet.sim.scene import TABLE
+
 MAX_ROUNDS = 32
 """Rejection rounds before the sampler gives up (one is the norm, see `sample_surface`)."""
 
@@ -126,10 +128,6 @@ def _face_grid(grid: int, device: torch.device) -> tuple[torch.Tensor, torch.Ten
     v10, v01, v11 = v00 + grid + 1, v00 + 1, v00 + grid + 2
     triangles = torch.cat([torch.stack([v00, v10, v11], -1), torch.stack([v00, v11, v01], -1)])
     return uv, triangles
-
-
-TABLE = 0
-"""Slot of the table in every Scene message (`hamnet.sim.scene.CUBOID_NAMES`)."""
 
 
 def workspace_box(cuboids: Cuboids, below: float, height: float) -> Cuboids:
@@ -240,7 +238,8 @@ def visible_triangles(
     hidden = hidden.reshape(b, c, 6, v, c)  # (B, C, 6, V, C)
     culled = hidden[:, :, :, tri, :].all(-2).any(-1)  # (B, C, 6, G2)
     vertices = world[:, :, :, tri, :]  # (B, C, 6, G2, 3, 3)
-    face_area = 4.0 * axis_u.norm(dim=-1) * axis_v.norm(dim=-1) * span.prod(-1) / 4  # (B, C, 6)
+    # (2|u| span_u / 2) x (2|v| span_v / 2): the face's kept part, (B, C, 6), m^2
+    face_area = axis_u.norm(dim=-1) * axis_v.norm(dim=-1) * span.prod(-1)
     area = (face_area / (2 * grid * grid))[..., None].expand(-1, -1, -1, len(tri))  # (B, C, 6, G2)
     area = area * ~culled * cuboids.active[:, :, None, None]
     t = c * 6 * len(tri)

@@ -19,6 +19,7 @@ from hamnet.runtime.tensor import from_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
 from hamnet.sim.commands import hold_command
 from hamnet.sim.quaternion import to_matrix
+from hamnet.sim.scene import TABLE
 from tests.conftest import transport_args
 from tests.sim.test_shell import safe_command
 
@@ -27,8 +28,6 @@ TIMEOUT = 2
 """Episode length (policy steps): a new scene per environment every two steps."""
 SCENES = 32
 """(environment, episode) pairs to measure."""
-TABLE = 0
-"""The table's slot in the Scene message."""
 MARGIN = 1e-4
 """Tolerance of the footprint test, m: points on a wall's inner face lie on the table's edge
 (float32 on the wire)."""
