@@ -1,15 +1,12 @@
 """Stage 3: Cartesian-space action clipping, the paper's Algorithm eq:cclip (lines 788-804).
 
 Consumes the joint residual dq (B, J) and the end-effector Jacobian at the current
-configuration (B, R, J), computed for the whole batch from the FR3's kinematic chain (read by
-Pinocchio from the same model file as the sim, `hamnet.fr3.model`);
+configuration (B, R, J) from Pinocchio (the same FR3 model file as the sim, `hamnet.fr3.model`);
 produces the clamped residual whose predicted end-effector motion ||J dq|| is at most eps_x,
 up to what the damping lambda leaves (at most (lambda/2)*||dq|| per pass; see `cartesian_clip`).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -21,74 +18,26 @@ JACOBIAN_ROWS: dict[str, slice] = {"linear": slice(0, 3), "full": slice(0, 6)}
 """Rows of the (6, J) world-aligned Jacobian [linear; angular] kept for Delta x."""
 
 
-@dataclass(frozen=True)
-class Chain:
-    """The arm as a serial chain of revolute joints about their local z axes, as arrays, so
-    that Jacobians are computed for a whole batch at once (no per-environment loop)."""
-
-    rotations: np.ndarray
-    """(J, 3, 3) placement of each joint frame in its parent joint's frame at q = 0."""
-    translations: np.ndarray
-    """(J, 3) the same placements' translations, m."""
-    ee_translation: np.ndarray
-    """(3,) the `ee` frame's origin in the last joint's frame, m."""
-
-
-def chain_of(model: pin.Model) -> Chain:
-    """The FR3's chain from its Pinocchio model (loaded from the sim's MJCF).
-
-    Raises:
-        ValueError: if a joint is not a revolute joint about z or the chain is not serial.
-    """
-    joints = range(1, model.njoints)
-    kinds = {model.joints[j].shortname() for j in joints}
-    if kinds != {"JointModelRZ"} or list(model.parents)[1:] != list(range(model.njoints - 1)):
-        raise ValueError(f"expected a serial chain of RZ joints, got {kinds}")
-    frame = model.frames[model.getFrameId(EE_SITE)]
-    if frame.parentJoint != model.njoints - 1:
-        raise ValueError(f"{EE_SITE} hangs from joint {frame.parentJoint}, not the last one")
-    return Chain(
-        rotations=np.array([model.jointPlacements[j].rotation for j in joints]),
-        translations=np.array([model.jointPlacements[j].translation for j in joints]),
-        ee_translation=np.array(frame.placement.translation),
-    )
-
-
-def ee_jacobians(chain: Chain, q: np.ndarray, rows: CartesianRows = "linear") -> np.ndarray:
-    """Algorithm eq:cclip line 1, J = dx/dq at q, for every environment at once.
-
-    Forward kinematics joint by joint over the batch; column j is [z_j x (p_ee - p_j); z_j]
-    with z_j and p_j joint j's world axis and origin (Pinocchio's LOCAL_WORLD_ALIGNED frame
-    Jacobian, the convention of `hamnet.fr3.model.mujoco_ee_jacobian`; tests check both).
+def ee_jacobians(
+    model: pin.Model, data: pin.Data, q: np.ndarray, rows: CartesianRows = "linear"
+) -> np.ndarray:
+    """Algorithm eq:cclip line 1, J = dx/dq at q, for every environment (one pin.Data reused).
 
     Args:
-        chain: the arm (`chain_of`).
+        model, data: the FR3 from `hamnet.fr3.model.load_pinocchio()`; data is scratch.
         q: (B, J) finite joint positions, rad.
         rows: "linear" (3 rows, m/rad) or "full" (6 rows: linear then angular).
     Returns:
-        (B, R, J) Jacobians at the paddle's `ee` frame, world-aligned.
+        (B, R, J) Jacobians at the paddle's `ee` frame, world-aligned (LOCAL_WORLD_ALIGNED,
+        the convention of `hamnet.fr3.model.mujoco_ee_jacobian`).
     """
-    q = np.asarray(q, dtype=np.float64)  # (B, J)
-    b, num_joints = q.shape
-    # Rotations as (B*3, 3) stacks, so each product with a fixed (3, 3) is one 2-d matmul.
-    rotation = np.tile(np.eye(3), (b, 1))  # (B*3, 3) world from the current frame
-    position = np.zeros((b, 3))  # (B, 3), m
-    axes, origins = np.empty((b, 3, num_joints)), np.empty((b, 3, num_joints))
-    cos, sin = np.cos(q).repeat(3, axis=0), np.sin(q).repeat(3, axis=0)  # (B*3, J)
-    for j in range(num_joints):
-        position = position + (rotation @ chain.translations[j]).reshape(b, 3)
-        rotation = rotation @ chain.rotations[j]
-        axes[:, :, j], origins[:, :, j] = rotation[:, 2].reshape(b, 3), position
-        x, y = rotation[:, 0], rotation[:, 1]  # (B*3,) columns; z is the axis
-        c, s = cos[:, j], sin[:, j]
-        rotation = np.stack([c * x + s * y, c * y - s * x, rotation[:, 2]], axis=1)
-    ee = position + (rotation @ chain.ee_translation).reshape(b, 3)  # (B, 3)
-    a0, a1, a2 = axes.transpose(1, 0, 2)  # (B, J) each
-    d0, d1, d2 = (ee[:, :, None] - origins).transpose(1, 0, 2)  # joint origin to ee, (B, J)
-    linear = np.stack([a1 * d2 - a2 * d1, a2 * d0 - a0 * d2, a0 * d1 - a1 * d0], axis=1)
-    if rows == "linear":
-        return linear  # (B, 3, J)
-    return np.concatenate([linear, axes], axis=1)  # (B, 6, J)
+    frame = model.getFrameId(EE_SITE)
+    keep = JACOBIAN_ROWS[rows]
+    jacobians = np.empty((q.shape[0], keep.stop - keep.start, q.shape[1]))  # (B, R, J)
+    for env, q_env in enumerate(np.asarray(q, dtype=np.float64)):
+        full = pin.computeFrameJacobian(model, data, q_env, frame, pin.LOCAL_WORLD_ALIGNED)
+        jacobians[env] = full[keep]  # (R, J)
+    return jacobians
 
 
 def excess_motion(dx: np.ndarray, eps_x: float) -> np.ndarray:

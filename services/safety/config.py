@@ -247,7 +247,8 @@ def with_profile(profile: Profile, config: SafetyConfig | None = None) -> Safety
       target on every control sample (no Ruckig). Batched, with no per-environment loop.
     - "finetune": training plus the Cartesian clip with eps_x annealed (paper lines 803-804,
       the sim-to-real fine-tuning stage); set `cartesian_clip.annealing.start_step` to the
-      env_transitions where fine-tuning starts. Batched too (`cartesian.ee_jacobians`).
+      env_transitions where fine-tuning starts. Its Jacobians come from Pinocchio, one
+      environment at a time (about 1 us each).
     - "deploy": `config` as given, by default every stage with Ruckig references and the torque
       pre-clip (the real robot, and evaluation runs that ask for them).
     Other fields (xi, eps_x, alpha, the band, the annealing) come from `config`.

@@ -1,7 +1,7 @@
 """The safety core: raw policy action (B, 21) and robot state to a safe joint command.
 
 `filter_action` is a pure function of (config, state, action, q, dq, step) returning a
-`FilterResult` and the next `SafetyState`; `SafetyCore` holds that state, the FR3 chain
+`FilterResult` and the next `SafetyState`; `SafetyCore` holds that state, the Pinocchio model
 and running statistics for the shell and the trainer. Stages, in order:
 
     1 nonfinite_guard -> 2 action_magnitude -> 3 cartesian_clip -> 4 residual_smoothing
@@ -26,7 +26,7 @@ import numpy as np
 from hamnet.fr3.limits import FR3, NUM_JOINTS, Q_HOME
 from hamnet.fr3.model import load_pinocchio
 from hamnet.safety import stages
-from hamnet.safety.cartesian import cartesian_clip, chain_of, ee_jacobians
+from hamnet.safety.cartesian import cartesian_clip, ee_jacobians
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.schedule import ScheduleValues, per_joint, schedule_values
 from hamnet.safety.stats import StageReport, StageStats, StatsAccumulator, stage_report, summarize
@@ -308,18 +308,18 @@ def recheck_torque(
 
 
 class SafetyCore:
-    """Stateful wrapper for the shell and the trainer: per-env memory, FR3 chain, stats."""
+    """Stateful wrapper for the shell and the trainer: per-env memory, Pinocchio model, stats."""
 
     def __init__(self, num_envs: int, config: SafetyConfig | None = None) -> None:
         self.config = config if config is not None else SafetyConfig()
         self.state = initial_state(num_envs, self.config)
         self.stats = StatsAccumulator()
         """Running per-stage statistics; the shell publishes `summary()` and resets them."""
-        self._chain = chain_of(load_pinocchio()[0])
+        self._model, self._data = load_pinocchio()
 
     def jacobians(self, q: np.ndarray) -> np.ndarray:
-        """(N, R, J) end-effector Jacobians at q (N, J), rows per the config (batched)."""
-        return ee_jacobians(self._chain, q, self.config.cartesian_clip.rows)
+        """(N, R, J) end-effector Jacobians at q (N, J), rows per the config."""
+        return ee_jacobians(self._model, self._data, q, self.config.cartesian_clip.rows)
 
     def reset(self, q: np.ndarray, env_ids: np.ndarray | None = None) -> None:
         """Start episodes in `env_ids` (all if None) at joint positions q (B, J)."""

@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 from hamnet.fr3 import model as fr3_model
 from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.safety import stages
-from hamnet.safety.cartesian import chain_of, ee_jacobians
+from hamnet.safety.cartesian import ee_jacobians
 from hamnet.safety.config import CartesianClipConfig, SafetyConfig
 from hamnet.safety.pipeline import (
     FilterResult,
@@ -32,7 +32,6 @@ from hamnet.safety.stats import STAGE_NAMES
 B, J = 4, 7
 NAN, INF = float("nan"), float("inf")
 PIN_MODEL, PIN_DATA = fr3_model.load_pinocchio()
-CHAIN = chain_of(PIN_MODEL)
 MJ_MODEL = fr3_model.load_mujoco()
 MJ_DATA = mujoco.MjData(MJ_MODEL)
 LO, HI = target_bounds(SafetyConfig())
@@ -40,7 +39,7 @@ TAU_LIMIT = 0.9 * FR3.tau_max
 
 
 def jacobians(q: np.ndarray) -> np.ndarray:
-    return ee_jacobians(CHAIN, q)
+    return ee_jacobians(PIN_MODEL, PIN_DATA, q)
 
 
 def home(b: int = B) -> np.ndarray:
