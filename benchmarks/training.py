@@ -32,10 +32,11 @@ from collections.abc import Callable
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
-from mujoco.batch import Batch
-
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
+
+# Run as a script, so benchmarks/ is on sys.path: the sim benchmark's raw copy of a world.
+from sim import raw_copy  # noqa: E402
 
 
 def progress(message: str) -> None:
@@ -89,17 +90,8 @@ def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
 
 def physics_ceiling(config: RunConfig, steps: int) -> float:
     """Env steps/s of raw MuJoCo on the run's world (40 physics steps per policy step)."""
-    runner = Runner(config)
-    env = runner.workers[0].env
-    physics = env.physics
-    raw = Batch(env.world.model, env.num_envs, nthread=0, persistent=True)
-    for name, values in physics.fields.items():
-        raw.expand(name)[:] = values
-    raw.set_const()
-    raw.bind("qpos")[:] = physics.qpos
-    raw.bind("qvel")[:] = physics.qvel
-    raw.bind("ctrl")[:] = physics.qpos[:, env.world.robot_qpos]
-    raw.forward()
+    env = Runner(config).workers[0].env
+    raw = raw_copy(env, nthread=0)
     nstep = env.config.physics_steps_per_sample * env.config.control_samples
     raw.step(nstep=nstep)
     started = time.perf_counter()
