@@ -1,44 +1,105 @@
-"""The monitor's default layout in the Rerun viewer (entities as in `hamnet.monitor.view`).
+"""The monitor's default layout in the Rerun viewer (entities as in `hamnet.monitor.view`),
+made to be kept open during a training run.
 
-Left, the 3D scene (robot, cuboids, object and goal, clouds) takes most of the width.
-Right, top to bottom: the module activations (layer x module heat map, the paper's
-figure) beside each module's mean weight over time; reward terms and episodes (success
-rate, return); safety (clip rate per stage, event log) and trainer metrics in tabs.
+Left: the 3D scene (robot, cuboids, object and goal, clouds) seen from beside the robot,
+with the legend of its colours under it. Right, top to bottom: the learning curves (the
+trainer's return per reward term and success rate beside the monitor's own, with the
+trainer's status line, or the note saying why there are none yet); the module activations
+(layer x module heat map with its colour scale, each module's mean weight over time); tabs
+for the rest (rewards of the env in focus, values, PPO statistics, throughput, safety,
+episodes). The viewer opens on the `step` timeline.
 """
 
 from __future__ import annotations
 
+import rerun as rr
 import rerun.blueprint as rrb
+
+from hamnet.sim.scene_view import spatial_view
+
+DEFAULT_TIMELINE = "step"
+"""The timeline the view opens on (wall-clock time would squeeze a run into a sliver)."""
 
 SCENE_CONTENTS = ["+ /robot/**", "+ /scene/**", "+ /object/**", "+ /goal/**", "+ /clouds/**"]
 """What the 3D view shows (everything spatial, nothing else)."""
 
+MODULE_COLORMAP = rr.components.Colormap.Viridis
+"""Colour map of the module heat map and of its scale: weight 0 dark blue, 1 yellow."""
+
+PPO_METRICS = (
+    "approx_kl",
+    "clip_fraction",
+    "learning_rate",
+    "log_std",
+    "policy_loss",
+    "value_loss",
+)
+"""Trainer metrics of the PPO update, one plot each (their scales differ by decades)."""
+THROUGHPUT_METRICS = ("env_steps_per_s", "policy_lag", "episode_length")
+"""Trainer metrics of the run's pace, one plot each."""
+
+
+def _plot(origin: str, name: str, contents: list[str] | None = None) -> rrb.TimeSeriesView:
+    """A time series view with its legend in the top left corner."""
+    return rrb.TimeSeriesView(origin=origin, contents=contents or "$origin/**", name=name,
+                              plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop))  # fmt: skip
+
+
+def _heat_map(origin: str, name: str) -> rrb.TensorView:
+    """A tensor view coloured 0 -> 1 by `MODULE_COLORMAP`."""
+    return rrb.TensorView(origin=origin, name=name,
+                          scalar_mapping=rrb.TensorScalarMapping(colormap=MODULE_COLORMAP))  # fmt: skip
+
+
+def learning() -> rrb.Container:
+    """The learning curves, with the trainer's status line (or why there is none) above."""
+    success = ["+ /trainer/success_rate", "+ /episodes/success_rate"]
+    return rrb.Vertical(
+        rrb.TextDocumentView(origin="/trainer/status", name="trainer"),
+        rrb.Horizontal(
+            _plot("/trainer/return", "return per reward term (trainer)"),
+            _plot("/", "success rate", success),
+        ),
+        row_shares=[1, 5],
+    )
+
+
+def modules() -> rrb.Container:
+    """The module activations now (with the colour scale) and over time."""
+    return rrb.Horizontal(
+        rrb.Vertical(
+            _heat_map("/policy/module_weights", "module activations (layer x module)"),
+            _heat_map("/policy/module_scale", "colour scale: weight 0 to 1"),
+            row_shares=[3, 1],
+        ),
+        _plot("/policy/modules", "mean module weight"),
+    )
+
+
+def details() -> rrb.Container:
+    """Everything else, one tab each."""
+    return rrb.Tabs(
+        _plot("/rewards", "reward terms (env in focus)"),
+        _plot("/episodes/return", "episode return (env in focus)"),
+        _plot("/policy/values", "values per reward term"),
+        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in PPO_METRICS), name="PPO update"),
+        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in THROUGHPUT_METRICS), name="throughput"),
+        _plot("/safety/clip_rate", "safety: clipped share per stage"),
+        rrb.TextLogView(origin="/safety/events", name="safety events"),
+        rrb.TextLogView(origin="/episodes/started", name="episodes"),
+    )
+
 
 def blueprint() -> rrb.Blueprint:
     """The default layout, sent with the data to every output."""
-    policy = rrb.Horizontal(
-        rrb.TensorView(origin="/policy/module_weights", name="module activations (layer x module)"),
-        rrb.TimeSeriesView(origin="/policy/modules", name="mean module weight"),
-    )
-    rewards = rrb.Horizontal(
-        rrb.TimeSeriesView(origin="/rewards", name="reward terms (env in focus)"),
-        rrb.Vertical(
-            rrb.TimeSeriesView(origin="/episodes/success_rate", name="success rate"),
-            rrb.TimeSeriesView(origin="/episodes/return", name="episode return (env in focus)"),
-        ),
-    )
-    monitoring = rrb.Tabs(
-        rrb.TimeSeriesView(origin="/safety/clip_rate", name="safety: clipped share per stage"),
-        rrb.TextLogView(origin="/safety/events", name="safety events"),
-        rrb.TimeSeriesView(origin="/trainer", name="trainer metrics"),
-        rrb.TimeSeriesView(origin="/policy/values", name="values per reward term"),
-        rrb.TextLogView(origin="/episodes/started", name="episodes"),
+    scene = rrb.Vertical(
+        spatial_view("FR3 and scene", SCENE_CONTENTS),
+        rrb.TextDocumentView(origin="/legend", name="legend"),
+        row_shares=[6, 1],
     )
     return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial3DView(origin="/", contents=SCENE_CONTENTS, name="FR3 and scene"),
-            rrb.Vertical(policy, rewards, monitoring),
-            column_shares=[3, 2],
-        ),
-        collapse_panels=True,
+        rrb.Horizontal(scene, rrb.Vertical(learning(), modules(), details()), column_shares=[1, 1]),
+        rrb.TimePanel(timeline=DEFAULT_TIMELINE, play_state="following", state="collapsed"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
     )

@@ -2,7 +2,10 @@
 
 `log_scene` logs into the current (or a given) Rerun recording, so the monitor can call it
 at every reset; `save_scene` samples one scene from a seed and writes a `.rrd` file that a
-person opens with `rerun file.rrd` (no viewer is spawned, nothing is downloaded).
+person opens with `rerun file.rrd` (no viewer is spawned, nothing is downloaded), with a
+layout (`scene_blueprint`): the 3D view seen from behind and beside the robot, the floor
+grid where the robot and the table stand, and a legend of the colours. `spatial_view` is
+that 3D view, which the monitor's layout reuses.
 Entities: scene/base (table, plates, ramps), scene/case (walls, ceiling, translucent),
 scene/start and scene/goal (a point and the object's axes).
 """
@@ -13,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from hamnet.sim import quaternion
 from hamnet.sim.placement import Placement, sample_placements
@@ -27,7 +31,8 @@ from hamnet.sim.scene import (
     SceneBatch,
     sample_scenes,
 )
-from hamnet.sim.scene_config import SceneConfig
+from hamnet.sim.scene_config import FLOOR_Z, SceneConfig
+from hamnet.sim.world import PEDESTAL_HALF_EXTENT
 
 
 def _slot_colours() -> np.ndarray:
@@ -44,6 +49,56 @@ def _slot_colours() -> np.ndarray:
 _COLOURS = _slot_colours()
 _POSE_COLOURS = {"start": (220, 50, 50, 255), "goal": (50, 90, 220, 255)}
 """Start red, goal blue, as in the paper's figures."""
+
+EYE = rrb.EyeControls3D(
+    kind=rrb.Eye3DKind.Orbital,
+    position=(1.9, -1.5, 1.0),
+    look_target=(0.45, 0.0, -0.1),
+    eye_up=(0.0, 0.0, 1.0),
+)
+"""The camera a view opens with: ahead of the robot and to its right, a little above the
+table, so that the arm (at the origin) and the whole table (ahead, +x) fit in one view."""
+
+LEGEND = """\
+**Scene colours.** **Grey** table, **tan** plates, **orange** ramps, **translucent green**
+walls and ceiling. The object's start is the **red** point, its goal the **blue** one, each
+with the object's axes (x red, y green, z blue). The dark box is the pedestal the robot stands on;
+the grid is the floor under it and the table.
+"""
+"""What the scene's colours mean, shown under the 3D view."""
+
+
+PEDESTAL_CENTRE_X = -0.05
+"""x of the pedestal's centre, m (`hamnet.sim.world.build_spec` places it there)."""
+
+
+def log_pedestal(recording: rr.RecordingStream | None = None) -> None:
+    """The box the robot's base stands on, from the floor up to the base (static): without
+    it the robot seems to hover above the floor the table stands on."""
+    box = rr.Boxes3D(centers=[(PEDESTAL_CENTRE_X, 0.0, FLOOR_Z / 2)],
+                     half_sizes=[(*PEDESTAL_HALF_EXTENT, -FLOOR_Z / 2)], colors=[(90, 90, 100)],
+                     labels=["pedestal"], fill_mode=rr.components.FillMode.Solid)  # fmt: skip
+    rr.log("scene/pedestal", box, static=True, recording=recording)
+
+
+def spatial_view(name: str, contents: list[str]) -> rrb.Spatial3DView:
+    """The 3D view of a scene: `contents` seen from `EYE`, the grid on the floor."""
+    return rrb.Spatial3DView(
+        origin="/",
+        contents=contents,
+        name=name,
+        eye_controls=EYE,
+        line_grid=rrb.LineGrid3D(visible=True, spacing=0.1, plane=rr.components.Plane3D((0, 0, 1), FLOOR_Z)),
+    )
+
+
+def scene_blueprint() -> rrb.Blueprint:
+    """The layout of a `save_scene` file: the 3D view above the legend."""
+    return rrb.Blueprint(
+        rrb.Vertical(spatial_view("procedural scene", ["+ /scene/**"]),
+                     rrb.TextDocumentView(origin="/legend", name="legend"), row_shares=[6, 1]),
+        collapse_panels=True,
+    )  # fmt: skip
 
 
 def log_scene(
@@ -119,7 +174,9 @@ def save_scene(
         top_height=np.array([[object_height]]),
     )
     recording = rr.RecordingStream("hamnet_scene")
-    recording.save(path)
+    recording.save(path, default_blueprint=scene_blueprint())
+    recording.log("legend", rr.TextDocument(LEGEND, media_type="text/markdown"), static=True)
+    log_pedestal(recording)
     log_scene(scene, 0, placement, recording=recording)
     recording.flush()
     recording.disconnect()

@@ -4,7 +4,7 @@ messages of the services not built yet, and an .rrd file read back by entity."""
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +14,8 @@ import rerun
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
+from hamnet.proto.trainer_pb2 import Metrics
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import from_tensor, to_tensor
@@ -21,7 +23,10 @@ from hamnet.sim import quaternion
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
+from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.shell import LoopConfig, SimShell
+from hamnet.trainer.ppo import UpdateStats
+from hamnet.trainer.shell import encode_metrics
 from tests.scripted import ScriptedService
 from tests.sim.test_shell import safe_command
 
@@ -74,6 +79,57 @@ def action(step: int, rng: np.random.Generator) -> PolicyAction:
     return message
 
 
+TRANSITIONS_PER_ITERATION = 64 * 64
+"""env_transitions of one scripted trainer iteration (64 steps of 64 environments)."""
+
+
+def metrics(iteration: int, rng: np.random.Generator) -> Metrics:
+    """Metrics of iteration `iteration` as the trainer publishes them (its own
+    `encode_metrics`) for a row with the keys of `Runner.iterate`, of a run that learns:
+    the success rate rises from 0.1 towards 0.6, with noise."""
+    success = 0.6 - 0.5 * np.exp(-iteration / 8) + 0.03 * rng.standard_normal()
+    stats = UpdateStats(policy_loss=-0.01 * rng.random(), value_loss=1.0 / (1 + iteration),
+                        bound_loss=0.0, approx_kl=0.016 * rng.uniform(0.5, 1.5),
+                        clip_fraction=0.2 * rng.random(), learning_rate=3e-4,
+                        gradient_steps=64, early_stopped=False)  # fmt: skip
+    returns = {f"return/{name}": float(v) for name, v in
+               zip(REWARD_NAMES, (10 * success, 0.5 + 0.02 * iteration, -0.1), strict=True)}  # fmt: skip
+    row = {
+        "iteration": iteration,
+        "env_transitions": iteration * TRANSITIONS_PER_ITERATION,
+        "env_steps_per_s": 1500 + 100 * rng.standard_normal(),
+        "collect_s": 2.0,
+        "learn_s": 0.7,
+        "log_std": -0.5 - 0.01 * iteration,
+        **asdict(stats),
+        "policy_lag": 0,
+        **returns,
+        "return/total": sum(returns.values()),
+        "episodes": 100,
+        "success_rate": float(np.clip(success, 0, 1)),
+        "episode_length": 80 - 2 * success,
+    }
+    return encode_metrics(row, iteration)
+
+
+def clip_event(step: int, env: int) -> SafetyEvent:
+    """The Cartesian clip clipped 2 of 10 commands at `step`, in environment `env`."""
+    message = SafetyEvent(header=Header(step=step), kind=SafetyEventKind.CLIPPED_CARTESIAN,
+                          stage="cartesian_clip", reason="clipped 2 of 10 commands")  # fmt: skip
+    to_tensor(np.array([env], np.int32), message.env_ids)
+    return message
+
+
+def statistics_event(step: int) -> SafetyEvent:
+    """Statistics at `step`: a quarter clipped by the Cartesian clip, none by the joint
+    limits, no command through the torque pre-clip."""
+    message = SafetyEvent(header=Header(step=step), stage="", reason="statistics over 5 s")
+    message.stages.add(stage="cartesian_clip", commands=40, clipped=10, max_excess=0.1)
+    message.stages.add(stage="joint_limits", commands=40, clipped=0)
+    message.stages.add(stage="torque_preclip", commands=0, clipped=0)
+    return message
+
+
 EE_OFFSET = np.array([0.0, 0.0, 0.09])
 """Site `ee` in the paddle body's frame, m (fr3.xml)."""
 
@@ -99,14 +155,19 @@ class Rrd:
         reader = rerun.chunk.RrdReader(path)
         for chunk in reader.stream().to_chunks():
             self.batches[chunk.entity_path].append((chunk.is_static, chunk.to_record_batch()))
-        self.view_origins: list[str] = [
-            origin[0]
+        self.blueprint: list[pa.RecordBatch] = [
+            chunk.to_record_batch()
             for store in reader.blueprints()
             for chunk in reader.stream(store=store).to_chunks()
-            if "ViewBlueprint:space_origin" in (batch := chunk.to_record_batch()).schema.names
-            for origin in batch.column("ViewBlueprint:space_origin").to_pylist()
         ]
+        """The record batches of the file's blueprint."""
+        self.view_origins: list[str] = [v[0] for v in self.blueprint_values("ViewBlueprint:space_origin")]
         """Origin entity of every view of the file's blueprint."""
+
+    def blueprint_values(self, column: str) -> list:
+        """Every value of `column` in the blueprint (None where a row lacks it left out)."""
+        values = [v for b in self.blueprint if column in b.schema.names for v in b.column(column).to_pylist()]
+        return [v for v in values if v is not None]
 
     @property
     def entities(self) -> set[str]:

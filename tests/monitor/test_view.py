@@ -6,12 +6,11 @@ reward terms, success rate, safety events and trainer metrics."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 import rerun as rr
 
-from hamnet.monitor.blueprint import blueprint
+from hamnet.monitor.blueprint import DEFAULT_TIMELINE, blueprint
 from hamnet.monitor.config import ViewConfig
 from hamnet.monitor.decode import (
     decode_action,
@@ -22,19 +21,35 @@ from hamnet.monitor.decode import (
     decode_tokens,
     decode_transition,
 )
+from hamnet.monitor.palette import REWARD_COLOURS
 from hamnet.monitor.robot import RobotView
 from hamnet.monitor.view import MonitorView
-from hamnet.proto.common_pb2 import Header
-from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
-from hamnet.proto.trainer_pb2 import Metrics
-from hamnet.runtime.tensor import from_tensor, to_tensor
+from hamnet.runtime.tensor import from_tensor
+from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene import NUM_BASE
-from tests.monitor.recorded import B, L, M, Rrd, action, drawn_ee, sim_messages, tokens, xyzw_matrix
+from hamnet.sim.scene_view import save_scene
+from tests.monitor.recorded import (
+    TRANSITIONS_PER_ITERATION,
+    B,
+    L,
+    M,
+    Rrd,
+    action,
+    clip_event,
+    drawn_ee,
+    metrics,
+    sim_messages,
+    statistics_event,
+    tokens,
+    xyzw_matrix,
+)
 
 ENV = 1
 """The environment in focus (not 0, so that a wrong row shows)."""
 STEPS = 7
 TIMEOUT = 3
+ITERATIONS = 3
+"""Trainer iterations published after the sim's steps."""
 
 
 @pytest.fixture(scope="module")
@@ -59,28 +74,14 @@ def run(tmp_path_factory) -> tuple[Rrd, dict[str, list]]:
             view.on_scene(decode_scene(message, ENV))
         else:
             view.on_transition(decode_transition(message, ENV, drawn=True))
-    view.on_event(decode_event(clip_event()))
-    view.on_event(decode_event(statistics_event()))
-    view.on_metrics(decode_metrics(Metrics(header=Header(step=1), iteration=4,
-                                           scalars={"loss/policy": 0.25, "kl": 0.01})))  # fmt: skip
+    view.on_event(decode_event(clip_event(5, ENV)))
+    view.on_event(decode_event(statistics_event(6)))
+    for iteration in range(1, ITERATIONS + 1):
+        sent.setdefault("metrics", []).append(metrics(iteration, rng))
+        view.on_metrics(decode_metrics(sent["metrics"][-1]))
     recording.flush()
     recording.disconnect()
     return Rrd(path), sent
-
-
-def clip_event() -> SafetyEvent:
-    message = SafetyEvent(header=Header(step=5), kind=SafetyEventKind.CLIPPED_CARTESIAN,
-                          stage="cartesian_clip", reason="clipped 2 of 10 commands")  # fmt: skip
-    to_tensor(np.array([ENV], np.int32), message.env_ids)
-    return message
-
-
-def statistics_event() -> SafetyEvent:
-    message = SafetyEvent(header=Header(step=6), stage="", reason="statistics over 5 s")
-    message.stages.add(stage="cartesian_clip", commands=40, clipped=10, max_excess=0.1)
-    message.stages.add(stage="joint_limits", commands=40, clipped=0)
-    message.stages.add(stage="torque_preclip", commands=0, clipped=0)
-    return message
 
 
 def test_robot_geometry_is_logged_once_and_matches_the_model(run) -> None:
@@ -171,19 +172,87 @@ def test_rewards_success_rate_events_and_metrics(run) -> None:
     assert rrd.rows("/episodes/success_rate", "Scalars:scalars") == {2: [0.0], 5: [0.0]}
     assert sorted(rrd.rows("/episodes/return", "Scalars:scalars")) == [2, 5]
     text = rrd.rows("/safety/events", "TextLog:text")
-    assert text == {5: ["CLIPPED_CARTESIAN [cartesian_clip] clipped 2 of 10 commands; "
-                        "1 envs (env in focus)"]}  # fmt: skip
+    expected = "CLIPPED_CARTESIAN [cartesian_clip] clipped 2 of 10 commands; 1 envs (env in focus)"
+    assert text == {5: [expected]}
     assert rrd.rows("/safety/clip_rate/cartesian_clip", "Scalars:scalars") == {6: [0.25]}
     assert rrd.rows("/safety/clip_rate/joint_limits", "Scalars:scalars") == {6: [0.0]}
     assert "/safety/clip_rate/torque_preclip" not in rrd.entities  # no command: no share
-    assert rrd.rows("/trainer/loss/policy", "Scalars:scalars", "iteration") == {4: [0.25]}
-    assert rrd.rows("/trainer/kl", "Scalars:scalars") == {STEPS: [0.01]}  # newest step
+    success = [m.scalars["success_rate"] for m in sent["metrics"]]
+    by_iteration = rrd.rows("/trainer/success_rate", "Scalars:scalars", "iteration")
+    assert by_iteration == {i + 1: [s] for i, s in enumerate(success)}
+    by_transitions = rrd.rows("/trainer/success_rate", "Scalars:scalars", "env_transitions")
+    assert by_transitions == {(i + 1) * TRANSITIONS_PER_ITERATION: [s] for i, s in enumerate(success)}
+    assert rrd.rows("/trainer/return/goal", "Scalars:scalars") == {  # the newest step
+        STEPS: [sent["metrics"][-1].scalars["return/goal"]]}
 
 
 def test_every_view_of_the_layout_shows_logged_entities(run) -> None:
     """The blueprint in the file names views by entity path: a path renamed in the view but
     not in the blueprint (an empty panel) fails here."""
     rrd, _ = run
-    assert len(rrd.view_origins) == 11
+    assert len(rrd.view_origins) == 23
     for origin in rrd.view_origins:
         assert any(e == origin or e.startswith(origin.rstrip("/") + "/") for e in rrd.entities), origin
+
+
+def test_the_view_opens_on_the_step_timeline(run) -> None:
+    rrd, _ = run
+    assert rrd.blueprint_values("TimePanelBlueprint:timeline") == [[DEFAULT_TIMELINE]] == [["step"]]
+
+
+def test_every_series_has_a_name_and_a_colour_of_its_own_in_its_plot(run) -> None:
+    """Reward terms keep their colours in every plot; safety stages, modules and trainer
+    returns differ from each other; the values are named by reward term, not values[i]."""
+    rrd, _ = run
+    plots = {
+        "rewards": [f"/rewards/{t}" for t in REWARD_NAMES],
+        "clip rate": ["/safety/clip_rate/cartesian_clip", "/safety/clip_rate/joint_limits"],
+        "returns": [f"/trainer/return/{t}" for t in (*REWARD_NAMES, "total")],
+        "success": ["/trainer/success_rate", "/episodes/success_rate"],
+    }
+    for plot, paths in plots.items():
+        names = [n for p in paths for n in rrd.static(p, "SeriesLines:names")[0]]
+        colours = [c for p in paths for c in rrd.static(p, "SeriesLines:colors")[0]]
+        assert len(set(names)) == len(set(colours)) == len(paths), plot
+    for path in ("/policy/values", "/policy/modules"):
+        names, colours = (rrd.static(path, f"SeriesLines:{c}")[0] for c in ("names", "colors"))
+        assert len(set(names)) == len(set(colours)) == len(names), path
+    assert rrd.static("/policy/values", "SeriesLines:names")[0] == [
+        f"value: {t}" for t in REWARD_NAMES
+    ]
+    reward = rrd.static("/rewards/goal", "SeriesLines:colors")[0]
+    assert rrd.static("/trainer/return/goal", "SeriesLines:colors")[0] == reward
+    assert set(REWARD_NAMES) <= set(REWARD_COLOURS)
+
+
+def test_the_learning_curves_say_why_they_are_empty_until_the_first_metrics(run) -> None:
+    rrd, sent = run
+    status = [text for (text,) in rrd.static("/trainer/status", "TextDocument:text")]
+    assert "No trainer metrics yet" in status[0] and "hamnet train --publish" in status[0]
+    assert status[-1].startswith(f"**iteration {ITERATIONS}**")
+    assert len(status) == 1 + len(sent["metrics"])
+
+
+def test_without_a_sim_the_learning_curves_are_on_the_trainers_steps(tmp_path) -> None:
+    path = tmp_path / "trainer.rrd"
+    recording = rr.RecordingStream("test_monitor_trainer_only")
+    recording.save(path)
+    view = MonitorView(recording)
+    rng = np.random.default_rng(0)
+    for iteration in (1, 2):
+        view.on_metrics(decode_metrics(metrics(iteration, rng)))
+    recording.flush()
+    recording.disconnect()
+    assert sorted(Rrd(path).rows("/trainer/success_rate", "Scalars:scalars")) == [1, 2]
+
+
+def test_show_scene_files_open_with_a_layout_a_camera_and_a_legend(tmp_path) -> None:
+    """`hamnet sim --show-scene` writes `save_scene`'s file: its blueprint places the eye
+    outside the scene, and the legend and pedestal are logged."""
+    path = tmp_path / "scene.rrd"
+    save_scene(path, seed=5)
+    rrd = Rrd(path)
+    assert rrd.view_origins == ["/", "/legend"]
+    [[eye]] = rrd.blueprint_values("EyeControls3D:position")
+    assert np.linalg.norm(eye) > 1.5  # m from the robot: the table and the arm fit
+    assert {"/legend", "/scene/pedestal"} <= rrd.entities
