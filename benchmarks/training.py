@@ -2,7 +2,7 @@
 ceiling of the same world, and where a step's time goes.
 
 Measures in one run, on the easy stage with HAMnet on its paper inputs:
-- inprocess: `hamnet train`'s loop (`Runner.iterate`: two groups of environments, one
+- inprocess: `hamnet trainer --inprocess`'s loop (`Runner.iterate`: two groups of environments, one
   group's physics overlapping the other's networks), learning included;
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
@@ -72,7 +72,7 @@ def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
     runner = Runner(config)
     runner.iterate()
     seconds: dict[str, float] = defaultdict(float)
-    (worker,) = runner.workers
+    (worker,) = runner.source.workers
     worker.env.step = timed(worker.env.step, seconds, "sim")
     worker.perception.step = timed(worker.perception.step, seconds, "perception")
     worker.perception.start_episodes = timed(worker.perception.start_episodes, seconds, "perception")
@@ -90,7 +90,7 @@ def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
 
 def physics_ceiling(config: RunConfig, steps: int) -> float:
     """Env steps/s of raw MuJoCo on the run's world (40 physics steps per policy step)."""
-    env = Runner(config).workers[0].env
+    env = Runner(config).source.workers[0].env
     raw = raw_copy(env, nthread=0)
     nstep = env.config.physics_steps_per_sample * env.config.control_samples
     raw.step(nstep=nstep)

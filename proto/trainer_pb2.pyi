@@ -8,20 +8,22 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class WeightsAnnouncement(_message.Message):
-    __slots__ = ("header", "version", "architecture", "config_json", "safetensors", "sha256")
+    __slots__ = ("header", "version", "architecture", "config_json", "safetensors", "sha256", "env_transitions")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     VERSION_FIELD_NUMBER: _ClassVar[int]
     ARCHITECTURE_FIELD_NUMBER: _ClassVar[int]
     CONFIG_JSON_FIELD_NUMBER: _ClassVar[int]
     SAFETENSORS_FIELD_NUMBER: _ClassVar[int]
     SHA256_FIELD_NUMBER: _ClassVar[int]
+    ENV_TRANSITIONS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     version: int
     architecture: str
     config_json: str
     safetensors: bytes
     sha256: str
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., version: _Optional[int] = ..., architecture: _Optional[str] = ..., config_json: _Optional[str] = ..., safetensors: _Optional[bytes] = ..., sha256: _Optional[str] = ...) -> None: ...
+    env_transitions: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., version: _Optional[int] = ..., architecture: _Optional[str] = ..., config_json: _Optional[str] = ..., safetensors: _Optional[bytes] = ..., sha256: _Optional[str] = ..., env_transitions: _Optional[int] = ...) -> None: ...
 
 class Schedule(_message.Message):
     __slots__ = ("header", "env_transitions")

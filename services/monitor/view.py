@@ -66,7 +66,7 @@ orange ramps, translucent green walls and ceiling, dark pedestal.
 """What the 3D view's colours mean, shown under it."""
 
 NO_METRICS = """\
-**No trainer metrics yet**: start `hamnet train --publish` or `hamnet trainer` in this namespace.
+**No trainer metrics yet**: start `hamnet trainer` (or `hamnet trainer --inprocess --publish`) in this namespace.
 """
 """Shown in place of the learning curves until the first metrics arrive."""
 

@@ -36,7 +36,7 @@ from hamnet.policy.observation import POSE_WIDTH, VELOCITY_WIDTH, PoseNoiseConfi
 from hamnet.policy.pairing import Pairing
 from hamnet.policy.policy import Action, Policy
 from hamnet.policy.registry import build
-from hamnet.policy.weights import WeightsError, from_bytes, load_into, sha256
+from hamnet.policy.weights import WeightsError, from_announcement, load_into
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -332,12 +332,7 @@ class PolicyShell:
         """Check an announcement and load it into the spare copy (WeightsError if unfit)."""
         if message.version <= self.version:
             raise WeightsError(f"version {message.version} is not newer")
-        if sha256(message.safetensors) != message.sha256:
-            raise WeightsError("sha256 does not match the safetensors bytes")
-        weights = from_bytes(message.safetensors)
-        if (weights.architecture, weights.version) != (message.architecture, message.version):
-            raise WeightsError(f"metadata says {weights.architecture!r} version {weights.version}, "
-                               f"the announcement {message.architecture!r} version {message.version}")  # fmt: skip
+        weights = from_announcement(message)
         if self.spare is None:
             self.spare = build(self.policy.architecture, self.policy.config).to(self.device).eval()
         load_into(self.spare, weights)

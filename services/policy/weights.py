@@ -25,6 +25,7 @@ from torch import Tensor
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import build
+from hamnet.proto.trainer_pb2 import WeightsAnnouncement
 
 FORMAT = "hamnet-policy/1"
 """`format` metadata of every file this module writes."""
@@ -97,6 +98,18 @@ def from_bytes(data: bytes) -> Weights:
     except SafetensorError as error:
         raise WeightsError(f"not safetensors: {error}") from None
     return Weights(architecture, config, version, tensors)
+
+
+def from_announcement(message: WeightsAnnouncement) -> Weights:
+    """The weights a WeightsAnnouncement carries, once its checksum and its metadata agree
+    with the safetensors bytes (WeightsError otherwise)."""
+    if sha256(message.safetensors) != message.sha256:
+        raise WeightsError("sha256 does not match the safetensors bytes")
+    weights = from_bytes(message.safetensors)
+    if (weights.architecture, weights.version) != (message.architecture, message.version):
+        raise WeightsError(f"metadata says {weights.architecture!r} version {weights.version}, "
+                           f"the announcement {message.architecture!r} version {message.version}")  # fmt: skip
+    return weights
 
 
 def check_fits(policy: Policy, weights: Weights) -> None:

@@ -1,27 +1,32 @@
-"""`hamnet train`: PPO in one process, with no Zenoh: the sim, perception, policy and the
-safety filter's training profile as in-process cores (`hamnet.trainer.rollout`), the update
-and the schedule counter (`hamnet.trainer.runner`).
+"""`hamnet trainer`: PPO on rollouts streamed by rollout workers over Zenoh, or with
+`--inprocess` on in-process cores (sim, perception, policy and the safety filter's training
+profile in this one process, no Zenoh unless `--publish`).
 
-    hamnet train --stage easy --max-wall-clock-s 3600      # an hour on the easy stage
-    hamnet train --architecture state-mlp                  # the plain state-based baseline
-    hamnet train --stage full --sim.task.timeout 200       # any sim field, on top of a stage
-    hamnet train --sim.num-envs 32 --sim.seed 3            # environments and seed
+    hamnet trainer --inprocess --max-wall-clock-s 3600          # an hour on the easy stage, one process
+    hamnet trainer --workers 2 & hamnet rollout --worker 0 & hamnet rollout --worker 1
+    hamnet up compose/train-easy.yaml                           # the same, from a stack file
+    hamnet trainer --inprocess --architecture state-mlp          # the plain state-based baseline
+    hamnet trainer --stage full --sim.task.timeout 200          # any sim field, on top of a stage
 
-It writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
-rate, episode length, KL, clip fraction, learning rate, env steps/s),
+Rollout workers take the same `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`
+and `--encoder-checkpoint` flags (their `--sim.num-envs` environments each; the trainer learns
+from `--workers` of them side by side). The trainer announces its weights before every
+rollout (`trainer/weights`, with the schedule counter), publishes the counter and every
+iteration's metrics (`trainer/schedule`, `trainer/metrics`; watch with `hamnet monitor`),
+writes `<run-dir>/metrics.jsonl` (one line per iteration: returns per reward term, success
+rate, episode length, KL, clip fraction, learning rate, env steps/s, policy lag),
 `<run-dir>/checkpoints/latest.safetensors` (serve it with `hamnet policy --checkpoint`) and,
 at the end, `<run-dir>/summary.json` (success rate of the final policy's mean on
-`--eval-episodes` held-out episodes, the curve, command, seed and commit),
-and prints a progress line every `--log-period-s`. `hamnet train plot RUN_DIR` draws a run's
-learning curves as PNG. With `--publish` the run also announces its weights, the schedule
-counter and its metrics on Zenoh (`hamnet.trainer.shell`). Training from streamed rollouts (rollout workers and the service chain
-over Zenoh) is the trainer service, not built yet.
+`--eval-episodes` held-out episodes, the curve, command, seed and commit), and prints a
+progress line every `--log-period-s`. `hamnet trainer plot RUN_DIR` draws a run's learning
+curves as PNG.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
@@ -34,37 +39,42 @@ from hamnet.sim.stages import STAGES
 from hamnet.trainer.evaluate import success_rate
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
+from hamnet.trainer.stream import Streamed
 from hamnet.trainer.summary import write_summary
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class TrainConfig:
-    """One in-process training run."""
+class TrainerConfig:
+    """One training run."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
     """The run (`--stage`, `--architecture`, ...; the environments under `--sim.*`, PPO under
     `--ppo.*`)."""
+    inprocess: bool = False
+    """Collect in this process (`hamnet.trainer.rollout`) instead of from rollout workers."""
+    workers: int = 1
+    """Rollout workers (`hamnet rollout`) whose chunks make one update, `--sim.num-envs`
+    environments each."""
+    max_policy_lag: int = 0
+    """Learn from chunks acted up to this many versions ago (rollout workers must say the
+    same); 0: synchronous, on-policy."""
     publish: bool = False
-    """Publish the weights, the schedule counter and every iteration's metrics on Zenoh
-    (`--namespace`): watch with `hamnet monitor --namespace NS`, serve the newest weights
-    with `hamnet policy`."""
+    """With --inprocess: publish the weights, the schedule counter and every iteration's
+    metrics on Zenoh (`--namespace`), to watch with `hamnet monitor --namespace NS` and serve
+    the newest weights with `hamnet policy`. Streaming runs always publish."""
     weights_period_s: float = 10.0
-    """With --publish: seconds between two weight announcements (and one at the end)."""
+    """With --inprocess --publish: seconds between two weight announcements (and one at the end)."""
 
 
-CONFIG = TrainConfig
-"""The config `hamnet train` parses."""
-
-
-def stage_default(argv: Sequence[str]) -> TrainConfig:
-    """The defaults of a run on the stage `--stage` names in `argv` (easy when absent), so
-    every `--sim.*` flag changes that stage's value."""
+def stage_default(argv: Sequence[str]) -> RunConfig:
+    """The run on the stage `--stage` names in `argv` (easy when absent), so every `--sim.*`
+    flag changes that stage's value."""
     known, _ = _STAGE_FLAG.parse_known_args(list(argv))
     stage = known.stage if known.stage in STAGES else "easy"  # tyro reports a bad name
-    return TrainConfig(run=RunConfig(stage=stage, sim=stage_sim(stage)))
+    return RunConfig(stage=stage, sim=stage_sim(stage))
 
 
 _STAGE_FLAG = argparse.ArgumentParser(add_help=False)
@@ -72,24 +82,40 @@ _STAGE_FLAG.add_argument("--stage", default="easy")
 
 
 def main(argv: Sequence[str]) -> int:
-    """Run `hamnet train` (or `hamnet train plot`) with arguments `argv`; returns the exit status."""
+    """Run `hamnet trainer` (or `hamnet trainer plot`) with arguments `argv`; returns the exit status."""
     if argv and argv[0] == "plot":
         from hamnet.trainer.plot import main as plot_main  # matplotlib only when plotting
 
         return plot_main(argv[1:])
-    config, identity = parse_service(CONFIG, argv, "train", __doc__, default=stage_default(argv))
-    runner = Runner(config.run)
-    if config.publish:
-        with Service(identity, config.common.transport) as service:
-            publisher = TrainerPublisher(service, config.weights_period_s)
-            runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
-            if runner.last_row:
-                publisher.publish(runner.policy, runner.last_row, final=True)
-    else:
+    default = TrainerConfig(run=stage_default(argv))
+    config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
+    if config.inprocess and not config.publish:
+        runner = Runner(config.run)
         runner.run()
+    else:
+        with Service(identity, config.common.transport) as service:
+            runner = train_with(service, config)
     rate = None
     if config.run.eval_episodes:
-        rate = success_rate(runner.policy, config.run, config.run.eval_episodes, runner.env_transitions)
+        rate = success_rate(
+            runner.policy, config.run, config.run.eval_episodes, runner.env_transitions
+        )
         log.info("final success rate on %d held-out episodes: %.3f", config.run.eval_episodes, rate)
     print(write_summary(config.run, rate))
     return 0
+
+
+def train_with(service: Service, config: TrainerConfig) -> Runner:
+    """Train while publishing on `service`: in-process, or from streamed rollouts."""
+    run = config.run
+    if config.inprocess:
+        runner = Runner(run)
+        publisher = TrainerPublisher(service, config.weights_period_s)
+    else:
+        runner = Runner(run, lambda policy: Streamed(
+            service, policy, config.workers, run.num_envs, config.max_policy_lag))  # fmt: skip
+        publisher = TrainerPublisher(service, math.inf)  # the source announces every version
+    runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
+    if runner.last_row:
+        publisher.publish(runner.policy, runner.last_row, final=True)
+    return runner

@@ -1,4 +1,4 @@
-"""Learning curves of a run as PNG: `hamnet train plot RUN_DIR [--out FILE]`.
+"""Learning curves of a run as PNG: `hamnet trainer plot RUN_DIR [--out FILE]`.
 
 Reads `<run_dir>/metrics.jsonl` (one line per iteration) and draws, against env_transitions
 (the paper's x-axis), the success rate, the episode return per reward term, the episode
@@ -16,23 +16,23 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")  # files only: no display on a training machine
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from hamnet.sim.rewards import REWARD_NAMES  # noqa: E402
+from hamnet.sim.rewards import REWARD_NAMES
 
 
 def read_metrics(run_dir: Path) -> list[dict[str, float]]:
     """Every iteration's metrics of a run, in order."""
     path = run_dir / "metrics.jsonl"
     if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist: is {run_dir} a run folder of hamnet train?")
+        raise FileNotFoundError(f"{path} does not exist: is {run_dir} a run folder of hamnet trainer?")
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
 def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
     """Write the curves of `rows` to `out` (PNG); returns `out`."""
     x = [row["env_transitions"] / 1e6 for row in rows]
-    series = lambda key: [row.get(key, math.nan) for row in rows]  # noqa: E731
+    series = lambda key: [row.get(key, math.nan) for row in rows]
     figure, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
     panels = [
         (axes[0, 0], "success rate (last episodes)", [("success_rate", "success")]),
@@ -59,15 +59,15 @@ def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
 
 
 def main(argv: Sequence[str]) -> int:
-    """`hamnet train plot RUN_DIR [--out FILE]`; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="hamnet train plot", description=__doc__.split("\n\n")[0])
-    parser.add_argument("run_dir", type=Path, help="a folder hamnet train wrote (its --run-dir)")
+    """`hamnet trainer plot RUN_DIR [--out FILE]`; returns the exit status."""
+    parser = argparse.ArgumentParser(prog="hamnet trainer plot", description=__doc__.split("\n\n")[0])
+    parser.add_argument("run_dir", type=Path, help="a folder hamnet trainer wrote (its --run-dir)")
     parser.add_argument("--out", type=Path, default=None, help="PNG to write (default RUN_DIR/curves.png)")
     args = parser.parse_args(list(argv))
     try:
         rows = read_metrics(args.run_dir)
     except FileNotFoundError as error:
-        print(f"hamnet train plot: {error}")
+        print(f"hamnet trainer plot: {error}")
         return 2
     print(plot_run(rows, args.out or args.run_dir / "curves.png", str(args.run_dir)))
     return 0

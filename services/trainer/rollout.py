@@ -6,9 +6,10 @@ fast path of training (the pattern of Sample Factory's or IMPALA's actors): no
 messages between the cores, the same code as the services (`VectorEnv`, `Perception`,
 the policy's one input builder `hamnet.policy.inputs`, `SafetyFilter`). Per step it keeps
 what the learner needs: the policy inputs, action, log-probability, value per reward term,
-reward terms and episode ends, and for a truncated episode gamma * V(its final state), which
-the learner adds to that step's (scaled) reward as the authors bootstrap timeouts
-(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike.
+reward terms and episode ends, and for a truncated episode V(its final state), which the
+learner adds, discounted, to that step's (scaled) reward as the authors bootstrap timeouts
+(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike. The discount
+is the learner's alone: a worker needs no PPO setting.
 Shapes: T steps, B environments, A action, R reward terms.
 """
 
@@ -45,8 +46,8 @@ class Rollout:
     """(T, B, R) values per reward term of the states acted in."""
     rewards: Tensor
     """(T, B, R) reward terms as the sim gave them."""
-    bootstrap: Tensor
-    """(T, B, R) gamma * V(final state) where an episode was truncated at step t, else 0."""
+    final_values: Tensor
+    """(T, B, R) V(final state) where an episode was truncated at step t, else 0."""
     dones: Tensor
     """(T, B) bool: the episode ended at this step (terminated or truncated)."""
     next_values: Tensor
@@ -137,12 +138,11 @@ class RolloutWorker:
         env: VectorEnv,
         perception: Perception | None,
         safety: SafetyFilter,
-        gamma: float,
         seed: int = 0,
     ) -> None:
         if env.num_envs != safety.num_envs or (perception is not None and perception.num_envs != env.num_envs):
             raise ValueError("env, perception and safety must hold the same environments")
-        self.env, self.perception, self.safety, self.gamma = env, perception, safety, gamma
+        self.env, self.perception, self.safety = env, perception, safety
         self.observation: Observation = env.reset(seed=seed)
         every = np.arange(env.num_envs)
         self.safety.start_episodes(every, self.observation.q.astype(np.float64))
@@ -186,14 +186,14 @@ class RolloutWorker:
         acted = pending.acted
         self.carry = builder.end_step(self.carry, acted.action, acted.memory)
         rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
-        bootstrap = torch.zeros_like(rewards)
+        final_values = torch.zeros_like(rewards)
         timed_out = np.flatnonzero(result.truncated & ~result.terminated)
         if len(timed_out):
-            bootstrap[timed_out] = self.gamma * self._final_values(policy, result.final_observation, timed_out)
+            final_values[timed_out] = self._final_values(policy, result.final_observation, timed_out)
         self._start(result.reset_ids, result.observation)
         return {
             "inputs": pending.inputs, "actions": acted.action, "log_prob": acted.log_prob,
-            "values": acted.values, "rewards": rewards, "bootstrap": bootstrap,
+            "values": acted.values, "rewards": rewards, "final_values": final_values,
             "dones": torch.as_tensor(result.terminated | result.truncated),
             "success": torch.as_tensor(result.success),
         }  # fmt: skip

@@ -1,8 +1,10 @@
-"""The in-process training loop: collect a rollout, compute per-term advantages, update PPO,
-advance the one schedule counter, log, checkpoint.
+"""The training loop: collect a rollout, compute per-term advantages, update PPO, advance
+the one schedule counter, log, checkpoint.
 
-Everything runs in one process (`hamnet train`): the sim, perception, policy and
-the safety filter's training profile through `RolloutWorker`, then `ppo.update`. Rewards are
+Rollouts come from a `RolloutSource`: `InProcess` runs the sim, perception, policy and the
+safety filter's training profile through `RolloutWorker` in this process
+(`hamnet trainer --inprocess`); `hamnet.trainer.stream.Streamed` announces the weights and
+gathers chunks from rollout workers over Zenoh (`hamnet trainer`). Either way one loop learns. Rewards are
 scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
 bootstrap of truncated episodes is added after scaling, since values live in scaled units.
 The policy's input statistics (`InputNormalizer`, saved with its weights) take in each
@@ -22,6 +24,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -30,6 +33,7 @@ from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.perception.checkpoint import load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
+from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture, build
 from hamnet.policy.weights import save_checkpoint
 from hamnet.safety.config import with_profile
@@ -173,21 +177,63 @@ def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], 
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
         perception = None if encoder is None else Perception(encoder, size, seed=seed)
         safety = SafetyFilter(np.zeros((size, NUM_JOINTS)), with_profile("training"))
-        workers.append(RolloutWorker(env, perception, safety, config.ppo.gamma, seed))
+        workers.append(RolloutWorker(env, perception, safety, seed))
     return workers, version
 
 
-class Runner:
-    """Owns the run: worker, policy, optimizer, reward scaler, counters."""
+@dataclass(frozen=True)
+class Collected:
+    """One rollout for an update, with how fresh it was."""
+
+    rollout: Rollout
+    policy_lag: float = 0.0
+    """Mean number of updates between the weights that acted and the learner's."""
+    dropped: int = 0
+    """Rollouts dropped so far as too stale or unfit."""
+
+
+class RolloutSource(Protocol):
+    """Where a run's rollouts come from."""
+
+    @property
+    def num_envs(self) -> int:
+        """B: environments of every rollout, in a fixed order."""
+
+    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+        """T = `steps` steps of every environment, acted by `policy` (weights `version`,
+        its log std set for the counter `env_transitions`) or by an older version of it."""
+
+
+class InProcess:
+    """Rollouts from `RolloutWorker`s in this process (in two overlapped groups when the
+    run says so): no messages, nothing stale."""
 
     def __init__(self, config: RunConfig) -> None:
+        self.overlapped = config.overlapped
+        self.workers, self.encoder_version = build_workers(config, 2 if config.overlapped else 1)
+
+    @property
+    def num_envs(self) -> int:
+        return sum(worker.env.num_envs for worker in self.workers)
+
+    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+        if self.overlapped:
+            return Collected(collect_overlapped(tuple(self.workers), policy, steps, env_transitions))
+        return Collected(self.workers[0].collect(policy, steps, env_transitions))
+
+
+class Runner:
+    """Owns the run: rollout source, policy, optimizer, reward scaler, counters."""
+
+    def __init__(self, config: RunConfig, source: Callable[[Policy], RolloutSource] | None = None) -> None:
+        """`source(policy)` makes the rollout source for the run's policy (default `InProcess`)."""
         self.config = config
         torch.set_num_threads(1)
-        self.workers, self.encoder_version = build_workers(config, 2 if config.overlapped else 1)
         self.policy = build(config.architecture, seed=config.seed)
+        self.source = InProcess(config) if source is None else source(self.policy)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
-        self.scaler = ReturnScaler(config.num_envs, config.ppo.gamma)
-        self.tracker = EpisodeTracker(config.num_envs, len(REWARD_NAMES))
+        self.scaler = ReturnScaler(self.source.num_envs, config.ppo.gamma)
+        self.tracker = EpisodeTracker(self.source.num_envs, len(REWARD_NAMES))
         self.env_transitions = 0
         self.iteration = 0
         self.last_row: dict[str, float] = {}
@@ -196,32 +242,37 @@ class Runner:
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
 
+    @property
+    def version(self) -> int:
+        """Version of the current weights: the updates made so far plus one."""
+        return self.iteration + 1
+
     def iterate(self) -> dict[str, float]:
         """One rollout and one PPO update; returns that iteration's metrics."""
         started = time.perf_counter()
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
-        if config.overlapped:
-            rollout = collect_overlapped(tuple(self.workers), policy, config.steps_per_rollout, self.env_transitions)
-        else:
-            rollout = self.workers[0].collect(policy, config.steps_per_rollout, self.env_transitions)
-        collected = time.perf_counter()
+        collected = self.source.collect(policy, config.steps_per_rollout, self.env_transitions, self.version)
+        rollout = collected.rollout
+        collect_done = time.perf_counter()
         self.tracker.add(rollout)
         stats = self.learn(rollout)
         policy.normalizer.update(rollout.inputs.observation)  # after: act and evaluate agreed
-        self.env_transitions += config.steps_per_rollout * config.num_envs
+        transitions = rollout.actions.shape[0] * rollout.actions.shape[1]
+        self.env_transitions += transitions
         self.iteration += 1
         done = time.perf_counter()
         return {
             "iteration": self.iteration,
             "env_transitions": self.env_transitions,
-            "env_steps_per_s": config.steps_per_rollout * config.num_envs / (done - started),
-            "collect_s": collected - started,
-            "learn_s": done - collected,
+            "env_steps_per_s": transitions / (done - started),
+            "collect_s": collect_done - started,
+            "learn_s": done - collect_done,
             "log_std": float(policy.log_std.mean()),
             **dataclasses.asdict(stats),
-            "policy_lag": 0,
+            "policy_lag": collected.policy_lag,
+            "dropped_rollouts": collected.dropped,
             **self.tracker.summary(),
         }
 
@@ -229,11 +280,11 @@ class Runner:
         """Scale rewards, bootstrap, GAE per term, one PPO update."""
         steps = len(rollout.rewards)
         scaled = torch.stack([self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)])
-        rewards = scaled + rollout.bootstrap  # (T, B, R)
+        rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
         ppo = self.config.ppo
         advantages, returns = gae(rewards, rollout.values, rollout.next_values, rollout.dones,
                                   ppo.gamma, ppo.gae_lambda)  # fmt: skip
-        flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731  (T, B, ...) -> (T * B, ...)
+        flat = lambda x: x.reshape(-1, *x.shape[2:])
         batch = Batch(rollout.inputs, flat(rollout.actions), flat(rollout.log_prob), flat(advantages), flat(returns))
         self.policy.train()
         return update(self.policy.evaluate, self.policy.parameters(), self.optimizer, batch, self.action_bounds, ppo)
@@ -242,7 +293,7 @@ class Runner:
         """Write the policy's weights (loadable by `hamnet policy --checkpoint`)."""
         path = self.config.run_dir / "checkpoints" / "latest.safetensors"
         path.parent.mkdir(parents=True, exist_ok=True)
-        save_checkpoint(path, self.policy, self.iteration)
+        save_checkpoint(path, self.policy, self.version)
         return path
 
     def run(
@@ -257,7 +308,10 @@ class Runner:
         with self.metrics_path.open("a") as metrics:
             while (running() and self.env_transitions < config.max_env_transitions
                    and time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
-                row = self.last_row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
+                try:
+                    row = self.last_row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
+                except InterruptedError:  # a streaming source was stopped while it waited
+                    break
                 metrics.write(json.dumps(row) + "\n")
                 metrics.flush()
                 if on_iteration is not None:

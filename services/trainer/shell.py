@@ -26,13 +26,14 @@ SCHEDULE = contract.topic("trainer/schedule")
 METRICS = contract.topic("trainer/metrics")
 
 
-def encode_weights(policy: Policy, version: int) -> WeightsAnnouncement:
-    """WeightsAnnouncement of `policy` as `version` (header.step = the version)."""
+def encode_weights(policy: Policy, version: int, env_transitions: int) -> WeightsAnnouncement:
+    """WeightsAnnouncement of `policy` as `version` (header.step = the version), acting at
+    the schedule counter `env_transitions`."""
     data = to_bytes(policy, version)
     return WeightsAnnouncement(
         header=Header(step=version, policy_version=version), version=version,
         architecture=policy.architecture, config_json=policy.config.to_json(),
-        safetensors=data, sha256=sha256(data),
+        safetensors=data, sha256=sha256(data), env_transitions=int(env_transitions),
     )  # fmt: skip
 
 
@@ -62,10 +63,10 @@ class TrainerPublisher:
         self._last_weights = -math.inf
 
     def publish(self, policy: Policy, row: Mapping[str, object], final: bool = False) -> None:
-        """One iteration's messages; the weights when due (or `final`)."""
+        """One iteration's messages; the weights (version: updates + 1) when due (or `final`)."""
         iteration = int(row["iteration"])
         if final or time.monotonic() - self._last_weights >= self.weights_period_s:
-            self.weights.put(encode_weights(policy, iteration))
+            self.weights.put(encode_weights(policy, iteration + 1, int(row["env_transitions"])))
             self._last_weights = time.monotonic()
         self.schedule.put(encode_schedule(int(row["env_transitions"]), iteration))
         self.metrics.put(encode_metrics(row, iteration))

@@ -45,7 +45,7 @@ def write_summary(config: RunConfig, final_success_rate: float | None) -> Path:
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,
         "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
-        "command": " ".join(["hamnet", "train", *sys.argv[2:]]) if sys.argv[1:2] == ["train"] else " ".join(sys.argv),
+        "command": " ".join(["hamnet", "trainer", *sys.argv[2:]]) if sys.argv[1:2] == ["trainer"] else " ".join(sys.argv),
         "seed": config.seed,
         "commit": commit(),
     }

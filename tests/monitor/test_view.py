@@ -228,7 +228,7 @@ def test_every_series_has_a_name_and_a_colour_of_its_own_in_its_plot(run) -> Non
 def test_the_learning_curves_say_why_they_are_empty_until_the_first_metrics(run) -> None:
     rrd, sent = run
     status = [text for (text,) in rrd.static("/trainer/status", "TextDocument:text")]
-    assert "No trainer metrics yet" in status[0] and "hamnet train --publish" in status[0]
+    assert "No trainer metrics yet" in status[0] and "hamnet trainer" in status[0]
     assert status[-1].startswith(f"**iteration {ITERATIONS}**")
     assert len(status) == 1 + len(sent["metrics"])
 

@@ -1,4 +1,4 @@
-"""`hamnet train --publish` as a process on real Zenoh: what a monitor and a policy service
+"""`hamnet trainer --inprocess --publish` as a process on real Zenoh: what a monitor and a policy service
 of the same namespace receive from an in-process run (weights they can load, the schedule
 counter, each iteration's metrics)."""
 
@@ -25,7 +25,7 @@ def test_an_in_process_run_publishes_weights_counter_and_metrics(spawn, transpor
     inbox.subscribe("schedule", SCHEDULE.key(ns), Schedule)
     inbox.subscribe("metrics", METRICS.key(ns), Metrics)
     train = spawn(
-        "train", "--publish", "--sim.num-envs", str(B), "--sim.num-objects", "2", "--sim.nthread", "1",
+        "trainer", "--inprocess", "--publish", "--sim.num-envs", str(B), "--sim.num-objects", "2", "--sim.nthread", "1",
         "--steps-per-rollout", str(T), "--max-env-transitions", str(ITERATIONS * B * T),
         "--eval-episodes", "0", "--run-dir", str(tmp_path), *transport_args(transport),
     )  # fmt: skip
@@ -47,6 +47,6 @@ def test_an_in_process_run_publishes_weights_counter_and_metrics(spawn, transpor
     last = received["metrics"][-1]
     assert last.iteration == ITERATIONS and {"approx_kl", "env_steps_per_s"} <= set(last.scalars)
     final = received["weights"][-1]
-    assert final.version == ITERATIONS and final.sha256 == sha256(final.safetensors)
+    assert final.version == ITERATIONS + 1 and final.sha256 == sha256(final.safetensors)
     weights = from_bytes(final.safetensors)
-    assert weights.architecture == "hamnet" and weights.version == ITERATIONS
+    assert weights.architecture == "hamnet" and weights.version == ITERATIONS + 1

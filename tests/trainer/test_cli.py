@@ -1,4 +1,4 @@
-"""`hamnet train` end to end at a tiny size, and `hamnet train plot` on its output."""
+"""`hamnet trainer --inprocess` end to end at a tiny size, and `hamnet trainer plot` on its output."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hamnet.trainer.cli import main
 
 def test_a_tiny_run_writes_metrics_checkpoint_summary_and_curves(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    args = ["--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",
+    args = ["--inprocess", "--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",
             "--sim.task.lambda-r", "0.3", "--steps-per-rollout", "2", "--max-env-transitions", "8",
             "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
     assert main(args) == 0

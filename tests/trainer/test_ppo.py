@@ -61,7 +61,7 @@ def test_ppo_converges_to_the_known_optimum_of_a_two_term_bandit() -> None:
         rewards = rewards_of(states, actions)  # (T, B, 2)
         dones = torch.ones(T, B, dtype=torch.bool)
         advantages, returns = gae(rewards, old.values, torch.zeros(B, 2), dones, 0.99, 0.95)
-        flat = lambda x: x.reshape(T * B, *x.shape[2:])  # noqa: E731
+        flat = lambda x: x.reshape(T * B, *x.shape[2:])
         batch = Batch(flat(states), flat(actions), flat(old.log_prob), flat(advantages), flat(returns))
         stats = update(model.evaluate, model.parameters(), optimizer, batch, bounds, config)
     probe = torch.rand(256, 2) * 2 - 1

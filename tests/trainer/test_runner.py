@@ -36,7 +36,7 @@ def worker(timeout: int) -> RolloutWorker:
     env = VectorEnv(dataclasses.replace(sim, task=dataclasses.replace(TaskConfig(), timeout=timeout)))
     safety = SafetyFilter(np.zeros((B, 7)), with_profile("training"))
     torch.manual_seed(0)  # the same encoder in every worker
-    return RolloutWorker(env, Perception(UniCORN(), B), safety, gamma=0.99)
+    return RolloutWorker(env, Perception(UniCORN(), B), safety)
 
 
 def test_stored_log_probs_are_the_acting_policys() -> None:
@@ -52,13 +52,13 @@ def test_stored_log_probs_are_the_acting_policys() -> None:
 
 def test_only_timeouts_are_bootstrapped_and_every_end_is_a_done() -> None:
     """With a 2-step timeout, steps 1 and 3 end every episode by truncation: they carry
-    gamma * V(final state) (non-zero for a random critic), the others nothing."""
+    V(final state) (non-zero for a random critic), the others nothing."""
     policy = build("hamnet", seed=0).eval()
     rollout = worker(timeout=2).collect(policy, steps=4, env_transitions=0)
     truncated = rollout.dones & ~rollout.success
     assert rollout.dones[[1, 3]].all() and not rollout.dones[[0, 2]].any()
-    assert (rollout.bootstrap[truncated].abs().sum(-1) > 0).all()
-    assert (rollout.bootstrap[~rollout.dones] == 0).all()
+    assert (rollout.final_values[truncated].abs().sum(-1) > 0).all()
+    assert (rollout.final_values[~rollout.dones] == 0).all()
 
 
 def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
@@ -70,7 +70,7 @@ def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
     for key in ("approx_kl", "clip_fraction", "learning_rate", "env_steps_per_s", "success_rate", "log_std"):
         assert key in rows[-1]
     weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
-    assert weights.architecture == "hamnet" and weights.version == 2
+    assert weights.architecture == "hamnet" and weights.version == 3
     torch.testing.assert_close(weights.tensors["log_std"], runner.policy.log_std)
 
 
@@ -88,7 +88,7 @@ def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
     config = RunConfig(architecture="state-mlp", sim=tiny_sim(), steps_per_rollout=2, run_dir=tmp_path,
                        max_env_transitions=4)  # fmt: skip
     runner = Runner(config)
-    assert all(worker.perception is None for worker in runner.workers)
+    assert all(worker.perception is None for worker in runner.source.workers)
     runner.run()
     assert read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
 
@@ -101,7 +101,7 @@ def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:
     alone = [worker(timeout=3).collect(policy, steps=4, env_transitions=0) for _ in range(2)]
     merged = collect_overlapped((worker(timeout=3), worker(timeout=3)), policy, steps=4, env_transitions=0)
     expected = merge_environments(alone)
-    for name in ("actions", "log_prob", "values", "rewards", "bootstrap", "dones", "next_values"):
+    for name in ("actions", "log_prob", "values", "rewards", "final_values", "dones", "next_values"):
         torch.testing.assert_close(getattr(merged, name), getattr(expected, name), msg=name)
     torch.testing.assert_close(merged.inputs.observation.context, expected.inputs.observation.context)
     assert merged.actions.shape[:2] == (4, 2 * B)

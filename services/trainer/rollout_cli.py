@@ -1,0 +1,50 @@
+"""`hamnet rollout`: a rollout worker. It hosts the in-process cores (sim, perception, the
+policy's input builder, the safety filter's training profile) for `--sim.num-envs`
+environments, acts with the newest weights `hamnet trainer` announces and streams every
+rollout back as a RolloutChunk (`hamnet.trainer.rollout_service`).
+
+    hamnet trainer --workers 2 & hamnet rollout --worker 0 & hamnet rollout --worker 1
+    hamnet up compose/train-easy.yaml                  # trainer and workers from a stack file
+
+Give it the trainer's `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`,
+`--encoder-checkpoint` and `--max-policy-lag` (the other run flags are the trainer's and are
+ignored here). `--worker K` (a number) names the worker and seeds its environments apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Annotated
+
+import torch
+import tyro
+
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.service import Service
+from hamnet.trainer.cli import stage_default
+from hamnet.trainer.rollout_service import RolloutService
+from hamnet.trainer.runner import RunConfig
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """One rollout worker."""
+
+    common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    run: Annotated[RunConfig, tyro.conf.arg(name="")] = field(default_factory=RunConfig)
+    """The trainer's run flags: this worker reads the stage, `--sim.*`, the architecture,
+    the steps per rollout and the encoder checkpoint."""
+    max_policy_lag: int = 0
+    """0: wait for new weights after every rollout (on-policy); L > 0: keep acting with the
+    newest weights held (the trainer learns from chunks up to L versions old)."""
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run `hamnet rollout` with arguments `argv`; returns the exit status."""
+    default = RolloutConfig(run=stage_default(argv))
+    config, identity = parse_service(RolloutConfig, argv, "rollout", __doc__, default=default)
+    torch.set_num_threads(1)
+    with Service(identity, config.common.transport) as service:
+        RolloutService(service, config.run, config.max_policy_lag).run()
+    return 0

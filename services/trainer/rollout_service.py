@@ -1,0 +1,124 @@
+"""A rollout worker's loop (`hamnet rollout`): act with the trainer's newest weights in B
+in-process environments and stream each rollout as a RolloutChunk.
+
+Consumes `trainer/weights` (WeightsAnnouncement: the weights, their version and the schedule
+counter they act at); produces `trainer/<w>/rollout` (RolloutChunk, header.policy_version =
+the version that acted). The cores are the in-process trainer's (`InProcess`: VectorEnv,
+Perception, the policy's input builder, the safety filter's training profile), so a worker
+collects exactly what `hamnet trainer --inprocess` would. Worker k's environments are seeded
+`seed + k * SEED_STRIDE`, so workers never repeat each other's episodes and worker 0 repeats
+an in-process run.
+
+With `max_policy_lag` 0 (synchronous) a worker waits for a new announcement after each chunk;
+with a lag it keeps acting with the newest weights it has (the trainer drops what is too
+old). A bad announcement is logged and the worker keeps the weights it has.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+from hamnet.policy.policy import Policy
+from hamnet.policy.weights import WeightsError, from_announcement, load_into, policy_from
+from hamnet.proto.trainer_pb2 import WeightsAnnouncement
+from hamnet.runtime.service import Service
+from hamnet.trainer.chunks import encode_rollout
+from hamnet.trainer.runner import InProcess, RunConfig
+from hamnet.trainer.shell import WEIGHTS
+from hamnet.trainer.stream import ROLLOUT
+
+log = logging.getLogger(__name__)
+
+SEED_STRIDE = 100_003
+"""Seed distance between two workers' environments (a prime far above any group offset)."""
+
+
+def worker_config(config: RunConfig, worker: str) -> RunConfig:
+    """The run as worker `worker` (a number) collects it: its own seed."""
+    if not worker.isdigit():
+        raise ValueError(
+            f"a rollout worker's id must be a number (it offsets the seed), got {worker!r}"
+        )
+    sim = dataclasses.replace(config.sim, seed=config.seed + int(worker) * SEED_STRIDE)
+    return dataclasses.replace(config, sim=sim)
+
+
+class RolloutService:
+    """One worker: in-process cores, the newest weights, a chunk per rollout."""
+
+    def __init__(self, service: Service, config: RunConfig, max_policy_lag: int = 0,
+                 report_period_s: float = 10.0) -> None:  # fmt: skip
+        self.service, self.config, self.max_policy_lag = service, config, max_policy_lag
+        self.report_period_s = report_period_s
+        self.source = InProcess(worker_config(config, service.identity.worker))
+        ns = service.namespace
+        service.inbox.subscribe("weights", WEIGHTS.key(ns), WeightsAnnouncement)
+        self.chunks = service.publisher(ROLLOUT.key(ns, w=service.identity.worker))
+        self.policy: Policy | None = None
+        self.version = 0
+        """Version of the weights held (0: none yet)."""
+        self.acted = 0
+        """Version that acted in the last chunk sent (0: none sent)."""
+        self.env_transitions = 0
+        self.sent = self.rejected = 0
+
+    def run(self) -> None:
+        """Collect and send until stopped."""
+        last_report, acting_s, sent_then = time.monotonic(), 0.0, 0
+        while self.service.running:
+            self._take_weights(
+                wait=self.policy is None
+                or (self.max_policy_lag == 0 and self.version == self.acted)
+            )
+            if self.policy is None or not self.service.running:
+                continue
+            steps, started = self.config.steps_per_rollout, time.monotonic()
+            collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
+            self.chunks.put(encode_rollout(collected.rollout, self.version, self.sent))
+            self.sent, self.acted = self.sent + 1, self.version
+            self.env_transitions += (
+                steps * self.source.num_envs
+            )  # the counter runs on between updates
+            now = time.monotonic()
+            acting_s += now - started
+            if now - last_report >= self.report_period_s:
+                rate = (self.sent - sent_then) * steps * self.source.num_envs / max(acting_s, 1e-9)
+                log.info("%d rollouts sent, weights version %d, %.0f env steps/s while acting (%.0f%% of "
+                         "the time), %d bad announcements", self.sent, self.version, rate,
+                         100 * acting_s / (now - last_report), self.rejected)  # fmt: skip
+                last_report, acting_s, sent_then = now, 0.0, self.sent
+
+    def _take_weights(self, wait: bool) -> None:
+        """Load the newest announcement waiting (with `wait`, block until one newer than the
+        weights held arrives, or a stop)."""
+        newest = None
+        while self.service.running:
+            received = self.service.receive(timeout=0.1 if wait and newest is None else 0.0)
+            if received is None:
+                if newest is not None or not wait:
+                    break
+                continue
+            if received.value.version != self.version:
+                newest = received.value
+        if newest is not None:
+            self._load(newest)
+
+    def _load(self, message: WeightsAnnouncement) -> None:
+        try:
+            weights = from_announcement(message)
+            if self.policy is None:
+                self.policy = policy_from(weights)
+            else:
+                load_into(self.policy, weights)
+        except WeightsError as error:
+            self.rejected += 1
+            log.error(
+                "rejected weights version %d: %s; keeping version %d",
+                message.version,
+                error,
+                self.version,
+            )
+            return
+        self.version, self.env_transitions = message.version, message.env_transitions

@@ -1,0 +1,109 @@
+"""The trainer's rollout source over Zenoh: announce the weights, gather one chunk from each
+rollout worker, hand the learner their environments side by side.
+
+Consumes `trainer/<w>/rollout` (RolloutChunk, `hamnet.trainer.chunks`) from every worker;
+produces `trainer/weights` (WeightsAnnouncement with the schedule counter) before every
+rollout, and again every `announce_period_s` while it waits, so a worker that starts late
+still gets them. A chunk is checked on arrival (names, shapes, finite values, inputs the
+policy can read); one that does not fit is counted and dropped by the inbox.
+
+On-policy by default: with `max_policy_lag` 0 a worker acts only with the newest weights
+(it waits for each announcement) and the learner takes only chunks of its current version.
+With a lag L > 0 workers keep acting while the learner updates and chunks up to L versions
+old are learned from; older ones are dropped and counted (`dropped`). The learner's
+environments are the workers' in the order of their worker ids, one chunk of each per
+update, taken in the order each worker sent them, so the reward scaler sees every
+environment's steps in sequence.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import defaultdict, deque
+
+from hamnet.policy.policy import Policy
+from hamnet.runtime import contract
+from hamnet.runtime.keys import check_segment
+from hamnet.runtime.service import Service
+from hamnet.trainer.chunks import chunk_decoder
+from hamnet.trainer.rollout import Rollout, merge_environments
+from hamnet.trainer.runner import Collected
+from hamnet.trainer.shell import WEIGHTS, encode_weights
+
+log = logging.getLogger(__name__)
+
+ROLLOUT = contract.topic("trainer/<w>/rollout")
+
+
+def worker_of(key: str) -> str:
+    """The worker id segment of a `trainer/<w>/rollout` key."""
+    return check_segment("w", key.split("/")[-2])
+
+
+class Streamed:
+    """Rollouts from `workers` rollout workers (`hamnet rollout`), each with `envs_per_worker`
+    environments acting `steps` steps per chunk."""
+
+    def __init__(
+        self,
+        service: Service,
+        policy: Policy,
+        workers: int,
+        envs_per_worker: int,
+        max_policy_lag: int = 0,
+        announce_period_s: float = 2.0,
+    ) -> None:
+        if workers < 1 or max_policy_lag < 0:
+            raise ValueError("workers must be >= 1 and max_policy_lag >= 0")
+        self.service, self.workers, self.envs_per_worker = service, workers, envs_per_worker
+        self.max_policy_lag, self.announce_period_s = max_policy_lag, announce_period_s
+        self.weights = service.publisher(WEIGHTS.key(service.namespace))
+        service.inbox.subscribe("rollout", ROLLOUT.pattern_in(service.namespace),
+                                decoder=chunk_decoder(policy))  # fmt: skip
+        self.queues: dict[str, deque[tuple[int, Rollout]]] = defaultdict(deque)
+        self.dropped = 0
+
+    @property
+    def num_envs(self) -> int:
+        return self.workers * self.envs_per_worker
+
+    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+        """Announce `policy` as `version`, then wait for a fitting chunk from `workers` workers."""
+        announcement = encode_weights(policy, version, env_transitions)
+        announced = -float("inf")
+        while self.service.running:
+            self._drop_stale(version)
+            ready = sorted(worker for worker, queue in self.queues.items() if queue)
+            if len(ready) >= self.workers:
+                taken = [self.queues[worker].popleft() for worker in ready[: self.workers]]
+                lag = sum(version - acted for acted, _ in taken) / len(taken)
+                return Collected(merge_environments([r for _, r in taken]), lag, self.dropped)
+            if time.monotonic() - announced >= self.announce_period_s:
+                if announced > -float("inf"):
+                    log.info("waiting for rollouts of version %d from %d workers (have %s)",
+                             version, self.workers, ready or "none")  # fmt: skip
+                self.weights.put(announcement)
+                announced = time.monotonic()
+            received = self.service.receive(timeout=0.1)
+            if received is not None:
+                self._take(received.key, *received.value, steps=steps)
+        raise InterruptedError("the trainer was stopped while waiting for rollouts")
+
+    def _take(self, key: str, acted: int, rollout: Rollout, steps: int) -> None:
+        """Queue a decoded chunk from the worker of `key`, unless it cannot join an update."""
+        shape = tuple(rollout.actions.shape[:2])
+        if shape != (steps, self.envs_per_worker):
+            self.dropped += 1
+            log.warning("dropped a rollout from %s: %d steps of %d environments, the trainer "
+                        "learns from %d of %d", key, *shape, steps, self.envs_per_worker)  # fmt: skip
+            return
+        self.queues[worker_of(key)].append((acted, rollout))
+
+    def _drop_stale(self, version: int) -> None:
+        """Drop chunks acted more than `max_policy_lag` versions ago (or by future versions
+        of an earlier run)."""
+        for queue in self.queues.values():
+            while queue and not 0 <= version - queue[0][0] <= self.max_policy_lag:
+                queue.popleft()
+                self.dropped += 1

@@ -1,0 +1,98 @@
+"""`hamnet trainer` with `hamnet rollout` workers as processes on real Zenoh: the streamed
+run learns what the in-process run learns (same seeds, same weights, the same rollouts),
+and two workers make one update of both workers' environments.
+
+The first update is bit-for-bit the same; later ones agree to float rounding only: the two
+processes learn from equal tensors in differently placed memory, and the CPU kernels'
+summation order follows the placement (Adam then carries the last-bit differences on)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from hamnet.runtime.transport import TransportConfig
+from tests.conftest import transport_args
+
+B, T, ITERATIONS = 2, 2, 3
+RUN = [
+    "--sim.num-envs",
+    str(B),
+    "--sim.num-objects",
+    "2",
+    "--sim.nthread",
+    "1",
+    "--steps-per-rollout",
+    str(T),
+]
+"""Flags the trainer and its workers share."""
+COMPARED = (
+    "env_transitions",
+    "approx_kl",
+    "clip_fraction",
+    "learning_rate",
+    "policy_loss",
+    "value_loss",
+    "log_std",
+)
+"""Metrics that depend only on what was collected and learned (not on timing)."""
+
+
+def rows(run_dir: Path) -> list[dict]:
+    return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+
+
+def finish(process: subprocess.Popen, timeout: float = 150) -> None:
+    """Wait for `process` to exit with status 0."""
+    deadline = time.monotonic() + timeout
+    while process.poll() is None:
+        assert time.monotonic() < deadline, "the run did not end in time"
+        time.sleep(0.2)
+    assert process.returncode == 0, process.stdout.read()
+
+
+def trainer(spawn, transport: TransportConfig, run_dir: Path, *extra: str) -> subprocess.Popen:
+    return spawn("trainer", *RUN, "--max-env-transitions", str(ITERATIONS * B * T), "--eval-episodes", "0",
+                 "--run-dir", str(run_dir), *extra, *transport_args(transport))  # fmt: skip
+
+
+def test_a_streamed_run_equals_the_in_process_run(
+    spawn, transport: TransportConfig, tmp_path
+) -> None:
+    workers = [spawn("rollout", "--worker", "0", *RUN, *transport_args(transport))]
+    finish(trainer(spawn, transport, tmp_path / "streamed", "--workers", "1"))
+    finish(trainer(spawn, transport, tmp_path / "inprocess", "--inprocess"))
+    streamed, inprocess = rows(tmp_path / "streamed"), rows(tmp_path / "inprocess")
+    assert len(streamed) == len(inprocess) == ITERATIONS
+    assert {k: streamed[0][k] for k in COMPARED} == {k: inprocess[0][k] for k in COMPARED}
+    for a, b in zip(streamed, inprocess, strict=True):
+        assert {k: a[k] for k in COMPARED} == pytest.approx({k: b[k] for k in COMPARED}, rel=1e-2)
+        assert a["policy_lag"] == 0 and a["dropped_rollouts"] == 0
+    assert workers[0].poll() is None, "the worker keeps waiting for the next trainer"
+
+
+def test_two_workers_make_one_update_of_both_environments(
+    spawn, transport: TransportConfig, tmp_path
+) -> None:
+    for worker in ("0", "1"):
+        spawn("rollout", "--worker", worker, *RUN, *transport_args(transport))
+    finish(
+        trainer(
+            spawn,
+            transport,
+            tmp_path,
+            "--workers",
+            "2",
+            "--max-env-transitions",
+            str(ITERATIONS * 2 * B * T),
+        )
+    )
+    metrics = rows(tmp_path)
+    assert [row["env_transitions"] for row in metrics] == [
+        2 * B * T * (i + 1) for i in range(ITERATIONS)
+    ]
+    assert all(row["policy_lag"] == 0 for row in metrics)

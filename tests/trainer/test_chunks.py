@@ -1,0 +1,91 @@
+"""A rollout survives the trip through a RolloutChunk exactly, sends per-episode tokens once
+per episode, and a chunk that does not fit the trainer's policy is refused with a reason."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hamnet.policy.registry import build
+from hamnet.proto.trainer_pb2 import RolloutChunk
+from hamnet.runtime.codec import encode
+from hamnet.runtime.tensor import PayloadError, to_tensor
+from hamnet.trainer.chunks import INDEX, chunk_decoder, decode_rollout, encode_rollout
+from hamnet.trainer.rollout import Rollout
+from hamnet.trainer.trees import zip_trees
+from tests.trainer.test_runner import worker
+
+T = 3
+
+
+@pytest.fixture(scope="module")
+def collected() -> tuple[Rollout, torch.nn.Module]:
+    policy = build("hamnet", seed=0).eval()
+    return worker(timeout=300).collect(policy, steps=T, env_transitions=0), policy
+
+
+def test_a_rollout_round_trips_exactly(collected) -> None:
+    rollout, policy = collected
+    decoded = decode_rollout(RolloutChunk.FromString(encode(encode_rollout(rollout, 7, 0))), policy)
+    for name in (
+        "actions",
+        "log_prob",
+        "values",
+        "rewards",
+        "final_values",
+        "dones",
+        "next_values",
+        "success",
+    ):
+        assert torch.equal(getattr(decoded, name), getattr(rollout, name)), name
+    zip_trees(
+        [decoded.inputs, rollout.inputs],
+        lambda pair: torch.equal(*pair) or pytest.fail("inputs differ"),
+    )
+
+
+def test_episode_tokens_travel_once_per_episode(collected) -> None:
+    rollout, _ = collected
+    chunk = encode_rollout(rollout, 7, 0)
+    envs = rollout.actions.shape[1]
+    assert chunk.header.policy_version == 7 and chunk.horizon == T
+    assert chunk.tensors["inputs.object_tokens"].shape[0] == envs  # no episode ended in T steps
+    assert chunk.tensors["inputs.object_tokens" + INDEX].shape[0] == T * envs
+    assert chunk.tensors["inputs.local_tokens"].shape[0] == T * envs
+
+
+def copy_of(chunk: RolloutChunk) -> RolloutChunk:
+    out = RolloutChunk()
+    out.CopyFrom(chunk)
+    return out
+
+
+def refused(chunk: RolloutChunk, policy, reason: str) -> None:
+    with pytest.raises(PayloadError) as error:
+        chunk_decoder(policy)("key", encode(chunk))
+    assert error.value.reason == reason, error.value
+
+
+def test_unfit_chunks_are_refused_with_a_reason(collected) -> None:
+    rollout, policy = collected
+    good = encode_rollout(rollout, 1, 0)
+    missing = copy_of(good)
+    del missing.tensors["log_prob"]
+    refused(missing, policy, "missing")
+    nan = copy_of(good)
+    actions = rollout.actions.numpy().copy()
+    actions[0, 0, 0] = np.nan
+    to_tensor(actions, nan.tensors["actions"])
+    refused(nan, policy, "nonfinite")
+    unknown = copy_of(good)
+    to_tensor(np.zeros(3, np.float32), unknown.tensors["inputs.extra"])
+    refused(unknown, policy, "shape")
+    short = copy_of(good)
+    to_tensor(rollout.inputs.local_tokens[:, :, :5].numpy(), short.tensors["inputs.local_tokens"])
+    refused(short, policy, "shape")  # inputs the policy cannot read
+    pointing = copy_of(good)
+    index = np.full(T * rollout.actions.shape[1], 99, np.int32)
+    to_tensor(index, pointing.tensors["inputs.object_tokens" + INDEX])
+    refused(pointing, policy, "shape")
+    assert chunk_decoder(policy)("key", encode(good))[0] == 1
