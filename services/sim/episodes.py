@@ -159,7 +159,7 @@ def draw_episodes(
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
     q, fallback = _arm_starts(
         rng, physics, kinematics, env_ids, near, placement.start_pos, placement.start_quat,
-        radius, cuboids, config,
+        radius, cuboids, placement.goal_pos, config,
     )  # fmt: skip
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
     params = np.stack([
@@ -256,6 +256,7 @@ def _arm_starts(
     object_quat: np.ndarray,
     object_radius: np.ndarray,
     cuboids: robot_init.Cuboids,
+    goal_pos: np.ndarray,
     config: SimConfig,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(K, J) collision-free arm starts: near or random draws, then the fallbacks; and (K,)
@@ -278,7 +279,8 @@ def _arm_starts(
                 chosen = rows[is_near]
                 scene = robot_init.Cuboids(*(field[chosen] for field in vars(cuboids).values()))
                 targets = robot_init.near_targets(
-                    rng, object_pos[chosen], object_radius[chosen], scene, init, round_index
+                    rng, object_pos[chosen], object_radius[chosen], scene, init, round_index,
+                    goal_pos[chosen],
                 )
                 start, found = robot_init.near_seeds(
                     rng, robot_init.posture_buffer(init.posture_count, init.range_fraction),

@@ -17,6 +17,7 @@ the object (`near_seeds`). "random": uniform within the central part of each joi
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -52,6 +53,11 @@ class RobotInitConfig:
     again, and when that posture's elbow or wrist is in a wall or ceiling every draw fails."""
     rounds: int = 8
     """Draws per environment before falling back to the home configuration."""
+    near_behind: float = math.pi
+    """Half-width of the near starts' directions around the side of the object facing away
+    from its goal, rad: at 0 the paddle starts straight behind the object for a push towards
+    the goal; pi (the authors') allows every direction. The easy stage narrows it so that
+    pushing, not walking around the object, is what a first policy has to learn."""
     near_directions: int = 8
     """Directions tried per near draw: the first whose target leaves room for the paddle
     among the scene's cuboids is taken (a target inside a wall can only fail)."""
@@ -77,6 +83,8 @@ class RobotInitConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.range_fraction <= 1.0:
             raise ValueError("range_fraction must be in (0, 1]")
+        if not 0.0 <= self.near_behind <= math.pi:
+            raise ValueError(f"near_behind must be in [0, pi], got {self.near_behind}")
         if self.rounds < 1 or self.ik_iterations < 1 or self.near_directions < 1:
             raise ValueError("rounds, ik_iterations and near_directions must be >= 1")
         if not 1 <= self.posture_candidates <= self.posture_count:
@@ -115,13 +123,20 @@ def near_targets(
     cuboids: Cuboids,
     config: RobotInitConfig,
     draw: int = 0,
+    goal_pos: np.ndarray | None = None,
 ) -> np.ndarray:
     """(K, 3) points beside and a little above each object, m: of `near_directions` random
-    directions, the first whose point leaves the paddle room among the cuboids (else the
-    first: the collision check after the IK rejects it). Draw `draw` (0 first) widens the
-    gap by `draw * near_gap_growth`."""
+    directions (within `near_behind` of the side away from `goal_pos` (K, 3) when it is
+    narrower than pi), the first whose point leaves the paddle room among the cuboids (else
+    the first: the collision check after the IK rejects it). Draw `draw` (0 first) widens
+    the gap by `draw * near_gap_growth`."""
     count, tries = len(object_pos), config.near_directions
-    angle = rng.uniform(0.0, 2.0 * np.pi, size=(count, tries))  # (K, T)
+    if config.near_behind < np.pi and goal_pos is not None:
+        away = object_pos[:, :2] - goal_pos[:, :2]  # (K, 2)
+        behind = np.arctan2(away[:, 1], away[:, 0])  # (K,)
+        angle = behind[:, None] + rng.uniform(-config.near_behind, config.near_behind, size=(count, tries))
+    else:
+        angle = rng.uniform(0.0, 2.0 * np.pi, size=(count, tries))  # (K, T)
     gap = rng.uniform(*config.near_gap, size=(count, tries)) + draw * config.near_gap_growth
     gap = np.minimum(gap, config.near_gap_max)  # (K, T)
     distance = planar_radius[:, None] + gap  # (K, T)

@@ -62,6 +62,25 @@ def test_near_targets_avoid_a_wall_beside_the_object() -> None:
     assert inside_cuboids(single[:, None, :], cuboids, np.asarray(config.near_clearance)).mean() > 0.4
 
 
+def test_near_behind_puts_the_paddle_on_the_side_away_from_the_goal() -> None:
+    """Goals in every direction around objects on a free table: with near_behind 0.3 rad
+    every target lies within 0.3 rad of the object-to-paddle direction pointing away from the
+    goal; with pi (default) they spread all around."""
+    rng = np.random.default_rng(2)
+    object_pos = np.tile([0.55, 0.0, 0.05], (300, 1))  # (K, 3)
+    heading = rng.uniform(-np.pi, np.pi, 300)
+    goal_pos = object_pos + 0.15 * np.stack([np.cos(heading), np.sin(heading), 0 * heading], axis=1)
+    free = Cuboids(*(np.repeat(field, 300, axis=0) for field in vars(one_wall(active=False)).values()))
+
+    def angle_from_behind(config: RobotInitConfig) -> np.ndarray:
+        targets = near_targets(rng, object_pos, np.full(300, 0.03), free, config, goal_pos=goal_pos)
+        side = np.arctan2(*(targets - object_pos)[:, 1::-1].T)  # direction object -> paddle
+        return np.abs(np.angle(np.exp(1j * (side - heading - np.pi))))
+
+    assert angle_from_behind(RobotInitConfig(near_behind=0.3)).max() <= 0.3 + 1e-9
+    assert angle_from_behind(RobotInitConfig()).max() > 2.5
+
+
 def test_ik_seeds_start_at_home_then_spread_within_the_joint_ranges() -> None:
     rng = np.random.default_rng(1)
     np.testing.assert_array_equal(ik_seeds(rng, 3, 0.0, 0.9), np.tile(fr3_limits.Q_HOME, (3, 1)))
