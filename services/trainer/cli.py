@@ -69,6 +69,10 @@ class TrainerConfig:
     """With --inprocess --publish: seconds between two weight announcements (and one at the end)."""
 
 
+
+CONFIG = TrainerConfig
+"""The config `hamnet trainer` parses."""
+
 def stage_default(argv: Sequence[str]) -> RunConfig:
     """The run on the stage `--stage` names in `argv` (easy when absent), so every `--sim.*`
     flag changes that stage's value."""

@@ -31,6 +31,9 @@ from hamnet.trainer.stream import ROLLOUT
 
 log = logging.getLogger(__name__)
 
+ASK_AFTER_S = 5.0
+"""A worker waiting this long for new weights asks the trainer for its current ones."""
+
 SEED_STRIDE = 100_003
 """Seed distance between two workers' environments (a prime far above any group offset)."""
 
@@ -92,13 +95,16 @@ class RolloutService:
 
     def _take_weights(self, wait: bool) -> None:
         """Load the newest announcement waiting (with `wait`, block until one newer than the
-        weights held arrives, or a stop)."""
-        newest = None
+        weights held arrives, or a stop). Without weights, or after `ASK_AFTER_S` of waiting
+        (a restarted trainer, a missed announcement), ask the trainer for its current ones."""
+        newest, started = None, time.monotonic()
         while self.service.running:
             received = self.service.receive(timeout=0.1 if wait and newest is None else 0.0)
             if received is None:
                 if newest is not None or not wait:
                     break
+                if self.policy is None or time.monotonic() - started >= ASK_AFTER_S:
+                    self.service.inbox.catch_up("weights", WEIGHTS.key(self.service.namespace))
                 continue
             if received.value.version != self.version:
                 newest = received.value

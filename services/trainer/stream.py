@@ -2,9 +2,9 @@
 rollout worker, hand the learner their environments side by side.
 
 Consumes `trainer/<w>/rollout` (RolloutChunk, `hamnet.trainer.chunks`) from every worker;
-produces `trainer/weights` (WeightsAnnouncement with the schedule counter) before every
-rollout, and again every `announce_period_s` while it waits, so a worker that starts late
-still gets them. A chunk is checked on arrival (names, shapes, finite values, inputs the
+produces `trainer/weights` (WeightsAnnouncement with the schedule counter) once before every
+rollout, and answers queries on that key with the current announcement, so a worker that
+starts late (or missed one) asks for it instead of every worker receiving repeats. A chunk is checked on arrival (names, shapes, finite values, inputs the
 policy can read); one that does not fit is counted and dropped by the inbox.
 
 On-policy by default: with `max_policy_lag` 0 a worker acts only with the newest weights
@@ -52,15 +52,16 @@ class Streamed:
         workers: int,
         envs_per_worker: int,
         max_policy_lag: int = 0,
-        announce_period_s: float = 2.0,
+        report_period_s: float = 10.0,
     ) -> None:
         if workers < 1 or max_policy_lag < 0:
             raise ValueError("workers must be >= 1 and max_policy_lag >= 0")
         self.service, self.workers, self.envs_per_worker = service, workers, envs_per_worker
-        self.max_policy_lag, self.announce_period_s = max_policy_lag, announce_period_s
+        self.max_policy_lag, self.report_period_s = max_policy_lag, report_period_s
         self.weights = service.publisher(WEIGHTS.key(service.namespace))
         service.inbox.subscribe("rollout", ROLLOUT.pattern_in(service.namespace),
                                 decoder=chunk_decoder(policy))  # fmt: skip
+        service.inbox.serve("weights_query", WEIGHTS.key(service.namespace))
         self.queues: dict[str, deque[tuple[int, Rollout]]] = defaultdict(deque)
         self.dropped = 0
 
@@ -71,7 +72,8 @@ class Streamed:
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         """Announce `policy` as `version`, then wait for a fitting chunk from `workers` workers."""
         announcement = encode_weights(policy, version, env_transitions)
-        announced = -float("inf")
+        self.weights.put(announcement)
+        waiting_since = time.monotonic()
         while self.service.running:
             self._drop_stale(version)
             ready = sorted(worker for worker, queue in self.queues.items() if queue)
@@ -79,14 +81,17 @@ class Streamed:
                 taken = [self.queues[worker].popleft() for worker in ready[: self.workers]]
                 lag = sum(version - acted for acted, _ in taken) / len(taken)
                 return Collected(merge_environments([r for _, r in taken]), lag, self.dropped)
-            if time.monotonic() - announced >= self.announce_period_s:
-                if announced > -float("inf"):
-                    log.info("waiting for rollouts of version %d from %d workers (have %s)",
-                             version, self.workers, ready or "none")  # fmt: skip
-                self.weights.put(announcement)
-                announced = time.monotonic()
+            if time.monotonic() - waiting_since >= self.report_period_s:
+                log.info("waiting for rollouts of version %d from %d workers (have %s): start "
+                         "`hamnet rollout` workers with this run's flags", version, self.workers,
+                         ready or "none")  # fmt: skip
+                waiting_since = time.monotonic()
             received = self.service.receive(timeout=0.1)
-            if received is not None:
+            if received is None:
+                continue
+            if received.name == "weights_query":
+                self.weights.answer(received.value, announcement)
+            else:
                 self._take(received.key, *received.value, steps=steps)
         raise InterruptedError("the trainer was stopped while waiting for rollouts")
 
