@@ -35,6 +35,12 @@ from hamnet.perception.clouds import (
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.unicorn import UniCORN
 
+CACHES = (
+    "episode_ids", "scene_pool", "environment_cloud", "object_points", "keypoints",
+    "object_tokens", "global_tokens",
+)  # fmt: skip
+"""`Perception`'s per-episode caches, (B, ...) tensors."""
+
 
 @dataclass(frozen=True)
 class EpisodeScenes:
@@ -151,6 +157,18 @@ class Perception:
         self.global_tokens = update(self.global_tokens, self.encoder(environment))
         self.object_tokens = update(self.object_tokens, self.encoder(points))
         self.episode_ids = update(self.episode_ids, scenes.episode_ids.to(self.device, torch.long))
+
+    def snapshot(self) -> tuple[dict[str, torch.Tensor], dict[str, object]]:
+        """The per-episode caches (`CACHES`) and the noise generator's state: what a
+        perception built from the same encoder and config continues from."""
+        arrays = {name: getattr(self, name) for name in CACHES}
+        return {**arrays, "generator": self.generator.get_state()}, {}
+
+    def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, object]) -> None:
+        """Continue from `snapshot`'s arrays (copied into torch-allocated tensors)."""
+        for name in CACHES:
+            setattr(self, name, torch.tensor(arrays[name], device=self.device))
+        self.generator.set_state(torch.tensor(arrays["generator"]))
 
     @torch.no_grad()
     def step(self, object_pose: torch.Tensor, env_ids: torch.Tensor | None = None) -> Percepts:

@@ -87,6 +87,27 @@ class SafetyFilter:
         self.trajectory.reset(env_ids, q)
         self.trajectory.resume(env_ids)
 
+    def snapshot(self) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+        """The memory of both halves (stages 1-5 and 7 under `core.`, stage 6's references
+        and stop flags), to continue from with `restore`. Only the target references of the
+        training and fine-tuning profiles: Ruckig's plans have no state to write.
+
+        Raises:
+            ValueError: stage 6 is Ruckig's (`SafetyConfig.references == "ruckig"`).
+        """
+        if self.config.references != "target":
+            raise ValueError("only a filter with target references (training profile) snapshots")
+        core = {f"core.{name}": values for name, values in self.core.snapshot().items()}
+        references = self.trajectory.state.q, self.trajectory.stopping  # (B, J) rad, (B,)
+        return {**core, "references.q": references[0], "references.stopping": references[1]}, {}
+
+    def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, object]) -> None:
+        """Continue from `snapshot`'s arrays (on a filter of the same config and size)."""
+        self.core.restore({name[5:]: a for name, a in arrays.items() if name.startswith("core.")})
+        every = np.arange(self.num_envs)
+        self.trajectory.reset(every, arrays["references.q"])
+        self.trajectory.stop(every[arrays["references.stopping"]])
+
     def command(
         self,
         action: object,

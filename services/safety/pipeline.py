@@ -353,6 +353,16 @@ class SafetyCore:
         """Stage 7 against stage 6's samples q_ref (B, S, J) (see `recheck_torque`)."""
         return recheck_torque(self.config, result, q_ref, q, dq)
 
+    def snapshot(self) -> dict[str, np.ndarray]:
+        """Copies of the per-environment memory (`SafetyState` fields), to continue from with
+        `restore`. The running statistics are left out: they report, never act."""
+        return {f.name: getattr(self.state, f.name).copy() for f in dataclasses.fields(SafetyState)}
+
+    def restore(self, arrays: dict[str, np.ndarray]) -> None:
+        """Continue from `snapshot`'s arrays."""
+        fields = dataclasses.fields(SafetyState)
+        self.state = SafetyState(**{f.name: np.array(arrays[f.name]) for f in fields})
+
     def record(self, result: FilterResult) -> None:
         """Add a result's per-stage reports to the running statistics."""
         self.stats.add(result.reports)

@@ -29,6 +29,11 @@ from hamnet.sim.scene import NUM_CUBOIDS, TABLE
 from hamnet.sim.termination import termination, workspace_bounds
 from hamnet.sim.world import build_world
 
+_EPISODE_ARRAYS = (
+    "episode_ids", "episode_step", "object_index", "goal_pos", "goal_quat", "physics_params", "start_pose",
+)  # fmt: skip
+"""Per-environment arrays of `VectorEnv` a snapshot holds as they are."""
+
 OBJECT_POINTS = 512
 """Surface points per object sent with each scene: the paper's object cloud size."""
 
@@ -236,6 +241,40 @@ class VectorEnv:
             start_pose=self.start_pose[ids].copy(),
             goal_pose=np.concatenate([self.goal_pos[ids], self.goal_quat[ids]], 1).astype(np.float32),
         )
+
+    def snapshot(self) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+        """Everything a run continues from besides what the config rebuilds: the physics
+        (`BatchPhysics.snapshot`, under `physics.`), the episodes' bookkeeping and drawn
+        parameters (arrays), and the episode generator's state, curriculum values and
+        counters (JSON-serialisable metadata)."""
+        arrays = {f"physics.{name}": values for name, values in self.physics.snapshot().items()}
+        arrays.update({name: getattr(self, name).copy() for name in _EPISODE_ARRAYS})
+        arrays.update({f"scene.{name}": a.copy() for name, a in self.scene_arrays.items()})
+        arrays["workspace.low"], arrays["workspace.high"] = (a.copy() for a in self.workspace)
+        arrays["potentials.goal"] = self.potentials.goal.copy()
+        arrays["potentials.contact"] = self.potentials.contact.copy()
+        meta = {
+            "rng": self.rng.bit_generator.state, "next_episode": self._next_episode,
+            "schedule": self.schedule.as_dict(), "reset_seconds": self.reset_seconds,
+        }  # fmt: skip
+        return arrays, meta
+
+    def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, object]) -> None:
+        """Continue from `snapshot`'s arrays and metadata, on an env of the same config."""
+        physics = {name[8:]: a for name, a in arrays.items() if name.startswith("physics.")}
+        self.physics.restore(physics)
+        for name in _EPISODE_ARRAYS:
+            getattr(self, name)[...] = arrays[name]
+        for name, values in self.scene_arrays.items():
+            values[...] = arrays[f"scene.{name}"]
+        self.workspace[0][...] = arrays["workspace.low"]
+        self.workspace[1][...] = arrays["workspace.high"]
+        goal, contact = arrays["potentials.goal"], arrays["potentials.contact"]
+        self.potentials = Potentials(np.array(goal), np.array(contact))
+        self.rng.bit_generator.state = meta["rng"]
+        self._next_episode = int(meta["next_episode"])
+        self.schedule = CurriculumValues(**meta["schedule"])
+        self.reset_seconds = float(meta["reset_seconds"])
 
     def _object_velocity(self, quat: np.ndarray) -> np.ndarray:
         """(B, 6) object linear and angular velocity in the world frame (the contract's).

@@ -171,6 +171,22 @@ class BatchPhysics:
         self.batch.rollout(control.shape[1], control=control, control_spec=CTRL, record=())
         self.batch.forward()
 
+    def snapshot(self) -> dict[str, np.ndarray]:
+        """Copies of every environment's integration state (`mjSTATE_INTEGRATION` rows:
+        positions, velocities, warm start, controls, time) and of its per-environment model
+        fields (`model.<name>`)."""
+        fields = {f"model.{name}": values.copy() for name, values in self.fields.items()}
+        return {"state": self.batch.state.copy(), **fields}
+
+    def restore(self, arrays: dict[str, np.ndarray]) -> None:
+        """Continue from `snapshot`'s arrays: model fields and the constants MuJoCo derives
+        from them, then the state, with its derived fields recomputed."""
+        for name, values in self.fields.items():
+            values[...] = arrays[f"model.{name}"]
+        self.batch.set_const()
+        self.batch.state[...] = arrays["state"]
+        self.batch.forward()
+
     def bind(self, name: str) -> np.ndarray:
         """(B, ...) live view of an MjData field (outputs are current after `step`)."""
         return self.batch.bind(name)

@@ -7,6 +7,7 @@ profile in this one process, no Zenoh unless `--publish`).
     hamnet up compose/train-easy.yaml                           # the same, from a stack file
     hamnet trainer --inprocess --architecture state-mlp          # the plain state-based baseline
     hamnet trainer --stage full --sim.task.timeout 200          # any sim field, on top of a stage
+    hamnet trainer --inprocess --resume runs/train              # continue a run from its snapshot
 
 Rollout workers take the same `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`
 and `--encoder-checkpoint` flags (their `--sim.num-envs` environments each; the trainer learns
@@ -25,10 +26,13 @@ curves as PNG.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import math
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Annotated
 
 import tyro
@@ -37,6 +41,7 @@ from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.stages import STAGES
 from hamnet.trainer.evaluate import success_rate
+from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
 from hamnet.trainer.stream import Streamed
@@ -67,6 +72,17 @@ class TrainerConfig:
     the newest weights with `hamnet policy`. Streaming runs always publish."""
     weights_period_s: float = 10.0
     """With --inprocess --publish: seconds between two weight announcements (and one at the end)."""
+    resume: Path | None = None
+    """Continue the run in this folder from its latest snapshot (`checkpoints/`), appending to
+    its metrics.jsonl (it replaces --run-dir). Its architecture, --sim.* and
+    --steps-per-rollout must be the snapshot's; budgets count the earlier iterations too."""
+
+    @property
+    def resumed_run(self) -> RunConfig:
+        """The run, in the folder it resumes when `resume` is set."""
+        if self.resume is None:
+            return self.run
+        return dataclasses.replace(self.run, run_dir=self.resume)
 
 
 
@@ -93,31 +109,34 @@ def main(argv: Sequence[str]) -> int:
         return plot_main(argv[1:])
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
-    if config.inprocess and not config.publish:
-        runner = Runner(config.run)
-        runner.run()
-    else:
-        with Service(identity, config.common.transport) as service:
-            runner = train_with(service, config)
+    run = config.resumed_run
+    try:
+        if config.inprocess and not config.publish:
+            runner = Runner(run, resume=config.resume is not None)
+            runner.run()
+        else:
+            with Service(identity, config.common.transport) as service:
+                runner = train_with(service, config)
+    except ResumeError as error:
+        print(f"hamnet trainer: {error}", file=sys.stderr)
+        return 2
     rate = None
-    if config.run.eval_episodes:
-        rate = success_rate(
-            runner.policy, config.run, config.run.eval_episodes, runner.env_transitions
-        )
-        log.info("final success rate on %d held-out episodes: %.3f", config.run.eval_episodes, rate)
-    print(write_summary(config.run, rate))
+    if run.eval_episodes:
+        rate = success_rate(runner.policy, run, run.eval_episodes, runner.env_transitions)
+        log.info("final success rate on %d held-out episodes: %.3f", run.eval_episodes, rate)
+    print(write_summary(run, rate))
     return 0
 
 
 def train_with(service: Service, config: TrainerConfig) -> Runner:
     """Train while publishing on `service`: in-process, or from streamed rollouts."""
-    run = config.run
+    run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
-        runner = Runner(run)
+        runner = Runner(run, resume=resume)
         publisher = TrainerPublisher(service, config.weights_period_s)
     else:
         runner = Runner(run, lambda policy: Streamed(
-            service, policy, config.workers, run.num_envs, config.max_policy_lag))  # fmt: skip
+            service, policy, config.workers, run.num_envs, config.max_policy_lag), resume)  # fmt: skip
         publisher = TrainerPublisher(service, math.inf)  # the source announces every version
     runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
     if runner.last_row:

@@ -11,6 +11,7 @@ checkpoints store it as safetensors.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -54,6 +55,22 @@ class ReturnScaler:
         self.returns = torch.zeros(num_envs, dtype=torch.float64)
         """(B,) discounted return of the summed reward so far in each episode."""
         self.stats = RunningMeanStd(())
+
+    def snapshot(self) -> tuple[dict[str, Tensor], dict[str, float]]:
+        """The running returns and statistics, to continue from with `restore`."""
+        return {"returns": self.returns, **self.stats.state("stats")}, {}
+
+    def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, float]) -> None:
+        """Continue from `snapshot`'s arrays (copied into torch-allocated tensors).
+
+        Raises:
+            ValueError: the snapshot scaled another number of environments.
+        """
+        if arrays["returns"].shape != tuple(self.returns.shape):
+            raise ValueError(f"the snapshot scaled {len(arrays['returns'])} environments, "
+                             f"this run has {len(self.returns)}")  # fmt: skip
+        self.returns = torch.tensor(arrays["returns"])
+        self.stats.load({name: torch.tensor(a) for name, a in arrays.items()}, "stats")
 
     def scale(self, rewards: Tensor, dones: Tensor) -> Tensor:
         """Scaled (B, R) rewards of one step; `dones` (B,) ends the episodes after it.

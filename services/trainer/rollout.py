@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -29,6 +30,17 @@ from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.policy import Action, Policy
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.trainer.resume import (
+    Arrays,
+    Snapshot,
+    array_dataclass,
+    fields_of,
+    generator_state,
+    nest,
+    part,
+    set_generator_state,
+    tensor_dataclass,
+)
 from hamnet.trainer.trees import take_rows, zip_trees
 
 
@@ -203,6 +215,36 @@ class RolloutWorker:
         next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
         fields = {key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"}
         return Rollout(inputs=_cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields)
+
+    def snapshot(self) -> Snapshot:
+        """The whole state this worker continues from: its env, perception and safety filter
+        (their own snapshots), the carry, the current observation and percepts, and the
+        action noise generator."""
+        parts = {
+            "env": self.env.snapshot(),
+            "safety": self.safety.snapshot(),
+            "observation": (fields_of(self.observation), {}),
+            "generator": ({"state": generator_state(self.generator)}, {}),
+        }
+        if self.perception is not None:
+            parts["perception"] = self.perception.snapshot()
+            parts["percepts"] = (fields_of(self.percepts), {})
+        if self.carry is not None:
+            parts["carry"] = (fields_of(self.carry), {})
+        return nest(parts)
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from `snapshot` (on a worker built from the same config)."""
+        self.env.restore(*part(arrays, meta, "env"))
+        self.safety.restore(*part(arrays, meta, "safety"))
+        self.observation = array_dataclass(Observation, part(arrays, meta, "observation")[0])
+        set_generator_state(self.generator, part(arrays, meta, "generator")[0]["state"])
+        if self.perception is not None:
+            self.perception.restore(*part(arrays, meta, "perception"))
+            self.percepts = tensor_dataclass(Percepts, part(arrays, meta, "percepts")[0])
+        self.carry = None
+        if "carry" in meta:
+            self.carry = tensor_dataclass(builder.Carry, part(arrays, meta, "carry")[0])
 
     def _inputs(self, policy: Policy) -> PolicyInputs:
         """The inputs of the current observation (zeroing the carry of new episodes)."""

@@ -24,7 +24,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -35,17 +35,19 @@ from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture, build
-from hamnet.policy.weights import save_checkpoint
+from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.stages import STAGES, StageName, stage_config
+from hamnet.trainer import resume
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
 from hamnet.trainer.normalization import ReturnScaler
 from hamnet.trainer.ppo import Batch, UpdateStats, update
+from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
 from hamnet.trainer.rollout import Rollout, RolloutWorker, collect_overlapped
 
 log = logging.getLogger(__name__)
@@ -114,6 +116,15 @@ class RunConfig:
         """Seed of the sim, the networks and the action noise (the sim's)."""
         return self.sim.seed
 
+    @property
+    def identity(self) -> dict[str, object]:
+        """What a resumed run must share with its snapshot: the networks' shapes, the
+        environments and the rollout length (the PPO settings and budgets may change)."""
+        return {
+            "architecture": self.architecture, "sim": self.sim,
+            "steps_per_rollout": self.steps_per_rollout, "overlapped": self.overlapped,
+        }  # fmt: skip
+
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
@@ -143,6 +154,25 @@ class EpisodeTracker:
             for env in np.flatnonzero(dones[t]):
                 self.finished.append((self.returns[env].copy(), int(self.lengths[env]), bool(success[t, env])))
                 self.returns[env], self.lengths[env] = 0.0, 0
+
+    def snapshot(self) -> Snapshot:
+        """Running returns and lengths (B, ...) and the recorded episodes, for `restore`."""
+        finished, width = list(self.finished), self.returns.shape[1]  # E episodes, R terms
+        arrays = {
+            "returns": self.returns, "lengths": self.lengths,
+            "finished.returns": np.array([r for r, _, _ in finished]).reshape(len(finished), width),
+            "finished.lengths": np.array([n for _, n, _ in finished], dtype=np.int64),
+            "finished.success": np.array([s for _, _, s in finished], dtype=bool),
+        }  # fmt: skip
+        return arrays, {}
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from `snapshot`'s arrays."""
+        self.returns[...], self.lengths[...] = arrays["returns"], arrays["lengths"]
+        self.finished.clear()
+        returns, lengths = arrays["finished.returns"], arrays["finished.lengths"]
+        records = zip(returns, lengths, arrays["finished.success"])
+        self.finished.extend((np.array(r), int(n), bool(s)) for r, n, s in records)
 
     def summary(self) -> dict[str, float]:
         """Means over the recorded episodes (NaN before the first one ends)."""
@@ -216,6 +246,15 @@ class InProcess:
     def num_envs(self) -> int:
         return sum(worker.env.num_envs for worker in self.workers)
 
+    def snapshot(self) -> Snapshot:
+        """Every worker's whole state (`RolloutWorker.snapshot`), as `worker<i>`."""
+        return nest({f"worker{i}": worker.snapshot() for i, worker in enumerate(self.workers)})
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from `snapshot` (workers built from the same config)."""
+        for i, worker in enumerate(self.workers):
+            worker.restore(*part(arrays, meta, f"worker{i}"))
+
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         if self.overlapped:
             return Collected(collect_overlapped(tuple(self.workers), policy, steps, env_transitions))
@@ -225,9 +264,17 @@ class InProcess:
 class Runner:
     """Owns the run: rollout source, policy, optimizer, reward scaler, counters."""
 
-    def __init__(self, config: RunConfig, source: Callable[[Policy], RolloutSource] | None = None) -> None:
-        """`source(policy)` makes the rollout source for the run's policy (default `InProcess`)."""
+    def __init__(
+        self,
+        config: RunConfig,
+        source: Callable[[Policy], RolloutSource] | None = None,
+        resume: bool = False,
+    ) -> None:
+        """`source(policy)` makes the rollout source for the run's policy (default `InProcess`).
+        With `resume`, continue from the snapshot in `config.run_dir` (`hamnet.trainer.resume`);
+        ResumeError when there is none or it is of another run, before anything is built."""
         self.config = config
+        saved = read_snapshot(config) if resume else None
         torch.set_num_threads(1)
         self.policy = build(config.architecture, seed=config.seed)
         self.source = InProcess(config) if source is None else source(self.policy)
@@ -236,11 +283,15 @@ class Runner:
         self.tracker = EpisodeTracker(self.source.num_envs, len(REWARD_NAMES))
         self.env_transitions = 0
         self.iteration = 0
+        self.wall_clock_s = 0.0
+        """Wall-clock time of the run at its latest iteration, over every resume, s."""
         self.last_row: dict[str, float] = {}
         """The metrics of the latest iteration (empty before the first)."""
         self.action_bounds = (-torch.ones(self.policy.config.action_dim), torch.ones(self.policy.config.action_dim))
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
+        if saved is not None:
+            self.restore(*saved)
 
     @property
     def version(self) -> int:
@@ -289,12 +340,62 @@ class Runner:
         self.policy.train()
         return update(self.policy.evaluate, self.policy.parameters(), self.optimizer, batch, self.action_bounds, ppo)
 
+    @property
+    def checkpoints(self) -> Path:
+        """Where the run's checkpoint and snapshot go."""
+        return self.config.run_dir / "checkpoints"
+
     def checkpoint(self) -> Path:
-        """Write the policy's weights (loadable by `hamnet policy --checkpoint`)."""
-        path = self.config.run_dir / "checkpoints" / "latest.safetensors"
+        """Write the policy's weights (loadable by `hamnet policy --checkpoint`) and the rest
+        of the run's snapshot (`hamnet.trainer.resume`); returns the weights' path."""
+        path = self.checkpoints / "latest.safetensors"
         path.parent.mkdir(parents=True, exist_ok=True)
+        resume.write(self.checkpoints, self.snapshot())
         save_checkpoint(path, self.policy, self.version)
         return path
+
+    def snapshot(self) -> Snapshot:
+        """Everything but the policy's weights that the run continues from: Adam's state and
+        learning rate, reward scaler, episode tracker, torch's global RNG, counters, the run's
+        identity and, from an in-process source, every worker's state."""
+        parts = {
+            "optimizer": resume.optimizer_snapshot(self.optimizer),
+            "scaler": self.scaler.snapshot(),
+            "tracker": self.tracker.snapshot(),
+            "torch": ({"rng": torch.get_rng_state()}, {}),
+        }
+        if isinstance(self.source, Resumable):  # streamed: the workers simply go on
+            parts["source"] = self.source.snapshot()
+        arrays, meta = nest(parts)
+        counters = {"iteration": self.iteration, "env_transitions": self.env_transitions,
+                    "wall_clock_s": self.wall_clock_s}  # fmt: skip
+        return arrays, {**meta, "counters": counters, "run": resume.as_json(self.config.identity)}
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from a snapshot of this run and the weights beside it; metrics rows written
+        after the snapshot are dropped.
+
+        Raises:
+            ResumeError: the weights are missing or not the snapshot's, or a part does not fit.
+        """
+        counters = meta["counters"]
+        try:
+            weights = read_checkpoint(self.checkpoints / "latest.safetensors")
+            if weights.version != counters["iteration"] + 1:
+                raise ResumeError(f"weights of version {weights.version}, the snapshot is of "
+                                  f"iteration {counters['iteration']} (a write was cut short)")  # fmt: skip
+            load_into(self.policy, weights)
+            resume.restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+            self.scaler.restore(*part(arrays, meta, "scaler"))
+            self.tracker.restore(*part(arrays, meta, "tracker"))
+            if "source" in meta and isinstance(self.source, Resumable):
+                self.source.restore(*part(arrays, meta, "source"))
+        except ValueError as error:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
+        torch.set_rng_state(torch.tensor(arrays["torch.rng"]))
+        self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
+        self.wall_clock_s = counters["wall_clock_s"]
+        resume.trim_metrics(self.metrics_path, self.iteration)
 
     def run(
         self,
@@ -305,13 +406,16 @@ class Runner:
         file. `on_iteration` sees every iteration's metrics (a publisher, a test)."""
         config = self.config
         started = last_log = last_checkpoint = time.monotonic()
+        before = self.wall_clock_s  # a resumed run's budget counts its earlier time too
         with self.metrics_path.open("a") as metrics:
             while (running() and self.env_transitions < config.max_env_transitions
-                   and time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
+                   and before + time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
                 try:
-                    row = self.last_row = {**self.iterate(), "wall_clock_s": time.monotonic() - started}
+                    row = self.iterate()
                 except InterruptedError:  # a streaming source was stopped while it waited
                     break
+                self.wall_clock_s = before + time.monotonic() - started
+                row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}
                 metrics.write(json.dumps(row) + "\n")
                 metrics.flush()
                 if on_iteration is not None:
@@ -325,6 +429,13 @@ class Runner:
                     last_checkpoint = now
         self.checkpoint()
         return self.metrics_path
+
+
+def read_snapshot(config: RunConfig) -> tuple[Arrays, dict[str, Any]]:
+    """The snapshot in `config.run_dir`, once it is known to be of this run (ResumeError)."""
+    arrays, meta = resume.read(config.run_dir / "checkpoints")
+    resume.check_identity(meta["run"], config.identity, config.run_dir)
+    return arrays, meta
 
 
 def progress_line(row: dict[str, float]) -> str:
