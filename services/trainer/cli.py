@@ -85,9 +85,9 @@ class TrainerConfig:
         return dataclasses.replace(self.run, run_dir=self.resume)
 
 
-
 CONFIG = TrainerConfig
 """The config `hamnet trainer` parses."""
+
 
 def stage_default(argv: Sequence[str]) -> RunConfig:
     """The run on the stage `--stage` names in `argv` (easy when absent), so every `--sim.*`

@@ -40,9 +40,9 @@ class RolloutConfig:
     newest weights held (the trainer learns from chunks up to L versions old)."""
 
 
-
 CONFIG = RolloutConfig
 """The config `hamnet rollout` parses."""
+
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet rollout` with arguments `argv`; returns the exit status."""

@@ -96,7 +96,9 @@ class RolloutService:
     def _take_weights(self, wait: bool) -> None:
         """Load the newest announcement waiting (with `wait`, block until one newer than the
         weights held arrives, or a stop). Without weights, or after `ASK_AFTER_S` of waiting
-        (a restarted trainer, a missed announcement), ask the trainer for its current ones."""
+        (a restarted or resumed trainer, a missed announcement), ask the trainer for its
+        current ones and act with them even when their version is the one held: a trainer
+        resumed while it waited for that version's rollouts needs them again."""
         newest, started = None, time.monotonic()
         while self.service.running:
             received = self.service.receive(timeout=0.1 if wait and newest is None else 0.0)
@@ -106,8 +108,10 @@ class RolloutService:
                 if self.policy is None or time.monotonic() - started >= ASK_AFTER_S:
                     self.service.inbox.catch_up("weights", WEIGHTS.key(self.service.namespace))
                 continue
-            if received.value.version != self.version:
-                newest = received.value
+            if received.value.version != self.version or time.monotonic() - started >= ASK_AFTER_S:
+                newest = (
+                    received.value
+                )  # the same version after a long wait: a resumed trainer wants it again
         if newest is not None:
             self._load(newest)
 
