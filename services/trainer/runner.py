@@ -34,7 +34,8 @@ from hamnet.perception.checkpoint import load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.policy import Policy
-from hamnet.policy.registry import architecture, build
+from hamnet.policy.config import LogStdConfig
+from hamnet.policy.registry import architecture, build, with_changes
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
@@ -98,6 +99,10 @@ class RunConfig:
     eval_episodes: int = 64
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
+    log_std: LogStdConfig = field(default_factory=LogStdConfig)
+    """The actor's log-std schedule over env_transitions (default the authors': -0.4, minus
+    0.000367 per 1024 x 1024 transitions, which spans their 2e9; a run of a few million
+    transitions may shrink it faster). The weights carry it to every policy that acts."""
 
     @property
     def overlapped(self) -> bool:
@@ -147,12 +152,18 @@ class EpisodeTracker:
 
     def add(self, rollout: Rollout) -> None:
         """Fold in T steps of sim rewards and ends."""
-        rewards, dones, success = rollout.rewards.numpy(), rollout.dones.numpy(), rollout.success.numpy()
+        rewards, dones, success = (
+            rollout.rewards.numpy(),
+            rollout.dones.numpy(),
+            rollout.success.numpy(),
+        )
         for t in range(len(rewards)):
             self.returns += rewards[t]
             self.lengths += 1
             for env in np.flatnonzero(dones[t]):
-                self.finished.append((self.returns[env].copy(), int(self.lengths[env]), bool(success[t, env])))
+                self.finished.append(
+                    (self.returns[env].copy(), int(self.lengths[env]), bool(success[t, env]))
+                )
                 self.returns[env], self.lengths[env] = 0.0, 0
 
     def snapshot(self) -> Snapshot:
@@ -257,7 +268,9 @@ class InProcess:
 
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         if self.overlapped:
-            return Collected(collect_overlapped(tuple(self.workers), policy, steps, env_transitions))
+            return Collected(
+                collect_overlapped(tuple(self.workers), policy, steps, env_transitions)
+            )
         return Collected(self.workers[0].collect(policy, steps, env_transitions))
 
 
@@ -276,7 +289,11 @@ class Runner:
         self.config = config
         saved = read_snapshot(config) if resume else None
         torch.set_num_threads(1)
-        self.policy = build(config.architecture, seed=config.seed)
+        self.policy = build(
+            config.architecture,
+            with_changes(config.architecture, log_std=config.log_std),
+            config.seed,
+        )
         self.source = InProcess(config) if source is None else source(self.policy)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
         self.scaler = ReturnScaler(self.source.num_envs, config.ppo.gamma)
@@ -287,7 +304,10 @@ class Runner:
         """Wall-clock time of the run at its latest iteration, over every resume, s."""
         self.last_row: dict[str, float] = {}
         """The metrics of the latest iteration (empty before the first)."""
-        self.action_bounds = (-torch.ones(self.policy.config.action_dim), torch.ones(self.policy.config.action_dim))
+        self.action_bounds = (
+            -torch.ones(self.policy.config.action_dim),
+            torch.ones(self.policy.config.action_dim),
+        )
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
         if saved is not None:
@@ -304,7 +324,9 @@ class Runner:
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
-        collected = self.source.collect(policy, config.steps_per_rollout, self.env_transitions, self.version)
+        collected = self.source.collect(
+            policy, config.steps_per_rollout, self.env_transitions, self.version
+        )
         rollout = collected.rollout
         collect_done = time.perf_counter()
         self.tracker.add(rollout)
@@ -330,15 +352,30 @@ class Runner:
     def learn(self, rollout: Rollout) -> UpdateStats:
         """Scale rewards, bootstrap, GAE per term, one PPO update."""
         steps = len(rollout.rewards)
-        scaled = torch.stack([self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)])
+        scaled = torch.stack(
+            [self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)]
+        )
         rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
         ppo = self.config.ppo
         advantages, returns = gae(rewards, rollout.values, rollout.next_values, rollout.dones,
                                   ppo.gamma, ppo.gae_lambda)  # fmt: skip
         flat = lambda x: x.reshape(-1, *x.shape[2:])
-        batch = Batch(rollout.inputs, flat(rollout.actions), flat(rollout.log_prob), flat(advantages), flat(returns))
+        batch = Batch(
+            rollout.inputs,
+            flat(rollout.actions),
+            flat(rollout.log_prob),
+            flat(advantages),
+            flat(returns),
+        )
         self.policy.train()
-        return update(self.policy.evaluate, self.policy.parameters(), self.optimizer, batch, self.action_bounds, ppo)
+        return update(
+            self.policy.evaluate,
+            self.policy.parameters(),
+            self.optimizer,
+            batch,
+            self.action_bounds,
+            ppo,
+        )
 
     @property
     def checkpoints(self) -> Path:

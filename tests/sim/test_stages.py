@@ -35,6 +35,13 @@ def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> 
     assert env.schedule.p_near_init == 1.0
     assert env.config.task.success_radius == 0.05 and env.config.task.success_angle == 0.3
     assert observation.episode_step.tolist() == [0] * 16
+    assert env.config.task.timeout == 100
+    # The paddle starts on the side away from the goal (within near_behind of straight
+    # behind; the IK's tolerance and fallbacks loosen it a little).
+    away = scenes.start_pose[:, :2] - scenes.goal_pose[:, :2]
+    paddle = observation.ee_pose[:, :2] - scenes.start_pose[:, :2]
+    cosine = (away * paddle).sum(1) / np.linalg.norm(away, axis=1) / np.linalg.norm(paddle, axis=1)
+    assert np.median(cosine) > np.cos(0.5) and (cosine > 0).mean() >= 0.8
 
 
 def test_an_unknown_stage_names_the_known_ones() -> None:
