@@ -4,17 +4,20 @@ ceiling of the same world, and where a step's time goes.
 Measures in one run, on the easy stage with HAMnet on its paper inputs:
 - inprocess: `hamnet trainer --inprocess`'s loop (`Runner.iterate`: two groups of environments, one
   group's physics overlapping the other's networks), learning included;
+- workers: the same loop learning from `hamnet rollout` processes over Zenoh on loopback
+  (`hamnet.trainer.stream.Streamed`), with 1 worker of B environments and 2 of B/2 each;
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
 - physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
   fields and state, stepped 40 physics steps per policy step and nothing else.
 
-Not measured yet: rollout workers over Zenoh and the service chain (the trainer service is
-not built); their ratios are null in the JSON line.
+Not measured yet: the service chain (the policy service does not assemble rollout chunks
+yet); its ratio is null in the JSON line.
 
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
-`overlap_speedup`, `shares`, `workers_vs_inprocess` and `services_vs_inprocess`.
+`overlap_speedup`, `shares`, `workers_vs_inprocess` (the faster of 1 and 2 workers, both
+reported) and `services_vs_inprocess`.
 
     .venv/bin/python benchmarks/training.py --quick     # < 1 min on 2 cores
     .venv/bin/python benchmarks/training.py             # more iterations
@@ -23,8 +26,11 @@ with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
+import socket
+import subprocess
 import sys
 import time
 from collections import defaultdict
@@ -32,11 +38,15 @@ from collections.abc import Callable
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
+# Run as a script, so benchmarks/ is on sys.path: the sim benchmark's raw copy of a world.
+from sim import raw_copy
+
+from hamnet.runtime.service import Service, ServiceIdentity
+from hamnet.runtime.transport import TransportConfig
+from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
-
-# Run as a script, so benchmarks/ is on sys.path: the sim benchmark's raw copy of a world.
-from sim import raw_copy  # noqa: E402
+from hamnet.trainer.stream import Streamed
 
 
 def progress(message: str) -> None:
@@ -67,6 +77,44 @@ def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
     return steps / (time.perf_counter() - started), runner
 
 
+def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) -> float:
+    """Env steps/s of the loop learning from `workers` rollout worker processes of
+    `sim.num_envs / workers` environments each, after one warm-up iteration."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    transport = TransportConfig(
+        namespace=f"bench{os.getpid()}w{workers}", rendezvous=f"tcp/127.0.0.1:{port}"
+    )
+    each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
+    network = ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
+    processes = [
+        subprocess.Popen([sys.executable, "-m", "hamnet", "rollout", "--worker", str(k), "--sim.num-envs",
+                          str(each.num_envs), *network], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for k in range(workers)
+    ]  # fmt: skip
+    try:
+        with Service(ServiceIdentity("trainer", "bench"), transport) as service:
+            config = RunConfig(sim=each, run_dir=run_dir)
+            runner = Runner(
+                config, lambda policy: Streamed(service, policy, workers, each.num_envs)
+            )
+            runner.iterate()  # includes the workers' start
+            started = time.perf_counter()
+            for _ in range(iterations):
+                runner.iterate()
+            return (
+                iterations
+                * sim.num_envs
+                * config.steps_per_rollout
+                / (time.perf_counter() - started)
+            )
+    finally:
+        for process in processes:
+            process.terminate()
+            process.wait(timeout=30)
+
+
 def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
     """Share of a sequential step's wall time in each component."""
     runner = Runner(config)
@@ -75,7 +123,9 @@ def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
     (worker,) = runner.source.workers
     worker.env.step = timed(worker.env.step, seconds, "sim")
     worker.perception.step = timed(worker.perception.step, seconds, "perception")
-    worker.perception.start_episodes = timed(worker.perception.start_episodes, seconds, "perception")
+    worker.perception.start_episodes = timed(
+        worker.perception.start_episodes, seconds, "perception"
+    )
     worker.safety.command = timed(worker.safety.command, seconds, "safety")
     runner.policy.act = timed(runner.policy.act, seconds, "policy")
     runner.learn = timed(runner.learn, seconds, "learner")
@@ -118,6 +168,14 @@ def main() -> dict:
         progress(f"shares of a sequential step: {shares}")
         ceiling = physics_ceiling(sequential_config, 5 if args.quick else 30)
         progress(f"physics ceiling: {ceiling:.0f} env steps/s")
+        streamed = {}
+        for workers in (1, 2):
+            streamed[workers] = streamed_rate(
+                sim, workers, iterations, Path(run_dir) / f"workers{workers}"
+            )
+            progress(
+                f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
+            )
     return {
         "benchmark": "training",
         "mode": "quick" if args.quick else "full",
@@ -130,10 +188,15 @@ def main() -> dict:
         "physics_ceiling_env_steps_per_s": round(ceiling, 1),
         "inprocess_vs_physics_ceiling": round(inprocess / ceiling, 3),
         "shares": shares,
-        "workers_vs_inprocess": None,
+        "workers_1_env_steps_per_s": round(streamed[1], 1),
+        "workers_2_env_steps_per_s": round(streamed[2], 1),
+        "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),
         "services_vs_inprocess": None,
-        "not_measured": "rollout workers and the service chain over Zenoh (trainer service not built)",
-        "goals": {"inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33},
+        "not_measured": "the service chain (the policy service does not assemble rollout chunks yet)",
+        "goals": {
+            "inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33,
+            "workers_vs_inprocess_at_least_0.9": max(streamed.values()) / inprocess >= 0.9,
+        },
         "cpus": os.cpu_count(),
     }
 

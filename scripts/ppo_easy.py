@@ -1,0 +1,138 @@
+"""The easy-stage learning result (issue 12): HAMnet by PPO through a rollout worker against
+the plain state-based PPO baseline, on the same stage for the same wall-clock budget.
+
+    python scripts/ppo_easy.py                       # an hour: docs/results/ppo-easy.json + .png
+    python scripts/ppo_easy.py --minutes 10 --out runs/ppo-easy-short   # a shorter try
+
+Both runs go side by side, so each has about one of the machine's two cores (the baseline in
+one process; HAMnet as `hamnet trainer` plus one `hamnet rollout` worker over Zenoh on
+loopback). Each writes its run folder (metrics.jsonl, checkpoints, summary.json with the
+deterministic policy's success rate on held-out episodes) under `--runs`; this script then
+writes the result JSON and the curves next to it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from hamnet.trainer.plot import read_metrics
+from hamnet.trainer.summary import commit
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def hamnet(*args: str, log: Path) -> subprocess.Popen:
+    """`python -m hamnet ARGS` in its own process group, output to `log`."""
+    handle = log.open("w")
+    return subprocess.Popen([sys.executable, "-m", "hamnet", *args], stdout=handle, stderr=subprocess.STDOUT,
+                            start_new_session=True, cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
+
+
+def train(budget_s: float, runs: Path, seed: int) -> dict[str, Path]:
+    """Run HAMnet (trainer + one rollout worker) and the baseline side by side."""
+    network = ["--namespace", f"ppoeasy{os.getpid()}", "--rendezvous", f"tcp/127.0.0.1:{free_port()}"]
+    common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s)]
+    dirs = {"hamnet": runs / "hamnet", "baseline": runs / "state-mlp"}
+    for folder in dirs.values():
+        folder.mkdir(parents=True, exist_ok=True)
+    worker = hamnet("rollout", "--worker", "0", *common, *network, log=runs / "rollout.log")
+    trainers = [
+        hamnet("trainer", "--workers", "1", *common, "--run-dir", str(dirs["hamnet"]), *network,
+               log=runs / "hamnet.log"),
+        hamnet("trainer", "--inprocess", "--architecture", "state-mlp", *common,
+               "--run-dir", str(dirs["baseline"]), log=runs / "state-mlp.log"),
+    ]  # fmt: skip
+    try:
+        for process in trainers:
+            if process.wait() != 0:
+                raise SystemExit(f"a run failed: see {runs}/*.log")
+    finally:
+        for process in (*trainers, worker):
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGTERM)
+        worker.wait(timeout=30)
+    return dirs
+
+
+def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
+    """Training success rate of both runs against wall clock and env transitions."""
+    figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for name, rows in curves.items():
+        success = [row["success_rate"] for row in rows]
+        axes[0].plot([row["wall_clock_s"] / 60 for row in rows], success, label=f"{name} (held-out {finals[name]:.2f})")
+        axes[1].plot([row["env_transitions"] / 1e6 for row in rows], success, label=name)
+    axes[0].set_xlabel("wall clock (minutes)")
+    axes[1].set_xlabel("env transitions (millions)")
+    for axis in axes:
+        axis.set_ylabel("success rate (last 200 training episodes)")
+        axis.grid(alpha=0.3)
+        axis.legend()
+    figure.suptitle("PPO on the easy stage: HAMnet through a rollout worker vs state-based MLP, same hour")
+    figure.tight_layout()
+    figure.savefig(out, dpi=100)
+    plt.close(figure)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--minutes", type=float, default=60.0, help="wall-clock budget of each run")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "ppo-easy", help="run folders")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "ppo-easy",
+                        help="result path without suffix (.json and .png are written)")  # fmt: skip
+    args = parser.parse_args()
+    started = time.monotonic()
+    dirs = train(args.minutes * 60, args.runs, args.seed)
+    summaries = {name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()}
+    curves = {name: read_metrics(folder) for name, folder in dirs.items()}
+    ours, baseline = summaries["hamnet"], summaries["baseline"]
+    result = {
+        "final_success_rate": ours["final_success_rate"],
+        "baseline_final_success_rate": baseline["final_success_rate"],
+        "eval_episodes": ours["eval_episodes"],
+        "stage": ours["stage"],
+        "stage_definition": ours["stage_definition"],
+        "env_steps": ours["env_steps"],
+        "baseline_env_steps": baseline["env_steps"],
+        "wall_clock_s": ours["wall_clock_s"],
+        "baseline_wall_clock_s": baseline["wall_clock_s"],
+        "curve": ours["curve"],
+        "baseline_curve": baseline["curve"],
+        "command": " ".join(["python", "scripts/ppo_easy.py", *sys.argv[1:]]),
+        "run_commands": {"hamnet": ours["command"], "baseline": baseline["command"]},
+        "setup": "both runs side by side on the 2-core machine (about one core each); HAMnet as "
+        "hamnet trainer + one hamnet rollout worker over Zenoh on loopback",
+        "seed": args.seed,
+        "commit": commit(),
+        "total_wall_clock_s": time.monotonic() - started,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    plot({"HAMnet": curves["hamnet"], "state-mlp": curves["baseline"]},
+         {"HAMnet": ours["final_success_rate"], "state-mlp": baseline["final_success_rate"]},
+         args.out.with_suffix(".png"))  # fmt: skip
+    print(json.dumps({k: result[k] for k in ("final_success_rate", "baseline_final_success_rate", "env_steps")}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
