@@ -3,6 +3,7 @@ the plain state-based PPO baseline, on the same stage for the same wall-clock bu
 
     python scripts/ppo_easy.py                       # an hour: docs/results/ppo-easy.json + .png
     python scripts/ppo_easy.py --minutes 10 --out runs/ppo-easy-short   # a shorter try
+    python scripts/ppo_easy.py --from-runs           # rewrite the result from finished runs
 
 Both runs go side by side, so each has about one of the machine's two cores (the baseline in
 one process; HAMnet as `hamnet trainer` plus one `hamnet rollout` worker over Zenoh on
@@ -20,7 +21,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import matplotlib
@@ -47,16 +47,23 @@ def hamnet(*args: str, log: Path) -> subprocess.Popen:
                             start_new_session=True, cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
 
 
-def train(budget_s: float, runs: Path, seed: int) -> dict[str, Path]:
-    """Run HAMnet (trainer + one rollout worker) and the baseline side by side."""
-    network = ["--namespace", f"ppoeasy{os.getpid()}", "--rendezvous", f"tcp/127.0.0.1:{free_port()}"]
+def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
+    """Run HAMnet (trainer + one rollout worker, policy lag up to `lag`) and the baseline
+    side by side."""
+    network = [
+        "--namespace",
+        f"ppoeasy{os.getpid()}",
+        "--rendezvous",
+        f"tcp/127.0.0.1:{free_port()}",
+    ]
     common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s)]
     dirs = {"hamnet": runs / "hamnet", "baseline": runs / "state-mlp"}
     for folder in dirs.values():
-        folder.mkdir(parents=True, exist_ok=True)
-    worker = hamnet("rollout", "--worker", "0", *common, *network, log=runs / "rollout.log")
+        folder.mkdir(parents=True, exist_ok=True)  # names as in main()
+    streaming = ["--max-policy-lag", str(lag), *network]
+    worker = hamnet("rollout", "--worker", "0", *common, *streaming, log=runs / "rollout.log")
     trainers = [
-        hamnet("trainer", "--workers", "1", *common, "--run-dir", str(dirs["hamnet"]), *network,
+        hamnet("trainer", "--workers", "1", *common, "--run-dir", str(dirs["hamnet"]), *streaming,
                log=runs / "hamnet.log"),
         hamnet("trainer", "--inprocess", "--architecture", "state-mlp", *common,
                "--run-dir", str(dirs["baseline"]), log=runs / "state-mlp.log"),
@@ -70,7 +77,6 @@ def train(budget_s: float, runs: Path, seed: int) -> dict[str, Path]:
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGTERM)
         worker.wait(timeout=30)
-    return dirs
 
 
 def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
@@ -78,7 +84,11 @@ def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> 
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     for name, rows in curves.items():
         success = [row["success_rate"] for row in rows]
-        axes[0].plot([row["wall_clock_s"] / 60 for row in rows], success, label=f"{name} (held-out {finals[name]:.2f})")
+        axes[0].plot(
+            [row["wall_clock_s"] / 60 for row in rows],
+            success,
+            label=f"{name} (held-out {finals[name]:.2f})",
+        )
         axes[1].plot([row["env_transitions"] / 1e6 for row in rows], success, label=name)
     axes[0].set_xlabel("wall clock (minutes)")
     axes[1].set_xlabel("env transitions (millions)")
@@ -86,7 +96,9 @@ def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> 
         axis.set_ylabel("success rate (last 200 training episodes)")
         axis.grid(alpha=0.3)
         axis.legend()
-    figure.suptitle("PPO on the easy stage: HAMnet through a rollout worker vs state-based MLP, same hour")
+    figure.suptitle(
+        "PPO on the easy stage: HAMnet through a rollout worker vs state-based MLP, same hour"
+    )
     figure.tight_layout()
     figure.savefig(out, dpi=100)
     plt.close(figure)
@@ -96,13 +108,23 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=60.0, help="wall-clock budget of each run")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--max-policy-lag", type=int, default=0,
+                        help="HAMnet's worker acts on while the trainer learns, from weights up to this "
+                        "many versions old (0: synchronous, the worker idles during updates)")  # fmt: skip
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "ppo-easy", help="run folders")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "ppo-easy",
                         help="result path without suffix (.json and .png are written)")  # fmt: skip
+    parser.add_argument(
+        "--from-runs", action="store_true", help="no training: summarise the runs in --runs"
+    )
     args = parser.parse_args()
-    started = time.monotonic()
-    dirs = train(args.minutes * 60, args.runs, args.seed)
-    summaries = {name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()}
+    code = commit()  # the code that trains is the one checked out now
+    dirs = {"hamnet": args.runs / "hamnet", "baseline": args.runs / "state-mlp"}
+    if not args.from_runs:
+        train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag)
+    summaries = {
+        name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
+    }
     curves = {name: read_metrics(folder) for name, folder in dirs.items()}
     ours, baseline = summaries["hamnet"], summaries["baseline"]
     result = {
@@ -120,17 +142,23 @@ def main() -> int:
         "command": " ".join(["python", "scripts/ppo_easy.py", *sys.argv[1:]]),
         "run_commands": {"hamnet": ours["command"], "baseline": baseline["command"]},
         "setup": "both runs side by side on the 2-core machine (about one core each); HAMnet as "
-        "hamnet trainer + one hamnet rollout worker over Zenoh on loopback",
+        f"hamnet trainer + one hamnet rollout worker over Zenoh on loopback, policy lag up to {args.max_policy_lag}",
         "seed": args.seed,
-        "commit": commit(),
-        "total_wall_clock_s": time.monotonic() - started,
+        "commit": ours.get("commit") if args.from_runs else code,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     plot({"HAMnet": curves["hamnet"], "state-mlp": curves["baseline"]},
          {"HAMnet": ours["final_success_rate"], "state-mlp": baseline["final_success_rate"]},
          args.out.with_suffix(".png"))  # fmt: skip
-    print(json.dumps({k: result[k] for k in ("final_success_rate", "baseline_final_success_rate", "env_steps")}))
+    print(
+        json.dumps(
+            {
+                k: result[k]
+                for k in ("final_success_rate", "baseline_final_success_rate", "env_steps")
+            }
+        )
+    )
     return 0
 
 

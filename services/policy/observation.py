@@ -72,6 +72,14 @@ class ObservationSpec:
         """The pieces of `group` (context, base, scene_query, object_query) this spec has."""
         return tuple(name for name in getattr(self, group) if name in self.pieces)
 
+    def columns(self, group: str, piece: str) -> slice:
+        """Where `piece` lies among the columns of `group`."""
+        names = self.names(group)
+        if piece not in names:
+            raise ValueError(f"{group} has no {piece} (it has {', '.join(names)})")
+        start = sum(self.pieces[name] for name in names[: names.index(piece)])
+        return slice(start, start + self.pieces[piece])
+
     def width(self, group: str) -> int:
         """Width of `group`'s concatenated pieces."""
         return sum(self.pieces[name] for name in self.names(group))
@@ -221,6 +229,6 @@ def assemble(
         ValueError: a missing input the spec needs, or a piece of the wrong width.
     """
     pieces = _pieces(robot, previous_action, spec)
-    group = lambda name: torch.cat([pieces[n] for n in spec.names(name)], dim=-1)  # noqa: E731
+    group = lambda name: torch.cat([pieces[n] for n in spec.names(name)], dim=-1)
     return Observation(group("context"), group("base"), group("scene_query"), group("object_query"))
 

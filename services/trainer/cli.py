@@ -45,7 +45,7 @@ from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
 from hamnet.trainer.stream import Streamed
-from hamnet.trainer.summary import write_summary
+from hamnet.trainer.summary import commit, write_summary
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +109,7 @@ def main(argv: Sequence[str]) -> int:
         return plot_main(argv[1:])
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
-    run = config.resumed_run
+    run, code = config.resumed_run, commit()  # the commit of the code that trains
     try:
         if config.inprocess and not config.publish:
             runner = Runner(run, resume=config.resume is not None)
@@ -124,7 +124,7 @@ def main(argv: Sequence[str]) -> int:
     if run.eval_episodes:
         rate = success_rate(runner.policy, run, run.eval_episodes, runner.env_transitions)
         log.info("final success rate on %d held-out episodes: %.3f", run.eval_episodes, rate)
-    print(write_summary(run, rate))
+    print(write_summary(run, rate, code))
     return 0
 
 

@@ -52,6 +52,10 @@ class PPOConfig:
     bound_scale: float = 1.1
     """The bound loss penalises a mean outside 1.1x the action bounds (config
     `ham/src/ham/models/rl/ppo_util.py`, `get_bound_loss(scale=1.1)`)."""
+    energy_coef: float = 0.0
+    """Weight of the energy loss (`losses.energy_loss`): 0, off, as the authors train
+    (`use_energy_loss: False`, `ppo.py:101`); their coefficient when on is 5e-5
+    (`ppo_config.py:69`), the paper's table says 8e-5."""
     normalize_advantages: bool = True
     """Advantages centred per term and scaled by the standard deviation of their sum
     (config `ppo_config.py:55`; `ppo_util.py` `_ppo_loss_and_logs`, `SUM_REW`)."""
@@ -62,6 +66,8 @@ class PPOConfig:
         for name in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if not self.energy_coef >= 0.0:
+            raise ValueError(f"energy_coef must be >= 0, got {self.energy_coef}")
         for name in ("clip", "lr", "kl_target", "max_grad_norm"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -78,4 +84,3 @@ PPO_PRESETS: dict[str, PPOConfig] = {
     "paper": PPOConfig(policy_coef=2.0, value_coef=0.5),
 }
 """The authors' configuration (default) and the paper's Table tab:PPO where it differs."""
-

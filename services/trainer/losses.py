@@ -10,6 +10,10 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.safety.config import ActionMagnitudeConfig
+from hamnet.safety.stages import affine_range
+
 
 def normalize_advantages(advantages: Tensor, eps: float = 1e-6) -> Tensor:
     """(N, R) advantages centred per term and divided by the standard deviation of their
@@ -47,6 +51,22 @@ def bound_loss(mean: Tensor, low: Tensor, high: Tensor) -> Tensor:
     above = (mean - high).clamp_min(0.0)
     below = (low - mean).clamp_min(0.0)
     return (above.square() + below.square()).sum(dim=1).mean()
+
+
+def energy_loss(mean: Tensor, joint_velocity: Tensor, config: ActionMagnitudeConfig) -> Tensor:
+    """Mean over samples of |tau * v|, the joint power of the impedance torque the action
+    mean (N, A) asks for at the measured joint velocities v (N, J): tau = kp dq - kd v with
+    dq, kp and kd = rho sqrt(kp) read from the mean as the safety filter reads an action
+    (`hamnet.safety.stages.action_magnitude`, dq at xi_max) (`ppo_util.py`, `EnergyLoss`:
+    the norm of tau * v over the joints)."""
+    u = mean.clamp(-1.0, 1.0) if config.squash == "clip" else torch.tanh(mean)  # (N, A)
+    xi_max = torch.full((NUM_JOINTS,), config.xi_max_small, dtype=mean.dtype)
+    xi_max[: config.num_large_joints] = config.xi_max_large
+    dq = xi_max * u[:, :NUM_JOINTS]
+    kp = affine_range(u[:, NUM_JOINTS : 2 * NUM_JOINTS], config.kp_min, config.kp_max)
+    rho = affine_range(u[:, 2 * NUM_JOINTS :], config.rho_min, config.rho_max)
+    torque = kp * dq - rho * kp.sqrt() * joint_velocity
+    return (torque * joint_velocity).norm(dim=1).mean()
 
 
 def approx_kl(log_prob: Tensor, old_log_prob: Tensor) -> Tensor:

@@ -59,6 +59,8 @@ class Batch:
     """(N, R) GAE per reward term."""
     returns: Tensor
     """(N, R) value targets per reward term."""
+    joint_velocity: Tensor | None = None
+    """(N, J) measured joint velocities, rad/s, for the energy loss (None: no energy loss)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,8 @@ class UpdateStats:
     """After the update's adaptations."""
     gradient_steps: int
     early_stopped: bool
+    energy_loss: float = 0.0
+    """0 unless the energy loss is on."""
 
 
 def update(
@@ -85,6 +89,7 @@ def update(
     action_bounds: tuple[Tensor, Tensor],
     config: PPOConfig,
     generator: torch.Generator | None = None,
+    energy: Callable[[Tensor, Tensor], Tensor] | None = None,
 ) -> UpdateStats:
     """Run up to `config.epochs` epochs of `config.minibatches` gradient steps on `batch`.
 
@@ -103,15 +108,21 @@ def update(
             within `bound_scale` times them.
         config: hyperparameters.
         generator: shuffles the minibatches.
+        energy: (action mean, joint velocity) -> energy loss, weighted by
+            `config.energy_coef` when that is above 0 (`losses.energy_loss`).
     """
     parameters = list(parameters)
-    advantages = normalize_advantages(batch.advantages) if config.normalize_advantages else batch.advantages
+    advantages = (
+        normalize_advantages(batch.advantages) if config.normalize_advantages else batch.advantages
+    )
     low, high = (bound * config.bound_scale for bound in action_bounds)
     n = batch.actions.shape[0]
     lr = optimizer.param_groups[0]["lr"]
     steps, stopped, last = 0, False, {}
     for _ in range(config.epochs):
-        order = torch.randperm(n, generator=generator) if config.minibatches > 1 else torch.arange(n)
+        order = (
+            torch.randperm(n, generator=generator) if config.minibatches > 1 else torch.arange(n)
+        )
         for rows in order.chunk(config.minibatches):
             out = evaluate(take_rows(batch.inputs, rows), batch.actions[rows])
             old = batch.old_log_prob[rows]
@@ -120,6 +131,8 @@ def update(
                 "value": value_loss(out.values, batch.returns[rows]),
                 "bound": bound_loss(out.mean, low, high),
             }
+            if config.energy_coef > 0 and energy is not None and batch.joint_velocity is not None:
+                terms["energy"] = energy(out.mean, batch.joint_velocity[rows])
             kl = approx_kl(out.log_prob.detach(), old).item()
             last = {**{k: v.item() for k, v in terms.items()}, "kl": kl,
                     "clip": clip_fraction(out.log_prob.detach(), old, config.clip).item()}  # fmt: skip
@@ -128,7 +141,8 @@ def update(
                 stopped = True
                 break
             loss = (config.policy_coef * terms["policy"] + config.value_coef * terms["value"]
-                    + config.bound_coef * terms["bound"])  # fmt: skip
+                    + config.bound_coef * terms["bound"]
+                    + config.energy_coef * terms.get("energy", 0.0))  # fmt: skip
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
@@ -138,7 +152,8 @@ def update(
             steps += 1
         if stopped:
             break
-    return UpdateStats(last["policy"], last["value"], last["bound"], last["kl"], last["clip"], lr, steps, stopped)
+    return UpdateStats(last["policy"], last["value"], last["bound"], last["kl"], last["clip"], lr, steps, stopped,
+                       last.get("energy", 0.0))  # fmt: skip
 
 
 def _adapt(optimizer: torch.optim.Optimizer, lr: float, kl: float, config: PPOConfig) -> float:

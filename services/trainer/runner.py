@@ -23,6 +23,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -33,8 +34,8 @@ from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.perception.checkpoint import load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
-from hamnet.policy.policy import Policy
 from hamnet.policy.config import LogStdConfig
+from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture, build, with_changes
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
 from hamnet.safety.config import with_profile
@@ -46,6 +47,7 @@ from hamnet.sim.stages import STAGES, StageName, stage_config
 from hamnet.trainer import resume
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
+from hamnet.trainer.losses import energy_loss
 from hamnet.trainer.normalization import ReturnScaler
 from hamnet.trainer.ppo import Batch, UpdateStats, update
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
@@ -360,14 +362,19 @@ class Runner:
         advantages, returns = gae(rewards, rollout.values, rollout.next_values, rollout.dones,
                                   ppo.gamma, ppo.gae_lambda)  # fmt: skip
         flat = lambda x: x.reshape(-1, *x.shape[2:])
+        robot_state = rollout.inputs.observation.base[
+            :, self.policy.config.observation.columns("base", "robot_state")
+        ]
         batch = Batch(
             rollout.inputs,
             flat(rollout.actions),
             flat(rollout.log_prob),
             flat(advantages),
             flat(returns),
+            joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
         )
         self.policy.train()
+        energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         return update(
             self.policy.evaluate,
             self.policy.parameters(),
@@ -375,6 +382,7 @@ class Runner:
             batch,
             self.action_bounds,
             ppo,
+            energy=energy,
         )
 
     @property

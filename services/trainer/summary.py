@@ -26,8 +26,9 @@ def commit() -> str:
     return result.stdout.strip()
 
 
-def write_summary(config: RunConfig, final_success_rate: float | None) -> Path:
-    """Write `<run_dir>/summary.json` from the run's metrics; returns its path."""
+def write_summary(config: RunConfig, final_success_rate: float | None, code: str) -> Path:
+    """Write `<run_dir>/summary.json` from the run's metrics, trained by the code of commit
+    `code` (taken when the run started: the checkout may move while it runs)."""
     rows = read_metrics(config.run_dir)
     stride = max(1, len(rows) // CURVE_POINTS)
     keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
@@ -47,7 +48,7 @@ def write_summary(config: RunConfig, final_success_rate: float | None) -> Path:
         "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
         "command": " ".join(["hamnet", "trainer", *sys.argv[2:]]) if sys.argv[1:2] == ["trainer"] else " ".join(sys.argv),
         "seed": config.seed,
-        "commit": commit(),
+        "commit": code,
     }
     path = config.run_dir / "summary.json"
     path.write_text(json.dumps(summary, indent=1, default=str) + "\n")

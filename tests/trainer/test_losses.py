@@ -5,12 +5,16 @@ from __future__ import annotations
 import pytest
 import torch
 
+from hamnet.policy.observation import RobotObservation, assemble
+from hamnet.policy.registry import build
+from hamnet.safety.config import with_profile
 from hamnet.trainer.adaptive_lr import adapt_learning_rate
 from hamnet.trainer.config import PPO_PRESETS, PPOConfig
 from hamnet.trainer.losses import (
     approx_kl,
     bound_loss,
     clip_fraction,
+    energy_loss,
     normalize_advantages,
     policy_loss,
     value_loss,
@@ -31,7 +35,9 @@ def test_policy_loss_sums_the_terms_advantages() -> None:
     log_prob = torch.zeros(3)
     per_term = torch.tensor([[1.0, -0.5], [0.2, 0.3], [-1.0, 2.0]])
     summed = per_term.sum(dim=1, keepdim=True)
-    assert policy_loss(log_prob, log_prob, per_term, 0.3) == pytest.approx(float(policy_loss(log_prob, log_prob, summed, 0.3)))
+    assert policy_loss(log_prob, log_prob, per_term, 0.3) == pytest.approx(
+        float(policy_loss(log_prob, log_prob, summed, 0.3))
+    )
     assert policy_loss(log_prob, log_prob, per_term, 0.3) == pytest.approx(-summed.mean().item())
 
 
@@ -89,7 +95,9 @@ def test_running_statistics_equal_the_whole_stream() -> None:
     for chunk in stream.split(37):
         stats.update(chunk)
     torch.testing.assert_close(stats.mean, stream.double().mean(0), atol=1e-6, rtol=0)
-    torch.testing.assert_close(stats.var, stream.double().var(0, unbiased=False), atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(
+        stats.var, stream.double().var(0, unbiased=False), atol=1e-5, rtol=1e-5
+    )
     restored = RunningMeanStd((3,))
     restored.load(stats.state("obs"), "obs")
     torch.testing.assert_close(restored.normalize(stream), stats.normalize(stream))
@@ -107,3 +115,25 @@ def test_return_scaler_divides_every_term_by_one_return_scale() -> None:
     assert scaler.stats.var.item() == pytest.approx(returns.var(unbiased=False).item(), rel=1e-3)
     scaler.scale(rewards, torch.tensor([True]))
     assert scaler.returns.item() == 0.0
+
+
+def test_energy_loss_is_the_power_of_the_impedance_torque() -> None:
+    """A zero mean asks for no residual at mid gains (kp 105, rho 1.15): at 1 rad/s on every
+    joint the torque is -rho sqrt(kp) per joint and the loss the norm of tau * v over the 7."""
+    config = with_profile("training").action_magnitude
+    kp = (config.kp_min + config.kp_max) / 2
+    rho = (config.rho_min + config.rho_max) / 2
+    loss = energy_loss(torch.zeros(2, 21), torch.ones(2, 7), config)
+    assert loss.item() == pytest.approx(rho * kp**0.5 * 7**0.5, rel=1e-6)
+    at_rest = energy_loss(torch.randn(2, 21), torch.zeros(2, 7), config)
+    assert at_rest.item() == 0.0  # no velocity, no power
+
+
+def test_the_energy_term_reads_the_joint_velocities_of_the_base_observation() -> None:
+    spec = build("state-mlp").config.observation
+    robot = RobotObservation(q=torch.zeros(3, 7), dq=torch.arange(21.0).reshape(3, 7), ee_pose=torch.zeros(3, 9),
+                             goal_pose=torch.tensor([[0, 0, 0, 1, 0, 0, 0.0]] * 3),
+                             object_pose=torch.tensor([[0, 0, 0, 1, 0, 0, 0.0]] * 3),
+                             object_velocity=torch.zeros(3, 6), physics_params=torch.zeros(3, spec.physics_params))  # fmt: skip
+    base = assemble(robot, torch.zeros(3, 21), spec).base
+    assert torch.equal(base[:, spec.columns("base", "robot_state")][:, 7:], robot.dq)

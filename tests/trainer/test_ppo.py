@@ -62,7 +62,9 @@ def test_ppo_converges_to_the_known_optimum_of_a_two_term_bandit() -> None:
         dones = torch.ones(T, B, dtype=torch.bool)
         advantages, returns = gae(rewards, old.values, torch.zeros(B, 2), dones, 0.99, 0.95)
         flat = lambda x: x.reshape(T * B, *x.shape[2:])
-        batch = Batch(flat(states), flat(actions), flat(old.log_prob), flat(advantages), flat(returns))
+        batch = Batch(
+            flat(states), flat(actions), flat(old.log_prob), flat(advantages), flat(returns)
+        )
         stats = update(model.evaluate, model.parameters(), optimizer, batch, bounds, config)
     probe = torch.rand(256, 2) * 2 - 1
     with torch.no_grad():
@@ -86,7 +88,14 @@ def test_the_first_minibatch_neither_stops_nor_moves_the_learning_rate() -> None
     with torch.no_grad():
         old_log_prob = model.evaluate(states, actions).log_prob - 1.0
     batch = Batch(states, actions, old_log_prob, torch.randn(32, 2), torch.randn(32, 2))
-    stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)), PPOConfig())
+    stats = update(
+        model.evaluate,
+        model.parameters(),
+        optimizer,
+        batch,
+        (-torch.ones(2), torch.ones(2)),
+        PPOConfig(),
+    )
     assert stats.early_stopped and stats.gradient_steps == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
     assert stats.learning_rate == pytest.approx(2e-4)
@@ -101,13 +110,55 @@ def test_a_policy_that_stays_close_keeps_raising_the_rate_from_the_second_step()
     with torch.no_grad():
         out = model.evaluate(states, actions)
     batch = Batch(states, actions, out.log_prob, torch.zeros(16, 2), out.values)
-    stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)), PPOConfig())
+    stats = update(
+        model.evaluate,
+        model.parameters(),
+        optimizer,
+        batch,
+        (-torch.ones(2), torch.ones(2)),
+        PPOConfig(),
+    )
     assert stats.gradient_steps == 8 and not stats.early_stopped
     assert stats.learning_rate == pytest.approx(1e-5 * 1.5**7)
 
 
 def test_take_rows_walks_tensors_dicts_and_dataclasses() -> None:
-    tree = {"a": torch.arange(4), "b": Evaluation(torch.arange(4), torch.zeros(4, 2), torch.ones(4, 3)), "c": None}
+    tree = {
+        "a": torch.arange(4),
+        "b": Evaluation(torch.arange(4), torch.zeros(4, 2), torch.ones(4, 3)),
+        "c": None,
+    }
     rows = take_rows(tree, torch.tensor([3, 1]))
     assert rows["a"].tolist() == [3, 1] and rows["b"].log_prob.tolist() == [3, 1]
     assert rows["b"].mean.shape == (2, 3) and rows["c"] is None
+
+
+def test_the_energy_term_enters_the_update_only_when_weighted() -> None:
+    """With every other weight 0, an update with energy_coef > 0 lowers the energy of the
+    mean action; with energy_coef 0 (the authors' training) it changes nothing."""
+    torch.manual_seed(0)
+    states, velocity = torch.randn(B, 2), torch.ones(B, 7)
+    energy = lambda mean, v: (
+        mean.square().sum(-1) * v.sum(-1)
+    ).mean()  # a stand-in of losses.energy_loss
+    for coef in (0.0, 1.0):
+        model = TinyActorCritic()
+        before = energy(model.actor(states), velocity).item()
+        with torch.no_grad():
+            actions = model.actor(states)
+            old = model.evaluate(states, actions)
+        batch = Batch(
+            states, actions, old.log_prob, torch.zeros(B, 2), old.values, joint_velocity=velocity
+        )
+        config = PPOConfig(
+            policy_coef=0.0, value_coef=0.0, bound_coef=0.0, energy_coef=coef, epochs=4
+        )
+        optimizer = torch.optim.Adam(model.parameters(), lr=1e-2)
+        stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)),
+                       config, energy=energy)  # fmt: skip
+        after = energy(model.actor(states), velocity).item()
+        assert (
+            (after < before and stats.energy_loss > 0)
+            if coef
+            else (after == before and stats.energy_loss == 0)
+        )
