@@ -44,6 +44,22 @@ def rewards_of(states: Tensor, actions: Tensor) -> Tensor:
     return torch.stack([-(actions - states).square().sum(-1), -0.5 * actions.square().sum(-1)], -1)
 
 
+def update_tiny(
+    model: TinyActorCritic, optimizer: torch.optim.Optimizer, batch: Batch, **kwargs
+) -> object:
+    """One PPO update of the tiny model with actions bounded to [-1, 1]."""
+    config = kwargs.pop("config", PPOConfig())
+    return update(
+        model.evaluate,
+        model.parameters(),
+        optimizer,
+        batch,
+        (-torch.ones(2), torch.ones(2)),
+        config,
+        **kwargs,
+    )
+
+
 def test_ppo_converges_to_the_known_optimum_of_a_two_term_bandit() -> None:
     """One-step episodes with two reward terms: per-term GAE, the summed advantage and the
     update must drive the mean action to s / 1.5 and each value head to its term."""
@@ -88,14 +104,7 @@ def test_the_first_minibatch_neither_stops_nor_moves_the_learning_rate() -> None
     with torch.no_grad():
         old_log_prob = model.evaluate(states, actions).log_prob - 1.0
     batch = Batch(states, actions, old_log_prob, torch.randn(32, 2), torch.randn(32, 2))
-    stats = update(
-        model.evaluate,
-        model.parameters(),
-        optimizer,
-        batch,
-        (-torch.ones(2), torch.ones(2)),
-        PPOConfig(),
-    )
+    stats = update_tiny(model, optimizer, batch)
     assert stats.early_stopped and stats.gradient_steps == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
     assert stats.learning_rate == pytest.approx(2e-4)
@@ -110,14 +119,7 @@ def test_a_policy_that_stays_close_keeps_raising_the_rate_from_the_second_step()
     with torch.no_grad():
         out = model.evaluate(states, actions)
     batch = Batch(states, actions, out.log_prob, torch.zeros(16, 2), out.values)
-    stats = update(
-        model.evaluate,
-        model.parameters(),
-        optimizer,
-        batch,
-        (-torch.ones(2), torch.ones(2)),
-        PPOConfig(),
-    )
+    stats = update_tiny(model, optimizer, batch)
     assert stats.gradient_steps == 8 and not stats.early_stopped
     assert stats.learning_rate == pytest.approx(1e-5 * 1.5**7)
 
@@ -154,8 +156,7 @@ def test_the_energy_term_enters_the_update_only_when_weighted() -> None:
             policy_coef=0.0, value_coef=0.0, bound_coef=0.0, energy_coef=coef, epochs=4
         )
         optimizer = torch.optim.Adam(model.parameters(), lr=1e-2)
-        stats = update(model.evaluate, model.parameters(), optimizer, batch, (-torch.ones(2), torch.ones(2)),
-                       config, energy=energy)  # fmt: skip
+        stats = update_tiny(model, optimizer, batch, config=config, energy=energy)
         after = energy(model.actor(states), velocity).item()
         assert (
             (after < before and stats.energy_loss > 0)
