@@ -6,6 +6,11 @@ Start from a checkpoint (`--checkpoint run/policy.safetensors`, the bytes of a w
 announcement) or, for tests and demos, from random weights (`--random-init hamnet`: version
 0, and a warning that the actions are meaningless). `--print-params` prints the parameter
 counts of every architecture next to the paper's and exits.
+
+`--rollout-horizon T` makes the service chain a rollout source: the policy also publishes
+RolloutChunks of T steps (what it served, joined with the sim's transitions) for
+`hamnet trainer --workers 1 --sim.num-envs B --steps-per-rollout T --max-policy-lag L`,
+with L > 0 because the chain keeps acting while the trainer learns (docs/trainer.md).
 """
 
 from __future__ import annotations

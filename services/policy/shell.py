@@ -17,6 +17,11 @@ Hot reload: an announcement is checked (sha256, metadata, architecture, config, 
 shapes, finiteness) and loaded into a second copy of the network, which replaces the serving
 one between two batches; a bad one is logged as an error and the old weights keep serving.
 Every batch comes from one version and carries it.
+
+Rollouts from the service chain (`--rollout-horizon T`, off by default): the shell also
+consumes `sim/<w>/transition` (Transition k, the outcome of its action k) and publishes
+`trainer/<w>/rollout` (RolloutChunk of T steps, `header.policy_version` = the oldest version
+that acted), assembled by `hamnet.policy.chunking` from what it served.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import torch
 
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.policy import inputs as builder
+from hamnet.policy.chunking import Chunk, ChunkAssembler
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import POSE_WIDTH, VELOCITY_WIDTH, PoseNoiseConfig, RobotObservation
 from hamnet.policy.pairing import Pairing
@@ -40,13 +46,15 @@ from hamnet.policy.weights import WeightsError, from_announcement, load_into
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
-from hamnet.proto.sim_pb2 import RobotState, Scene
+from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
+from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.trainer.chunks import encode_rollout
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +64,8 @@ SCENE = contract.topic("sim/<w>/scene")
 WEIGHTS = contract.topic("trainer/weights")
 SCHEDULE = contract.topic("trainer/schedule")
 ACTION = contract.topic("policy/<w>/action")
-
+TRANSITION = contract.topic("sim/<w>/transition")
+ROLLOUT = contract.topic("trainer/<w>/rollout")
 
 
 # --- decode / encode: pure functions, tested without a session -------------------------
@@ -146,6 +155,40 @@ def decode_scene(message: Scene, env_code_dim: int) -> tuple[np.ndarray, np.ndar
     return env_ids.copy(), env_code.copy()
 
 
+@dataclass(frozen=True)
+class TransitionIn:
+    """Transition k: the outcome of the command that answered state k."""
+
+    step: int
+    episode_ids: np.ndarray
+    """(B,) int64, before any reset."""
+    reward_terms: np.ndarray
+    """(B, R) float32, in the order of `REWARD_NAMES`."""
+    terminated: np.ndarray
+    """(B,) bool."""
+    truncated: np.ndarray
+    """(B,) bool."""
+    success: np.ndarray
+    """(B,) bool."""
+
+
+def decode_transition(message: Transition) -> TransitionIn:
+    """Transition k, its reward terms checked against the critic's (`REWARD_NAMES`).
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (other reward terms), `nonfinite`.
+    """
+    if tuple(message.reward_names) != REWARD_NAMES:
+        raise PayloadError("shape", f"reward terms {list(message.reward_names)}, the critic's "
+                                    f"are {list(REWARD_NAMES)}")  # fmt: skip
+    ids = field_array(message, "episode_ids", np.int64, (None,)).copy()
+    b = len(ids)
+    flags = {name: field_array(message, name, bool, (b,)).copy()
+             for name in ("terminated", "truncated", "success")}  # fmt: skip
+    rewards = field_array(message, "reward_terms", np.float32, (b, len(REWARD_NAMES))).copy()
+    return TransitionIn(message.header.step, ids, rewards, **flags)
+
+
 def encode_action(
     step: int, version: int, episode_ids: np.ndarray, action: Action, deterministic: bool
 ) -> PolicyAction:
@@ -183,10 +226,15 @@ class ShellConfig:
     student_pose_noise: bool = True
     """Add the pose estimator's error model (`PoseNoiseConfig`) to a student's object pose:
     on against the sim, off where the pose already comes from an estimator."""
+    rollout_horizon: int = 0
+    """T > 0: also publish RolloutChunks of T steps for `hamnet trainer` (what was served,
+    joined with the sim's transitions); 0: off."""
 
     def __post_init__(self) -> None:
         if self.pending < 1:
             raise ValueError(f"pending must be >= 1, got {self.pending}")
+        if self.rollout_horizon < 0:
+            raise ValueError(f"rollout_horizon must be >= 0, got {self.rollout_horizon}")
 
 
 class PolicyShell:
@@ -217,6 +265,14 @@ class PolicyShell:
         self.env_transitions: int | None = None
         """The trainer's counter (hamnet.runtime.counter), None before its first Schedule."""
         self.action = service.publisher(ACTION.key(ns, w=w))
+        self.assembler: ChunkAssembler | None = None
+        """Rollout chunks of what was served (None: `rollout_horizon` 0)."""
+        if self.config.rollout_horizon:
+            self.assembler = ChunkAssembler(self.config.rollout_horizon)
+            inbox.subscribe("transition", TRANSITION.key(ns, w=w),
+                            decoder=lambda k, p: decode_transition(parse(Transition, p)))  # fmt: skip
+            self.rollout = service.publisher(ROLLOUT.key(ns, w=w))
+        self.chunks_sent = 0
         self.pairing: Pairing[StateIn, TokensIn] = Pairing(self.config.pending)
         self.generator = torch.Generator(self.device).manual_seed(self.config.seed)
         self.env_code = torch.zeros(0, model.env_code_dim, device=self.device)
@@ -250,6 +306,8 @@ class PolicyShell:
             self._on_scene(*value)
         elif name == "state":
             self._on_state(value)
+        elif name == "transition":
+            self._on_transition(value)
         elif self._fresh(value.step):
             self._serve(self.pairing.add_tokens(value.step, value))
 
@@ -267,6 +325,10 @@ class PolicyShell:
         elif self._fresh(state.step):
             self._serve(self.pairing.add_state(state.step, state))
 
+    def _on_transition(self, t: TransitionIn) -> None:
+        self._publish(self.assembler.add_transition(
+            t.step, t.episode_ids, t.reward_terms, t.terminated, t.truncated, t.success))  # fmt: skip
+
     def _on_scene(self, env_ids: np.ndarray, env_code: np.ndarray) -> None:
         self.env_code = builder.store_env_code(
             self.env_code, torch.from_numpy(env_ids).long(), torch.from_numpy(env_code))
@@ -281,9 +343,8 @@ class PolicyShell:
             return
         started = time.monotonic()
         with torch.inference_mode():
-            action = self.policy.act(
-                self._inputs(state, tokens), self.config.deterministic, self.generator
-            )
+            inputs = self._inputs(state, tokens)
+            action = self.policy.act(inputs, self.config.deterministic, self.generator)
         self.carry = builder.end_step(self.carry, action.action, action.memory)
         message = encode_action(state.step, self.version, state.episode_ids, action,
                                 self.config.deterministic)  # fmt: skip
@@ -291,6 +352,16 @@ class PolicyShell:
         self.answered = (state.step, message)
         self.counts["actions"] += 1
         self.latencies.append(time.monotonic() - started)
+        if self.assembler is not None:
+            self._publish(self.assembler.add_step(
+                state.step, state.episode_ids, inputs, action.action, action.log_prob,
+                action.values, self.version))  # fmt: skip
+
+    def _publish(self, chunks: list[Chunk]) -> None:
+        """Send complete rollout chunks to the trainer."""
+        for chunk in chunks:
+            self.rollout.put(encode_rollout(chunk.rollout, chunk.version, self.chunks_sent))
+            self.chunks_sent += 1
 
     def _inputs(self, state: StateIn, tokens: TokensIn) -> PolicyInputs:
         """The network inputs of a pair, on the device (the builder zeroes the carry of
@@ -351,6 +422,9 @@ class PolicyShell:
             "%d overflow", c["actions"] / elapsed, latency, self.version, c["resent"],
             c["stale"], c["mismatch"], c["rejected"], drops["superseded"], drops["overflow"],
         )  # fmt: skip
+        if self.assembler is not None:
+            log.info("%d rollout chunks sent; partial chunks dropped: %s", self.chunks_sent,
+                     self.assembler.dropped)  # fmt: skip
         self.counts = dict.fromkeys(self.counts, 0)
         self.latencies.clear()
         self._last_report = now
