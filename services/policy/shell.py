@@ -21,7 +21,9 @@ Every batch comes from one version and carries it.
 Rollouts from the service chain (`--rollout-horizon T`, off by default): the shell also
 consumes `sim/<w>/transition` (Transition k, the outcome of its action k) and publishes
 `trainer/<w>/rollout` (RolloutChunk of T steps, `header.policy_version` = the oldest version
-that acted), assembled by `hamnet.policy.chunking` from what it served.
+that acted), assembled by `hamnet.policy.chunking` from what it served once the trainer is
+heard (its first weights announcement or schedule): chunks acted before would only queue up
+at the trainer while it starts and make every later update learn from older data.
 """
 
 from __future__ import annotations
@@ -273,6 +275,8 @@ class PolicyShell:
                             decoder=lambda k, p: decode_transition(parse(Transition, p)))  # fmt: skip
             self.rollout = service.publisher(ROLLOUT.key(ns, w=w))
         self.chunks_sent = 0
+        self.trainer_heard = False
+        """A weights announcement or schedule has arrived: steps served now join chunks."""
         self.pairing: Pairing[StateIn, TokensIn] = Pairing(self.config.pending)
         self.generator = torch.Generator(self.device).manual_seed(self.config.seed)
         self.env_code = torch.zeros(0, model.env_code_dim, device=self.device)
@@ -297,6 +301,7 @@ class PolicyShell:
         return 0
 
     def _handle(self, name: str, value: Any) -> None:
+        self.trainer_heard |= name in ("weights", "schedule")
         if name == "weights":
             self._on_weights(value)
         elif name == "schedule":
@@ -352,7 +357,7 @@ class PolicyShell:
         self.answered = (state.step, message)
         self.counts["actions"] += 1
         self.latencies.append(time.monotonic() - started)
-        if self.assembler is not None:
+        if self.assembler is not None and self.trainer_heard:
             self._publish(self.assembler.add_step(
                 state.step, state.episode_ids, inputs, action.action, action.log_prob,
                 action.values, self.version))  # fmt: skip

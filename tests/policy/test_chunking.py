@@ -14,6 +14,7 @@ from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import Observation
 from hamnet.policy.registry import build
 from hamnet.policy.shell import PolicyShell, ShellConfig, decode_transition
+from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, from_tensor
@@ -173,18 +174,19 @@ def test_a_transition_decodes_to_what_the_sim_sent() -> None:
 
 
 def test_the_shell_publishes_what_it_served_as_a_chunk_the_trainer_decodes() -> None:
-    """States, tokens and transitions of steps 0..T (step T without its transition) make one
-    RolloutChunk whose actions and values are the published actions' and whose inputs the
-    trainer's policy reads; with `rollout_horizon` 0 the shell neither listens to transitions
-    nor publishes chunks."""
+    """Step 0 served before the trainer is heard (its schedule) joins no chunk; steps 1..T
+    with their transitions and step T + 1 make one RolloutChunk whose actions and values are
+    the published actions' and whose inputs the trainer's policy reads. With
+    `rollout_horizon` 0 the shell neither listens to transitions nor publishes chunks."""
     policy = build("hamnet", seed=0)
     messages = []
-    for k in range(T + 1):
+    for k in range(T + 2):
         messages += [("state", state_message(k, B, IDS)), ("tokens", tokens_message(k, B, IDS))]
         transition = encode_transition(
             step_result(np.full((B, R), k), [], [1], []), REWARD_NAMES, k
         )
-        messages += [("transition", transition)] if k < T else []
+        messages += [("transition", transition)] if k <= T else []
+        messages += [("schedule", Schedule(env_transitions=0))] if k == 0 else []
 
     def published(horizon: int) -> list[tuple[str, object]]:
         items = iter([m for m in messages if horizon or m[0] != "transition"])  # off: unheard
@@ -197,16 +199,16 @@ def test_the_shell_publishes_what_it_served_as_a_chunk_the_trainer_decodes() -> 
         PolicyShell(service, policy, 4, ShellConfig(seed=1, rollout_horizon=horizon)).run()
         return service.published
 
-    assert [topic for topic, _ in published(0)] == ["action"] * (T + 1)
+    assert [topic for topic, _ in published(0)] == ["action"] * (T + 2)
     out = published(T)
     actions = [message for topic, message in out if topic == "action"]
     (chunk,) = [message for topic, message in out if topic == "rollout"]
     assert chunk.header.policy_version == 4 and chunk.horizon == T
     rollout = decode_rollout(chunk, policy)
     sent = lambda name: torch.stack([torch.tensor(from_tensor(getattr(m, name))) for m in actions])
-    torch.testing.assert_close(rollout.actions, sent("action")[:T])
-    torch.testing.assert_close(rollout.values, sent("values")[:T])
-    torch.testing.assert_close(rollout.next_values, sent("values")[T])
+    torch.testing.assert_close(rollout.actions, sent("action")[1 : T + 1])
+    torch.testing.assert_close(rollout.values, sent("values")[1 : T + 1])
+    torch.testing.assert_close(rollout.next_values, sent("values")[T + 1])
     torch.testing.assert_close(rollout.final_values[:, 1], rollout.values[:, 1])
     assert rollout.dones[:, 1].all() and not rollout.dones[:, 0].any()
-    torch.testing.assert_close(rollout.rewards[:, 0, 0], torch.arange(T).float())
+    torch.testing.assert_close(rollout.rewards[:, 0, 0], torch.arange(1, T + 1).float())
