@@ -31,7 +31,7 @@ import torch
 from torch import Tensor
 
 from hamnet.policy.networks import PolicyInputs
-from hamnet.trainer.rollout import Rollout
+from hamnet.trainer.trajectory import Rollout, cat_rows
 from hamnet.trainer.trees import zip_trees
 
 DROP_REASONS = ("missing_step", "missing_transition", "episode_mismatch", "batch_size")
@@ -222,7 +222,7 @@ class ChunkAssembler:
         terminated, truncated = stack(outcomes, "terminated"), stack(outcomes, "truncated")
         timed_out = (truncated & ~terminated).unsqueeze(-1)  # (T, B, 1)
         rollout = Rollout(
-            inputs=zip_trees([s.inputs for s in steps], lambda rows: torch.cat(rows, dim=0)),
+            inputs=cat_rows([s.inputs for s in steps]),
             actions=stack(steps, "action"),  # (T, B, A)
             log_prob=stack(steps, "log_prob"),  # (T, B)
             values=values,

@@ -392,6 +392,8 @@ class PolicyShell:
 
     def _on_weights(self, message: WeightsAnnouncement) -> None:
         version = message.version
+        if version == self.version and version > 0:
+            return  # a repeat of what is served (a trainer's last announcement, an answer to a late worker)
         try:
             self._load_spare(message)
         except WeightsError as error:

@@ -26,7 +26,7 @@ from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.codec import decode
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.rewards import REWARD_NAMES
-from hamnet.trainer.rollout import Rollout
+from hamnet.trainer.trajectory import Rollout
 from hamnet.trainer.trees import take_rows
 
 PER_EPISODE = ("object_tokens", "global_tokens", "env_code")

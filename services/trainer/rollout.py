@@ -15,7 +15,6 @@ Shapes: T steps, B environments, A action, R reward terms.
 
 from __future__ import annotations
 
-import dataclasses
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -41,31 +40,8 @@ from hamnet.trainer.resume import (
     set_generator_state,
     tensor_dataclass,
 )
-from hamnet.trainer.trees import take_rows, zip_trees
-
-
-@dataclass(frozen=True)
-class Rollout:
-    """T steps of B environments, time-major."""
-
-    inputs: PolicyInputs
-    """Policy inputs, every tensor (T * B, ...), step t's rows at [t * B, (t + 1) * B)."""
-    actions: Tensor
-    """(T, B, A) raw actions taken."""
-    log_prob: Tensor
-    """(T, B) their log-density under the acting policy."""
-    values: Tensor
-    """(T, B, R) values per reward term of the states acted in."""
-    rewards: Tensor
-    """(T, B, R) reward terms as the sim gave them."""
-    final_values: Tensor
-    """(T, B, R) V(final state) where an episode was truncated at step t, else 0."""
-    dones: Tensor
-    """(T, B) bool: the episode ended at this step (terminated or truncated)."""
-    next_values: Tensor
-    """(B, R) values of the states after the last step."""
-    success: Tensor
-    """(T, B) bool: the episode ended in success at this step."""
+from hamnet.trainer.trajectory import Rollout, cat_rows, merge_environments
+from hamnet.trainer.trees import take_rows
 
 
 @dataclass(frozen=True)
@@ -89,28 +65,6 @@ def _tokens(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Te
     if percepts is None:
         return None, None, None
     return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
-
-
-def _cat_rows(trees: list) -> object:
-    """Concatenate trees of (B, ...) tensors along rows: (len * B, ...), time-major."""
-    return zip_trees(trees, lambda tensors: torch.cat(tensors, dim=0))
-
-
-def merge_environments(rollouts: list[Rollout]) -> Rollout:
-    """One rollout of the environments of several (same T), in the given order."""
-    steps = len(rollouts[0].actions)
-
-    def side_by_side(tensors: list[Tensor]) -> Tensor:
-        """(T * B_i, ...) rows of each, time-major -> (T * sum B_i, ...), time-major."""
-        per_step = [x.reshape(steps, -1, *x.shape[1:]) for x in tensors]  # (T, B_i, ...)
-        merged = torch.cat(per_step, dim=1)
-        return merged.reshape(-1, *merged.shape[2:])
-
-    fields = {
-        f.name: torch.cat([getattr(r, f.name) for r in rollouts], dim=0 if f.name == "next_values" else 1)
-        for f in dataclasses.fields(Rollout) if f.name != "inputs"
-    }  # fmt: skip
-    return Rollout(inputs=zip_trees([r.inputs for r in rollouts], side_by_side), **fields)
 
 
 @torch.no_grad()
@@ -152,7 +106,9 @@ class RolloutWorker:
         safety: SafetyFilter,
         seed: int = 0,
     ) -> None:
-        if env.num_envs != safety.num_envs or (perception is not None and perception.num_envs != env.num_envs):
+        if env.num_envs != safety.num_envs or (
+            perception is not None and perception.num_envs != env.num_envs
+        ):
             raise ValueError("env, perception and safety must hold the same environments")
         self.env, self.perception, self.safety = env, perception, safety
         self.observation: Observation = env.reset(seed=seed)
@@ -201,7 +157,9 @@ class RolloutWorker:
         final_values = torch.zeros_like(rewards)
         timed_out = np.flatnonzero(result.truncated & ~result.terminated)
         if len(timed_out):
-            final_values[timed_out] = self._final_values(policy, result.final_observation, timed_out)
+            final_values[timed_out] = self._final_values(
+                policy, result.final_observation, timed_out
+            )
         self._start(result.reset_ids, result.observation)
         return {
             "inputs": pending.inputs, "actions": acted.action, "log_prob": acted.log_prob,
@@ -213,8 +171,12 @@ class RolloutWorker:
     def finish(self, policy: Policy, records: list[dict[str, object]]) -> Rollout:
         """The rollout of the recorded steps, with the values of the states after them."""
         next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
-        fields = {key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"}
-        return Rollout(inputs=_cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields)
+        fields = {
+            key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"
+        }
+        return Rollout(
+            inputs=cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields
+        )
 
     def snapshot(self) -> Snapshot:
         """The whole state this worker continues from: its env, perception and safety filter
@@ -260,8 +222,12 @@ class RolloutWorker:
         caches make way for the next episodes."""
         rows = torch.as_tensor(env_ids)
         robot = take_rows(builder.robot_observation(final), rows)
-        percepts = None if self.perception is None else self.perception.step(robot.object_pose, rows)
-        inputs = builder.policy_inputs(policy.config, take_rows(self.carry, rows), robot, _tokens(percepts))
+        percepts = (
+            None if self.perception is None else self.perception.step(robot.object_pose, rows)
+        )
+        inputs = builder.policy_inputs(
+            policy.config, take_rows(self.carry, rows), robot, _tokens(percepts)
+        )
         return policy.act(inputs, deterministic=True).values
 
     def _start(self, reset_ids: np.ndarray, observation: Observation) -> None:

@@ -51,7 +51,8 @@ from hamnet.trainer.losses import energy_loss
 from hamnet.trainer.normalization import ReturnScaler
 from hamnet.trainer.ppo import Batch, UpdateStats, update
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
-from hamnet.trainer.rollout import Rollout, RolloutWorker, collect_overlapped
+from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
+from hamnet.trainer.trajectory import Rollout
 
 log = logging.getLogger(__name__)
 

@@ -27,9 +27,9 @@ from hamnet.runtime import contract
 from hamnet.runtime.keys import check_segment
 from hamnet.runtime.service import Service
 from hamnet.trainer.chunks import chunk_decoder
-from hamnet.trainer.rollout import Rollout, merge_environments
 from hamnet.trainer.runner import Collected
 from hamnet.trainer.shell import WEIGHTS, encode_weights
+from hamnet.trainer.trajectory import Rollout, merge_environments
 
 log = logging.getLogger(__name__)
 

@@ -129,7 +129,8 @@ def test_hot_reload_swaps_between_batches_and_bad_weights_keep_the_old_ones() ->
         ("state", state_message(1, B)), ("tokens", tokens_message(1, B)),
         ("weights", corrupt),  # sha256 mismatch
         ("weights", announcement(build("mlp", seed=0), 3)),  # another architecture
-        ("weights", announcement(newer, 1)),  # not newer
+        ("weights", announcement(newer, 0)),  # not newer
+        ("weights", announcement(newer, 1)),  # a repeat of the served version: ignored, not rejected
         ("weights", announcement(newer, 4, data=to_bytes(newer, 5))),  # metadata disagrees
         ("weights", announcement(newer, 6, data=b"garbage")),
         ("state", state_message(2, B)), ("tokens", tokens_message(2, B)),

@@ -12,7 +12,7 @@ from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError, to_tensor
 from hamnet.trainer.chunks import INDEX, chunk_decoder, decode_rollout, encode_rollout
-from hamnet.trainer.rollout import Rollout
+from hamnet.trainer.trajectory import Rollout
 from hamnet.trainer.trees import zip_trees
 from tests.trainer.test_runner import worker
 

@@ -20,8 +20,9 @@ from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
 from hamnet.trainer.evaluate import success_rate
-from hamnet.trainer.rollout import RolloutWorker, collect_overlapped, merge_environments
+from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
 from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.trajectory import merge_environments
 
 B = 2
 
