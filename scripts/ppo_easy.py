@@ -130,6 +130,8 @@ def main() -> int:
     result = {
         "final_success_rate": ours["final_success_rate"],
         "baseline_final_success_rate": baseline["final_success_rate"],
+        "final_goal_return": ours.get("final_goal_return"),
+        "baseline_final_goal_return": baseline.get("final_goal_return"),
         "eval_episodes": ours["eval_episodes"],
         "stage": ours["stage"],
         "stage_definition": ours["stage_definition"],

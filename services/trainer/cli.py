@@ -40,7 +40,7 @@ import tyro
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.stages import STAGES
-from hamnet.trainer.evaluate import success_rate
+from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
@@ -120,11 +120,12 @@ def main(argv: Sequence[str]) -> int:
     except ResumeError as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
-    rate = None
+    held_out = None
     if run.eval_episodes:
-        rate = success_rate(runner.policy, run, run.eval_episodes, runner.env_transitions)
-        log.info("final success rate on %d held-out episodes: %.3f", run.eval_episodes, rate)
-    print(write_summary(run, rate, code))
+        held_out = evaluate(runner.policy, run, run.eval_episodes, runner.env_transitions)
+        log.info("on %d held-out episodes: success rate %.3f, goal return %.4f", run.eval_episodes,
+                 held_out.success_rate, held_out.goal_return)  # fmt: skip
+    print(write_summary(run, held_out, code))
     return 0
 
 

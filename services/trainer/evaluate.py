@@ -1,5 +1,8 @@
 """Success rate of a policy acting with its mean (no exploration noise) on held-out seeds:
-the figure a learning result reports (`final_success_rate`).
+the figure a learning result reports (`final_success_rate`), with the mean goal-reaching
+return of the same episodes (`final_goal_return`): the shaping term's episode sum is
+lambda_r (phi(s_T) - phi(s_0)), positive when the object ends nearer its goal than it
+started, 0 when it never moves, so it shows pushing long before successes do.
 
 The episodes are drawn from the same stage as training but from another seed, so no scene,
 object or start of the evaluation was seen in training. Every environment plays exactly one
@@ -10,18 +13,34 @@ ones, and successes are short.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 
 from hamnet.policy.policy import Policy
+from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.trainer.runner import RunConfig, build_workers
 
 HELD_OUT_SEED_OFFSET = 1_000_003
 """Added to the training seed for evaluation environments (a prime, far from any run seed)."""
 
 
+@dataclass(frozen=True)
+class HeldOut:
+    """How the policy's mean did on held-out episodes."""
+
+    success_rate: float
+    goal_return: float
+    """Mean episode sum of the goal-reaching reward term."""
+
+
 def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitions: int) -> float:
-    """Fraction of `episodes` held-out episodes (one per environment) that succeeded.
+    """Fraction of `episodes` held-out episodes (one per environment) that succeeded."""
+    return evaluate(policy, config, episodes, env_transitions).success_rate
+
+
+def evaluate(policy: Policy, config: RunConfig, episodes: int, env_transitions: int) -> HeldOut:
+    """Success rate and goal return of `episodes` held-out episodes, one per environment.
 
     Args:
         policy: acts deterministically (the mean of its Gaussian).
@@ -29,16 +48,26 @@ def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitio
         episodes: how many episodes, one per environment.
         env_transitions: the schedule counter of the policy (safety's xi annealing).
     """
-    sim = dataclasses.replace(config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes)
+    sim = dataclasses.replace(
+        config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes
+    )
     held_out = dataclasses.replace(config, sim=sim)
     (worker,), _ = build_workers(held_out, groups=1)
     policy.eval()
     ended = np.zeros(episodes, dtype=bool)
     succeeded = np.zeros(episodes, dtype=bool)
+    goal = np.zeros(episodes)
+    column = REWARD_NAMES.index("goal")
     while not ended.all():
-        rollout = worker.collect(policy, config.steps_per_rollout, env_transitions, deterministic=True)
-        for dones, success in zip(rollout.dones.numpy(), rollout.success.numpy(), strict=True):
+        rollout = worker.collect(
+            policy, config.steps_per_rollout, env_transitions, deterministic=True
+        )
+        steps = zip(
+            rollout.dones.numpy(), rollout.success.numpy(), rollout.rewards.numpy(), strict=True
+        )
+        for dones, success, rewards in steps:
+            goal += np.where(ended, 0.0, rewards[:, column])  # (B,) the first episode's steps only
             first = dones & ~ended  # (B,) episodes ending for the first time
             succeeded |= first & success
             ended |= dones
-    return float(succeeded.mean())
+    return HeldOut(float(succeeded.mean()), float(goal.mean()))

@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from hamnet.trainer.evaluate import HeldOut
 from hamnet.trainer.plot import read_metrics
 from hamnet.trainer.runner import RunConfig
 
@@ -26,7 +27,7 @@ def commit() -> str:
     return result.stdout.strip()
 
 
-def write_summary(config: RunConfig, final_success_rate: float | None, code: str) -> Path:
+def write_summary(config: RunConfig, held_out: HeldOut | None, code: str) -> Path:
     """Write `<run_dir>/summary.json` from the run's metrics, trained by the code of commit
     `code` (taken when the run started: the checkout may move while it runs)."""
     rows = read_metrics(config.run_dir)
@@ -34,19 +35,24 @@ def write_summary(config: RunConfig, final_success_rate: float | None, code: str
     keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
     sim = config.sim
     summary = {
-        "final_success_rate": final_success_rate,
+        "final_success_rate": None if held_out is None else held_out.success_rate,
+        "final_goal_return": None if held_out is None else held_out.goal_return,
         "eval_episodes": config.eval_episodes,
         "stage": config.stage,
         "stage_definition": {
-            "scene": dataclasses.asdict(sim.scene), "placement": dataclasses.asdict(sim.placement),
-            "task": dataclasses.asdict(sim.task), "curriculum": dataclasses.asdict(sim.curriculum),
+            "scene": dataclasses.asdict(sim.scene),
+            "placement": dataclasses.asdict(sim.placement),
+            "task": dataclasses.asdict(sim.task),
+            "curriculum": dataclasses.asdict(sim.curriculum),
         },
         "architecture": config.architecture,
         "num_envs": config.num_envs,
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,
         "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
-        "command": " ".join(["hamnet", "trainer", *sys.argv[2:]]) if sys.argv[1:2] == ["trainer"] else " ".join(sys.argv),
+        "command": " ".join(["hamnet", "trainer", *sys.argv[2:]])
+        if sys.argv[1:2] == ["trainer"]
+        else " ".join(sys.argv),
         "seed": config.seed,
         "commit": code,
     }

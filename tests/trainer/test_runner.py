@@ -19,7 +19,7 @@ from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
-from hamnet.trainer.evaluate import success_rate
+from hamnet.trainer.evaluate import evaluate, success_rate
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
 from hamnet.trainer.runner import RunConfig, Runner
 from hamnet.trainer.trajectory import merge_environments
@@ -34,7 +34,9 @@ def tiny_sim():
 
 def worker(timeout: int) -> RolloutWorker:
     sim = stage_config("easy", num_envs=B, num_objects=2, nthread=1)
-    env = VectorEnv(dataclasses.replace(sim, task=dataclasses.replace(TaskConfig(), timeout=timeout)))
+    env = VectorEnv(
+        dataclasses.replace(sim, task=dataclasses.replace(TaskConfig(), timeout=timeout))
+    )
     safety = SafetyFilter(np.zeros((B, 7)), with_profile("training"))
     torch.manual_seed(0)  # the same encoder in every worker
     return RolloutWorker(env, Perception(UniCORN(), B), safety)
@@ -48,7 +50,9 @@ def test_stored_log_probs_are_the_acting_policys() -> None:
     with torch.no_grad():
         evaluated = policy.evaluate(rollout.inputs, actions)
     torch.testing.assert_close(evaluated.log_prob, rollout.log_prob.flatten(), atol=1e-4, rtol=1e-5)
-    torch.testing.assert_close(evaluated.values, rollout.values.reshape(-1, rollout.values.shape[-1]))
+    torch.testing.assert_close(
+        evaluated.values, rollout.values.reshape(-1, rollout.values.shape[-1])
+    )
 
 
 def test_only_timeouts_are_bootstrapped_and_every_end_is_a_done() -> None:
@@ -68,7 +72,14 @@ def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
     metrics = runner.run()
     rows = [json.loads(line) for line in metrics.read_text().splitlines()]
     assert [row["env_transitions"] for row in rows] == [4, 8]
-    for key in ("approx_kl", "clip_fraction", "learning_rate", "env_steps_per_s", "success_rate", "log_std"):
+    for key in (
+        "approx_kl",
+        "clip_fraction",
+        "learning_rate",
+        "env_steps_per_s",
+        "success_rate",
+        "log_std",
+    ):
         assert key in rows[-1]
     weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
     assert weights.architecture == "hamnet" and weights.version == 3
@@ -91,7 +102,9 @@ def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
     runner = Runner(config)
     assert all(worker.perception is None for worker in runner.source.workers)
     runner.run()
-    assert read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
+    assert (
+        read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
+    )
 
 
 def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:
@@ -100,10 +113,34 @@ def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:
     never data. The merged rollout puts the first group's environments first."""
     policy = build("hamnet", seed=0).eval()
     alone = [worker(timeout=3).collect(policy, steps=4, env_transitions=0) for _ in range(2)]
-    merged = collect_overlapped((worker(timeout=3), worker(timeout=3)), policy, steps=4, env_transitions=0)
+    merged = collect_overlapped(
+        (worker(timeout=3), worker(timeout=3)), policy, steps=4, env_transitions=0
+    )
     expected = merge_environments(alone)
-    for name in ("actions", "log_prob", "values", "rewards", "final_values", "dones", "next_values"):
+    for name in (
+        "actions",
+        "log_prob",
+        "values",
+        "rewards",
+        "final_values",
+        "dones",
+        "next_values",
+    ):
         torch.testing.assert_close(getattr(merged, name), getattr(expected, name), msg=name)
-    torch.testing.assert_close(merged.inputs.observation.context, expected.inputs.observation.context)
+    torch.testing.assert_close(
+        merged.inputs.observation.context, expected.inputs.observation.context
+    )
     assert merged.actions.shape[:2] == (4, 2 * B)
     torch.testing.assert_close(merged.actions[:, :B], alone[0].actions)
+
+
+def test_the_held_out_goal_return_sums_the_first_episodes_goal_term() -> None:
+    """A policy that never moves leaves every object where it is: its goal return is the
+    arm's incidental nudges only, near 0; the rate agrees with success_rate."""
+    policy = build("state-mlp", seed=0)
+    for parameter in policy.parameters():
+        parameter.data.zero_()  # the mean action is 0: no residual, middle gains
+    config = RunConfig(architecture="state-mlp", sim=tiny_sim(), steps_per_rollout=4)
+    held_out = evaluate(policy, config, episodes=2, env_transitions=0)
+    assert abs(held_out.goal_return) < 0.01
+    assert held_out.success_rate == success_rate(policy, config, episodes=2, env_transitions=0)
