@@ -15,6 +15,7 @@ writes the result JSON and the curves next to it.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import signal
@@ -28,7 +29,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from hamnet.policy.weights import policy_from, read_checkpoint
+from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.plot import read_metrics
+from hamnet.trainer.runner import RunConfig, stage_sim
 from hamnet.trainer.summary import commit
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,6 +83,21 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
         worker.wait(timeout=30)
 
 
+def goal_return(folder: Path, summary: dict, seed: int) -> float:
+    """The held-out goal return of a run whose summary predates that figure: its final
+    checkpoint evaluated again exactly as the trainer did (deterministic, same held-out
+    episodes), which must reproduce the summary's success rate."""
+    policy = policy_from(read_checkpoint(folder / "checkpoints" / "latest.safetensors"))
+    sim = dataclasses.replace(stage_sim(summary["stage"]), seed=seed)
+    config = RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"])
+    held_out = evaluate(policy, config, summary["eval_episodes"], summary["env_steps"])
+    if held_out.success_rate != summary["final_success_rate"]:
+        raise SystemExit(
+            f"{folder}: evaluated again, success {held_out.success_rate} != {summary['final_success_rate']}"
+        )
+    return held_out.goal_return
+
+
 def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
     """Training success rate of both runs against wall clock and env transitions."""
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
@@ -126,6 +145,9 @@ def main() -> int:
         name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
     }
     curves = {name: read_metrics(folder) for name, folder in dirs.items()}
+    for name, folder in dirs.items():
+        if summaries[name].get("final_goal_return") is None:
+            summaries[name]["final_goal_return"] = goal_return(folder, summaries[name], args.seed)
     ours, baseline = summaries["hamnet"], summaries["baseline"]
     result = {
         "final_success_rate": ours["final_success_rate"],
@@ -141,7 +163,9 @@ def main() -> int:
         "baseline_wall_clock_s": baseline["wall_clock_s"],
         "curve": ours["curve"],
         "baseline_curve": baseline["curve"],
-        "command": " ".join(["python", "scripts/ppo_easy.py", *sys.argv[1:]]),
+        "command": " ".join(
+            ["python", "scripts/ppo_easy.py", *(a for a in sys.argv[1:] if a != "--from-runs")]
+        ),
         "run_commands": {"hamnet": ours["command"], "baseline": baseline["command"]},
         "setup": "both runs side by side on the 2-core machine (about one core each); HAMnet as "
         f"hamnet trainer + one hamnet rollout worker over Zenoh on loopback, policy lag up to {args.max_policy_lag}",
