@@ -20,6 +20,7 @@ from hamnet.runtime.service import Service
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.shell import LoopConfig, SimShell
+from hamnet.sim.stages import StageName, stage_config, stage_in
 
 OwnPrefix = tyro.conf.arg(name="")
 """Drop this field's own prefix (`--num-envs`, not `--sim.num-envs`) but keep its
@@ -31,6 +32,9 @@ class SimServiceConfig:
     """One sim worker: the environments, how they are paced, and one-shot tools."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
+    stage: StageName = "full"
+    """Training stage (`hamnet.sim.stages`): full (the paper's domain) or easy. It sets the
+    defaults of every other sim flag; those flags change any field on top of it."""
     sim: Annotated[SimConfig, OwnPrefix] = field(default_factory=SimConfig)
     loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
     show_scene: int | None = None
@@ -48,7 +52,9 @@ CONFIG = SimServiceConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet sim` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "sim", __doc__)
+    stage = stage_in(argv, "full")
+    default = SimServiceConfig(stage=stage, sim=stage_config(stage))
+    config, identity = parse_service(CONFIG, argv, "sim", __doc__, default=default)
     if config.print_model_path:
         print(model_path())
         return 0

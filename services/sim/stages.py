@@ -18,8 +18,10 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Literal
 
 from hamnet.sim.config import SimConfig
@@ -47,6 +49,16 @@ StageName = Literal["full", "easy"]
 
 STAGES: dict[StageName, SimConfig] = {"full": SimConfig(), "easy": _EASY}
 """Every stage by name."""
+
+
+def stage_in(argv: Sequence[str], default: StageName) -> StageName:
+    """The stage `--stage NAME` picks in a command line (`default` without one), read before
+    the full parse so that it can set the defaults of every `--sim.*` flag; a bad name is
+    left for the full parse to report."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--stage", default=default)
+    name = parser.parse_known_args(list(argv))[0].stage
+    return name if name in STAGES else default
 
 
 def stage_config(name: str, **changes) -> SimConfig:

@@ -25,7 +25,6 @@ curves as PNG.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 import math
@@ -39,7 +38,7 @@ import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
-from hamnet.sim.stages import STAGES
+from hamnet.sim.stages import stage_in
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
@@ -92,13 +91,8 @@ CONFIG = TrainerConfig
 def stage_default(argv: Sequence[str]) -> RunConfig:
     """The run on the stage `--stage` names in `argv` (easy when absent), so every `--sim.*`
     flag changes that stage's value."""
-    known, _ = _STAGE_FLAG.parse_known_args(list(argv))
-    stage = known.stage if known.stage in STAGES else "easy"  # tyro reports a bad name
+    stage = stage_in(argv, "easy")
     return RunConfig(stage=stage, sim=stage_sim(stage))
-
-
-_STAGE_FLAG = argparse.ArgumentParser(add_help=False)
-_STAGE_FLAG.add_argument("--stage", default="easy")
 
 
 def main(argv: Sequence[str]) -> int:

@@ -9,7 +9,7 @@ import pytest
 
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.scene import CUBOID_NAMES
-from hamnet.sim.stages import STAGES, StageName, stage_config
+from hamnet.sim.stages import STAGES, StageName, stage_config, stage_in
 
 
 @pytest.mark.parametrize("name", sorted(STAGES))
@@ -51,3 +51,12 @@ def test_an_unknown_stage_names_the_known_ones() -> None:
 
 def test_the_stage_names_are_the_registered_stages() -> None:
     assert set(typing.get_args(StageName)) == set(STAGES)
+
+
+def test_stage_in_reads_the_stage_a_command_line_picks() -> None:
+    """`--stage` is read before the full parse (its stage sets every other flag's default);
+    an unknown name falls back to the default, for the full parse to report."""
+    assert stage_in(["--num-envs", "4", "--stage", "easy"], "full") == "easy"
+    assert stage_in(["--stage=easy"], "full") == "easy"
+    assert stage_in([], "easy") == "easy"
+    assert stage_in(["--stage", "nope"], "full") == "full"
