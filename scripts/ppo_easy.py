@@ -37,6 +37,10 @@ from hamnet.trainer.summary import commit
 
 ROOT = Path(__file__).resolve().parents[1]
 
+MIN_EPISODES = 100
+"""Points of the curves start once this many training episodes have ended (before, a rate
+over a handful of early, short successes says nothing)."""
+
 
 def free_port() -> int:
     with socket.socket() as probe:
@@ -83,25 +87,23 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
         worker.wait(timeout=30)
 
 
-def goal_return(folder: Path, summary: dict, seed: int) -> float:
-    """The held-out goal return of a run whose summary predates that figure: its final
-    checkpoint evaluated again exactly as the trainer did (deterministic, same held-out
-    episodes), which must reproduce the summary's success rate."""
+def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dict[str, float]:
+    """A run's final checkpoint on `episodes` held-out episodes (deterministic, as the trainer
+    evaluates): more episodes than the trainer's 64 narrow the estimate, which varies from
+    process to process (float rounding follows memory placement and grows through the
+    contacts into other outcomes: the same weights scored 7/64 and 5/64)."""
     policy = policy_from(read_checkpoint(folder / "checkpoints" / "latest.safetensors"))
     sim = dataclasses.replace(stage_sim(summary["stage"]), seed=seed)
     config = RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"])
-    held_out = evaluate(policy, config, summary["eval_episodes"], summary["env_steps"])
-    if held_out.success_rate != summary["final_success_rate"]:
-        raise SystemExit(
-            f"{folder}: evaluated again, success {held_out.success_rate} != {summary['final_success_rate']}"
-        )
-    return held_out.goal_return
+    held_out = evaluate(policy, config, episodes, summary["env_steps"])
+    return {"success_rate": held_out.success_rate, "goal_return": held_out.goal_return}
 
 
 def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
     """Training success rate of both runs against wall clock and env transitions."""
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    for name, rows in curves.items():
+    for name, every in curves.items():
+        rows = [row for row in every if row["episodes"] >= MIN_EPISODES]
         success = [row["success_rate"] for row in rows]
         axes[0].plot(
             [row["wall_clock_s"] / 60 for row in rows],
@@ -133,6 +135,8 @@ def main() -> int:
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "ppo-easy", help="run folders")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "ppo-easy",
                         help="result path without suffix (.json and .png are written)")  # fmt: skip
+    parser.add_argument("--eval-episodes", type=int, default=256,
+                        help="held-out episodes of both final policies, evaluated again at the end")  # fmt: skip
     parser.add_argument(
         "--from-runs", action="store_true", help="no training: summarise the runs in --runs"
     )
@@ -145,16 +149,20 @@ def main() -> int:
         name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
     }
     curves = {name: read_metrics(folder) for name, folder in dirs.items()}
-    for name, folder in dirs.items():
-        if summaries[name].get("final_goal_return") is None:
-            summaries[name]["final_goal_return"] = goal_return(folder, summaries[name], args.seed)
+    again = {name: evaluate_again(folder, summaries[name], args.seed, args.eval_episodes)
+             for name, folder in dirs.items()}  # fmt: skip
     ours, baseline = summaries["hamnet"], summaries["baseline"]
     result = {
-        "final_success_rate": ours["final_success_rate"],
-        "baseline_final_success_rate": baseline["final_success_rate"],
-        "final_goal_return": ours.get("final_goal_return"),
-        "baseline_final_goal_return": baseline.get("final_goal_return"),
-        "eval_episodes": ours["eval_episodes"],
+        "final_success_rate": again["hamnet"]["success_rate"],
+        "baseline_final_success_rate": again["baseline"]["success_rate"],
+        "final_goal_return": again["hamnet"]["goal_return"],
+        "baseline_final_goal_return": again["baseline"]["goal_return"],
+        "eval_episodes": args.eval_episodes,
+        "trainers_own_evaluation": {
+            "episodes": ours["eval_episodes"],
+            "hamnet": ours["final_success_rate"],
+            "baseline": baseline["final_success_rate"],
+        },
         "stage": ours["stage"],
         "stage_definition": ours["stage_definition"],
         "env_steps": ours["env_steps"],
@@ -175,16 +183,16 @@ def main() -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     plot({"HAMnet": curves["hamnet"], "state-mlp": curves["baseline"]},
-         {"HAMnet": ours["final_success_rate"], "state-mlp": baseline["final_success_rate"]},
+         {"HAMnet": result["final_success_rate"], "state-mlp": result["baseline_final_success_rate"]},
          args.out.with_suffix(".png"))  # fmt: skip
-    print(
-        json.dumps(
-            {
-                k: result[k]
-                for k in ("final_success_rate", "baseline_final_success_rate", "env_steps")
-            }
-        )
+    shown = (
+        "final_success_rate",
+        "baseline_final_success_rate",
+        "final_goal_return",
+        "env_steps",
+        "baseline_env_steps",
     )
+    print(json.dumps({key: result[key] for key in shown}))
     return 0
 
 
