@@ -9,10 +9,12 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
 - physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
-  fields and state, stepped 40 physics steps per policy step and nothing else;
-- services: the same loop learning from the service chain (`hamnet sim --stage easy`,
-  `perception`, `policy --rollout-horizon T`, `safety --profile training` processes), which
-  steps on while the trainer learns (policy lag up to 8 accepted).
+  fields and state, stepped 40 physics steps per policy step and nothing else.
+
+Not measured here: the service chain (the policy service assembles chunks with
+`--rollout-horizon`, tests/stack/test_chain_rollouts.py; started from this script, with 64
+environments, its chunks never reached the trainer within 10 minutes: to be found); its
+ratio is null in the JSON line.
 
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
@@ -77,34 +79,29 @@ def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
     return steps / (time.perf_counter() - started), runner
 
 
-CHAIN_LAG = 8
-"""Policy lag the trainer accepts from the service chain, which steps on while it learns."""
-
-
-def streamed_rate(
-    sim: SimConfig, sources: list[list[str]], lag: int, iterations: int, run_dir: Path
-) -> float:
-    """Env steps/s of the loop learning from chunks that the `hamnet` processes `sources`
-    (argument lists) stream, one chunk of each producer (rollout worker or policy service)
-    per update, after one warm-up iteration (which includes their start)."""
+def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) -> float:
+    """Env steps/s of the loop learning from `workers` rollout worker processes of
+    `sim.num_envs / workers` environments each, after one warm-up iteration."""
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     transport = TransportConfig(
-        namespace=f"bench{os.getpid()}p{port}", rendezvous=f"tcp/127.0.0.1:{port}"
+        namespace=f"bench{os.getpid()}w{workers}", rendezvous=f"tcp/127.0.0.1:{port}"
     )
+    each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
     network = ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
-    producers = sum(1 for argv in sources if argv[0] in ("rollout", "policy"))
-    each = dataclasses.replace(sim, num_envs=sim.num_envs // producers)
-    processes = [subprocess.Popen([sys.executable, "-m", "hamnet", *argv, *network],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for argv in sources]  # fmt: skip
+    processes = [
+        subprocess.Popen([sys.executable, "-m", "hamnet", "rollout", "--worker", str(k), "--sim.num-envs",
+                          str(each.num_envs), *network], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for k in range(workers)
+    ]  # fmt: skip
     try:
         with Service(ServiceIdentity("trainer", "bench"), transport) as service:
             config = RunConfig(sim=each, run_dir=run_dir)
             runner = Runner(
-                config, lambda policy: Streamed(service, policy, producers, each.num_envs, lag)
+                config, lambda policy: Streamed(service, policy, workers, each.num_envs)
             )
-            runner.iterate()
+            runner.iterate()  # includes the workers' start
             started = time.perf_counter()
             for _ in range(iterations):
                 runner.iterate()
@@ -118,22 +115,6 @@ def streamed_rate(
         for process in processes:
             process.terminate()
             process.wait(timeout=30)
-
-
-def rollout_workers(sim: SimConfig, workers: int) -> list[list[str]]:
-    """`hamnet rollout` argument lists: `workers` workers sharing the environments."""
-    envs = str(sim.num_envs // workers)
-    return [["rollout", "--worker", str(k), "--sim.num-envs", envs] for k in range(workers)]
-
-
-def service_chain(sim: SimConfig, steps: int) -> list[list[str]]:
-    """The chain sim -> perception -> policy (assembling chunks) -> safety (training profile)."""
-    return [
-        ["sim", "--stage", "easy", "--num-envs", str(sim.num_envs)],
-        ["perception", "--random-init"],
-        ["policy", "--random-init", "hamnet", "--rollout-horizon", str(steps)],
-        ["safety", "--profile", "training"],
-    ]
 
 
 def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
@@ -191,18 +172,12 @@ def main() -> dict:
         progress(f"physics ceiling: {ceiling:.0f} env steps/s")
         streamed = {}
         for workers in (1, 2):
-            sources = rollout_workers(sim, workers)
             streamed[workers] = streamed_rate(
-                sim, sources, 0, iterations, Path(run_dir) / f"workers{workers}"
+                sim, workers, iterations, Path(run_dir) / f"workers{workers}"
             )
             progress(
                 f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
             )
-        steps = RunConfig().steps_per_rollout
-        chain = streamed_rate(
-            sim, service_chain(sim, steps), CHAIN_LAG, iterations, Path(run_dir) / "chain"
-        )
-        progress(f"trainer + the service chain over Zenoh: {chain:.0f} env steps/s")
     return {
         "benchmark": "training",
         "mode": "quick" if args.quick else "full",
@@ -218,12 +193,11 @@ def main() -> dict:
         "workers_1_env_steps_per_s": round(streamed[1], 1),
         "workers_2_env_steps_per_s": round(streamed[2], 1),
         "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),
-        "services_env_steps_per_s": round(chain, 1),
-        "services_vs_inprocess": round(chain / inprocess, 3),
+        "services_vs_inprocess": None,
+        "not_measured": "the service chain (its chunks did not reach this script's trainer: to be found)",
         "goals": {
             "inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33,
             "workers_vs_inprocess_at_least_0.9": max(streamed.values()) / inprocess >= 0.9,
-            "services_vs_inprocess_at_least_0.8": chain / inprocess >= 0.8,
         },
         "cpus": os.cpu_count(),
     }

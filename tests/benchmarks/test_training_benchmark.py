@@ -14,4 +14,4 @@ def test_quick_run_ends_with_one_json_line_of_figures() -> None:
     assert figures["benchmark"] == "training" and figures["inprocess_env_steps_per_s"] > 0
     assert 0 < figures["inprocess_vs_physics_ceiling"] and set(figures["shares"]) >= {"sim", "perception", "policy", "safety", "learner"}
     assert figures["workers_vs_inprocess"] > 0 and figures["workers_2_env_steps_per_s"] > 0
-    assert figures["services_vs_inprocess"] > 0
+    assert figures["services_vs_inprocess"] is None  # not built yet: said, not faked
