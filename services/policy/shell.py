@@ -297,6 +297,9 @@ class PolicyShell:
             received = self.service.receive(timeout=0.1)
             if received is not None:
                 self._handle(received.name, received.value)
+            if self.assembler is not None and not self.trainer_heard:
+                # A trainer announces each version once: ask one that started first (once a second).
+                self.service.inbox.catch_up("weights", WEIGHTS.key(self.service.namespace))
             self._report()
         return 0
 
