@@ -11,10 +11,11 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
 - physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
   fields and state, stepped 40 physics steps per policy step and nothing else.
 
-Not measured here: the service chain (the policy service assembles chunks with
-`--rollout-horizon`, tests/stack/test_chain_rollouts.py; started from this script, with 64
-environments, its chunks never reached the trainer within 10 minutes: to be found); its
-ratio is null in the JSON line.
+Not measured here yet: the service chain (the policy service assembles chunks with
+`--rollout-horizon`, tests/stack/test_chain_rollouts.py). Started from this script its policy
+service subscribed after the trainer's one announcement and never began a chunk; it now asks
+for the weights until it hears the trainer, and the measurement is to be put back. Its ratio
+is null in the JSON line.
 
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
@@ -194,7 +195,7 @@ def main() -> dict:
         "workers_2_env_steps_per_s": round(streamed[2], 1),
         "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),
         "services_vs_inprocess": None,
-        "not_measured": "the service chain (its chunks did not reach this script's trainer: to be found)",
+        "not_measured": "the service chain (to be put back now that its policy service asks for the weights)",
         "goals": {
             "inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33,
             "workers_vs_inprocess_at_least_0.9": max(streamed.values()) / inprocess >= 0.9,

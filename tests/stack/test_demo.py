@@ -78,13 +78,14 @@ def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(demo: De
 
     # The loop turned: every service in it answered the previous one, step after step. The
     # sim's steps are its transitions; a few states (the first ones, sent again while the
-    # others start) are braked by safety before the policy is up.
+    # others start) are braked by safety before the policy is up, and the policy skips a few
+    # more while it swaps in the trainer's weights (about one announcement a second).
     steps = processes["sim"]["published"][demo.key("sim/<w>/transition")]
     assert steps >= 20, processes["sim"]
     assert processes["sim"]["received"]["command"] >= steps
-    for service, path in (("perception", "perception/<w>/tokens"), ("policy", "policy/<w>/action"),
-                          ("safety", "safety/<w>/command")):  # fmt: skip
-        assert processes[service]["published"][demo.key(path)] >= 0.97 * steps, processes[service]
+    for service, path, share in (("perception", "perception/<w>/tokens", 0.97), ("policy", "policy/<w>/action", 0.85),
+                                 ("safety", "safety/<w>/command", 0.97)):  # fmt: skip
+        assert processes[service]["published"][demo.key(path)] >= share * steps, processes[service]
     assert not processes["policy"]["drops"] and not processes["safety"]["drops"]
 
     declared = {path.replace("<namespace>", demo.transport.namespace) for path in stack.outputs}
@@ -106,7 +107,7 @@ def test_the_recording_replays_into_a_monitor_and_a_perception_service(demo: Dem
     inbox.subscribe("health", contract.topic("health/<service>/<w>").pattern_in(ns), Health)
     inbox.subscribe("tokens", contract.topic("perception/<w>/tokens").key(ns, w="0"), PerceptionTokens)
     monitor = spawn("monitor", "--save", str(rrd_path), *transport_args(transport))
-    replay = spawn("replay", str(demo.output(".mcap")), "--speed", "1.5",
+    replay = spawn("replay", str(demo.output(".mcap")), "--speed", "1.0",
                    "--topics", "hamnet/*/sim/**", "hamnet/*/policy/**", "hamnet/*/safety/**",
                    *transport_args(transport))  # fmt: skip
     perception = None
@@ -114,7 +115,7 @@ def test_the_recording_replays_into_a_monitor_and_a_perception_service(demo: Dem
     running: set[str] = set()
     deadline = time.monotonic() + 40
     try:
-        while replay.poll() is None or perception is None:
+        while replay.poll() is None or "perception" not in running:  # stopped only once it is up
             assert time.monotonic() < deadline, f"running {running}, {len(tokens)} tokens"
             received = inbox.get(timeout=0.2)
             if received is not None and received.name == "health":
