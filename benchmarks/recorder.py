@@ -24,7 +24,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -36,14 +35,14 @@ from pathlib import Path
 import numpy as np
 import tyro
 
+from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.recorder.config import RecorderConfig
 from hamnet.recorder.reading import read_file
 from hamnet.recorder.writer import RecordingWriter
-from hamnet.proto.health_pb2 import Health
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import to_tensor
-from hamnet.runtime.transport import TransportConfig, open_session
+from hamnet.runtime.transport import TransportConfig, free_port, open_session
 
 KEY = "hamnet/bench/sim/0/state"
 
@@ -94,8 +93,7 @@ def time_baseline(directory: Path, data: list[bytes]) -> float:
     """Seconds to write the same bytes with file.write."""
     started = time.perf_counter()
     with open(directory / "raw.bin", "wb") as stream:
-        for payload in data:
-            stream.write(payload)
+        stream.writelines(data)
     return time.perf_counter() - started
 
 
@@ -123,12 +121,6 @@ def core_rows(config: RecorderBenchConfig, megabytes: float) -> list[dict]:
                          "us_per_message": seconds / count * 1e6, "ratio": 1.0})  # fmt: skip
         print(f"core {size_kb} kB done", file=sys.stderr, flush=True)
     return rows
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def await_subscription(session, namespace: str) -> None:

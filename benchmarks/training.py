@@ -32,7 +32,6 @@ import argparse
 import dataclasses
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -45,7 +44,7 @@ from tempfile import TemporaryDirectory
 from sim import raw_copy
 
 from hamnet.runtime.service import Service, ServiceIdentity
-from hamnet.runtime.transport import TransportConfig
+from hamnet.runtime.transport import TransportConfig, free_port
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
@@ -83,9 +82,7 @@ def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
 def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) -> float:
     """Env steps/s of the loop learning from `workers` rollout worker processes of
     `sim.num_envs / workers` environments each, after one warm-up iteration."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()
     transport = TransportConfig(
         namespace=f"bench{os.getpid()}w{workers}", rendezvous=f"tcp/127.0.0.1:{port}"
     )

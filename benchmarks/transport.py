@@ -42,7 +42,6 @@ import gc
 import json
 import os
 import platform
-import socket
 import subprocess
 import sys
 import threading
@@ -59,14 +58,6 @@ import numpy as np
 import tyro
 import zenoh
 
-from hamnet.proto.perception_pb2 import PerceptionTokens
-from hamnet.runtime.allocator import keep_large_buffers
-from hamnet.runtime.codec import encode
-from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
-from hamnet.runtime.tensor import from_tensor
-from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.tools.echo import reflect_key
-
 # Run as a script, so benchmarks/ is on sys.path and the core half imports by name.
 from transport_core import (
     BENCH_WORKER,
@@ -78,6 +69,14 @@ from transport_core import (
     make_message,
     stats_us,
 )
+
+from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.runtime.allocator import keep_large_buffers
+from hamnet.runtime.codec import encode
+from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.tensor import from_tensor
+from hamnet.runtime.transport import TransportConfig, free_port, open_session
+from hamnet.tools.echo import reflect_key
 
 RAW_ECHO = Path(__file__).with_name("raw_echo.py")
 PATHS = ("runtime", "raw")
@@ -395,13 +394,6 @@ def warm_up(
 
 # ---------------------------------------------------------------------------------------------
 # Processes: this session holds the rendezvous; the two echoes connect to it.
-
-
-def free_port() -> int:
-    """A loopback TCP port that was free a moment ago."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def transport_flags(transport: TransportConfig) -> list[str]:

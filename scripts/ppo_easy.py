@@ -19,7 +19,6 @@ import dataclasses
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -30,6 +29,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from hamnet.policy.weights import policy_from, read_checkpoint
+from hamnet.runtime.transport import free_port
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.plot import read_metrics
 from hamnet.trainer.runner import RunConfig, stage_sim
@@ -40,12 +40,6 @@ ROOT = Path(__file__).resolve().parents[1]
 MIN_EPISODES = 100
 """Points of the curves start once this many training episodes have ended (before, a rate
 over a handful of early, short successes says nothing)."""
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def hamnet(*args: str, log: Path) -> subprocess.Popen:

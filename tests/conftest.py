@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import uuid
@@ -16,14 +15,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from hamnet.runtime.transport import TransportConfig
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+from hamnet.runtime.transport import TransportConfig, free_port
 
 
 @pytest.fixture

@@ -11,6 +11,7 @@ endpoint over. Routers and remote peers are added with `connect`/`listen`.
 from __future__ import annotations
 
 import json
+import socket
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -99,3 +100,10 @@ def zenoh_config(transport: TransportConfig) -> zenoh.Config:
 def open_session(transport: TransportConfig) -> zenoh.Session:
     """Open a Zenoh session as `transport` describes."""
     return zenoh.open(zenoh_config(transport))
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago (for a rendezvous of its own)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]

@@ -299,6 +299,8 @@ class Runner:
         )
         self.source = InProcess(config) if source is None else source(self.policy)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
+        self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
+        """The energy loss of an action mean, read as the workers' safety profile reads it."""
         self.scaler = ReturnScaler(self.source.num_envs, config.ppo.gamma)
         self.tracker = EpisodeTracker(self.source.num_envs, len(REWARD_NAMES))
         self.env_transitions = 0
@@ -375,7 +377,6 @@ class Runner:
             joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
         )
         self.policy.train()
-        energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         return update(
             self.policy.evaluate,
             self.policy.parameters(),
@@ -383,7 +384,7 @@ class Runner:
             batch,
             self.action_bounds,
             ppo,
-            energy=energy,
+            energy=self.energy,
         )
 
     @property
