@@ -47,13 +47,15 @@ class Tensor(_message.Message):
     def __init__(self, dtype: _Optional[_Union[DType, str]] = ..., shape: _Optional[_Iterable[int]] = ..., data: _Optional[bytes] = ...) -> None: ...
 
 class Header(_message.Message):
-    __slots__ = ("source", "step", "stamp_ns", "policy_version")
+    __slots__ = ("source", "step", "stamp_ns", "policy_version", "run")
     SOURCE_FIELD_NUMBER: _ClassVar[int]
     STEP_FIELD_NUMBER: _ClassVar[int]
     STAMP_NS_FIELD_NUMBER: _ClassVar[int]
     POLICY_VERSION_FIELD_NUMBER: _ClassVar[int]
+    RUN_FIELD_NUMBER: _ClassVar[int]
     source: str
     step: int
     stamp_ns: int
     policy_version: int
-    def __init__(self, source: _Optional[str] = ..., step: _Optional[int] = ..., stamp_ns: _Optional[int] = ..., policy_version: _Optional[int] = ...) -> None: ...
+    run: int
+    def __init__(self, source: _Optional[str] = ..., step: _Optional[int] = ..., stamp_ns: _Optional[int] = ..., policy_version: _Optional[int] = ..., run: _Optional[int] = ...) -> None: ...

@@ -53,6 +53,8 @@ TOKENS = contract.topic("perception/<w>/tokens")
 class StateIn:
     """What perception needs of RobotState k."""
 
+    run: int
+    """The sim's run (`Header.run`): a restarted sim repeats step numbers."""
     step: int
     episode_ids: np.ndarray  # (B,) int64
     object_pose: np.ndarray  # (B, 7) float32: position (m) + quaternion wxyz
@@ -73,7 +75,7 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
             "object cloud must come from depth cameras, which have no topic yet",
         )
     pose = field_array(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
-    return StateIn(message.header.step, episode_ids.copy(), pose.copy())
+    return StateIn(message.header.run, message.header.step, episode_ids.copy(), pose.copy())
 
 
 def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> EpisodeScenes:
@@ -159,7 +161,8 @@ class PerceptionShell:
         self.waiting: StateIn | None = None
         """The newest state whose scenes have not all arrived: answered when they do (Zenoh
         does not order messages across keys, so a scene may follow its state)."""
-        self.answered: tuple[int, PerceptionTokens] | None = None
+        self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
+        """((run, step), tokens) of the last state answered."""
         self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
         self.seconds: list[float] = []
         self._last_report = time.monotonic()
@@ -188,7 +191,7 @@ class PerceptionShell:
             self._on_state(state)
 
     def _on_state(self, state: StateIn) -> None:
-        if self.answered is not None and self.answered[0] == state.step:
+        if self.answered is not None and self.answered[0] == (state.run, state.step):
             self.tokens.put(self.answered[1])  # the sim sent it again: same answer
             self.counts["repeated"] += 1
             return
@@ -215,7 +218,7 @@ class PerceptionShell:
         percepts = self.core.step(torch.from_numpy(state.object_pose))
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
-        self.answered = (state.step, message)
+        self.answered = ((state.run, state.step), message)
         self.counts["published"] += 1
         self.seconds.append(time.perf_counter() - started)
 

@@ -34,7 +34,7 @@ from hamnet.policy.networks import PolicyInputs
 from hamnet.trainer.trajectory import Rollout, cat_rows
 from hamnet.trainer.trees import zip_trees
 
-DROP_REASONS = ("missing_step", "missing_transition", "episode_mismatch", "batch_size")
+DROP_REASONS = ("missing_step", "missing_transition", "episode_mismatch", "batch_size", "restart")
 """Why a partial chunk was dropped."""
 
 
@@ -201,6 +201,15 @@ class ChunkAssembler:
             if not np.array_equal(outcome.episode_ids, served.episode_ids):
                 return "episode_mismatch", k
         raise AssertionError("unreachable")
+
+    def restart(self) -> None:
+        """The sim restarted and counts its steps from 0 again: the partial chunk (if any)
+        is dropped and counted, and the next chunk starts at the next step served."""
+        if self.steps or self.outcomes:
+            self.dropped["restart"] += 1
+        self.steps.clear()
+        self.outcomes.clear()
+        self.start = self.newest = None
 
     def _drop(self, reason: str, through: int) -> None:
         """Count a partial chunk as dropped and forget everything up to step `through`."""

@@ -27,7 +27,7 @@ class Pairing(Generic[S, T]):
         self.tokens: dict[int, T] = {}
         self.dropped: Counter[str] = Counter()
         """Dropped halves by reason: superseded (an older step than a completed pair),
-        overflow (more than `capacity` steps waiting)."""
+        overflow (more than `capacity` steps waiting), or what `clear` was given."""
 
     def add_state(self, step: int, state: S) -> tuple[S, T] | None:
         """Add the state of `step`; returns the pair when its tokens are here."""
@@ -38,6 +38,13 @@ class Pairing(Generic[S, T]):
         """Add the tokens of `step`; returns the pair when its state is here."""
         self.tokens[step] = tokens
         return self._complete(step)
+
+    def clear(self, reason: str) -> None:
+        """Drop every waiting half, counted under `reason` (the producer restarted: none of
+        them will ever be paired)."""
+        for halves in (self.states, self.tokens):
+            self.dropped[reason] += len(halves)
+            halves.clear()
 
     @property
     def waiting(self) -> int:

@@ -7,7 +7,10 @@ its `env_transitions`; until one arrives, the weights' own log std serves). Prod
 `policy/<w>/action` (PolicyAction k:
 `header.step` = k, `header.policy_version` = the weights' version, raw action, log-prob,
 values, module weights). State and tokens are paired by step (`Pairing`); a state sent
-again after its answer gets the same answer again. The network inputs come from the one
+again after its answer gets the same answer again. Steps older than the last answered are
+dropped, unless the state comes from another run of the sim (`Header.run`): a restarted sim
+counts from 0 again, and the policy then follows it at once, with fresh episode carries
+(`hamnet.runtime.freshness`; a step implausibly far ahead is refused). The network inputs come from the one
 input builder (`hamnet.policy.inputs`: previous action, memory resets, EnvCode cache).
 A student reads `RobotState.object_pose_estimate`, the object pose a pose estimator reports on
 the real robot (the sim publishes its true pose there, and the estimator's error model is
@@ -53,6 +56,7 @@ from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
+from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
 from hamnet.sim.rewards import REWARD_NAMES
@@ -77,6 +81,8 @@ ROLLOUT = contract.topic("trainer/<w>/rollout")
 class StateIn:
     """What the policy reads of RobotState k."""
 
+    run: int
+    """The sim's run (`Header.run`)."""
     step: int
     episode_ids: np.ndarray
     """(B,) int64."""
@@ -132,7 +138,7 @@ def decode_state(message: RobotState, privileged: bool, physics_params: int) -> 
     )
     episode_ids = field_array(message, "episode_ids", np.int64, (b,)).copy()
     episode_step = field_array(message, "episode_step", np.int32, (b,)).copy()
-    return StateIn(message.header.step, episode_ids, episode_step, robot)
+    return StateIn(message.header.run, message.header.step, episode_ids, episode_step, robot)
 
 
 def decode_tokens(message: PerceptionTokens, num_tokens: int, token_dim: int) -> TokensIn:
@@ -284,8 +290,13 @@ class PolicyShell:
         self.carry: builder.Carry | None = None
         """Previous action and memory of every environment (None before the first step)."""
         self.pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
-        self.answered: tuple[int, PolicyAction] | None = None
-        self.counts = dict.fromkeys(("actions", "resent", "stale", "mismatch", "rejected"), 0)
+        self.watermark = Watermark()
+        """The sim's run followed and the last step answered in it."""
+        self.answered: PolicyAction | None = None
+        """The answer to the watermark's step, sent again when the sim repeats that state."""
+        self.counts = dict.fromkeys(
+            ("actions", "resent", "stale", "implausible", "restarts", "mismatch", "rejected"), 0
+        )
         self.latencies: list[float] = []
         self._last_report = time.monotonic()
 
@@ -316,22 +327,40 @@ class PolicyShell:
             self._on_state(value)
         elif name == "transition":
             self._on_transition(value)
-        elif self._fresh(value.step):
+        elif self._acts_on(self.watermark.judge_step(value.step)):
             self._serve(self.pairing.add_tokens(value.step, value))
 
-    def _fresh(self, step: int) -> bool:
-        """False for a step older than the last answered (counted) or equal to it."""
-        if self.answered is None or step > self.answered[0]:
-            return True
-        self.counts["stale"] += step < self.answered[0]
-        return False
+    def _acts_on(self, verdict: Verdict) -> bool:
+        """Whether a fresh step; stale and implausible ones are counted (a repeat of the
+        answered step is not: perception repeats its tokens when the sim repeats a state)."""
+        if verdict in (Verdict.STALE, Verdict.IMPLAUSIBLE):
+            self.counts[verdict.value] += 1
+        return verdict is Verdict.FRESH
 
     def _on_state(self, state: StateIn) -> None:
-        if self.answered is not None and state.step == self.answered[0]:
-            self.action.put(self.answered[1])  # the sim sent it again: the same answer
+        verdict = self.watermark.judge(state.run, state.step)
+        if verdict is Verdict.RESTART:
+            self._restart(state)
+        elif verdict is Verdict.REPEAT and self.answered is not None:
+            self.action.put(self.answered)  # the sim sent it again: the same answer
             self.counts["resent"] += 1
-        elif self._fresh(state.step):
-            self._serve(self.pairing.add_state(state.step, state))
+            return
+        elif not self._acts_on(verdict):
+            return
+        self._serve(self.pairing.add_state(state.step, state))
+
+    def _restart(self, state: StateIn) -> None:
+        """Follow the run of `state`: drop what belongs to the sim's previous run."""
+        first = self.watermark.run is None
+        self.watermark.restart(state.run)
+        if first:  # tokens that came before the first state are this run's
+            return
+        log.warning("the sim restarted (another run): following it from step %d", state.step)
+        self.counts["restarts"] += 1
+        self.pairing.clear("restart")
+        self.carry, self.answered = None, None
+        if self.assembler is not None:
+            self.assembler.restart()
 
     def _on_transition(self, t: TransitionIn) -> None:
         self._publish(self.assembler.add_transition(
@@ -357,7 +386,8 @@ class PolicyShell:
         message = encode_action(state.step, self.version, state.episode_ids, action,
                                 self.config.deterministic)  # fmt: skip
         self.action.put(message)
-        self.answered = (state.step, message)
+        self.watermark.advance(state.step)
+        self.answered = message
         self.counts["actions"] += 1
         self.latencies.append(time.monotonic() - started)
         if self.assembler is not None and self.trainer_heard:
@@ -428,9 +458,10 @@ class PolicyShell:
         drops = self.pairing.dropped
         log.info(
             "%.1f actions/s, inference median %.1f ms, version %d, %d resent, %d stale, "
-            "%d mismatched, %d rejected weights, unpaired halves dropped: %d superseded, "
-            "%d overflow", c["actions"] / elapsed, latency, self.version, c["resent"],
-            c["stale"], c["mismatch"], c["rejected"], drops["superseded"], drops["overflow"],
+            "%d implausible, %d sim restarts, %d mismatched, %d rejected weights, unpaired "
+            "halves dropped: %d superseded, %d overflow", c["actions"] / elapsed, latency,
+            self.version, c["resent"], c["stale"], c["implausible"], c["restarts"],
+            c["mismatch"], c["rejected"], drops["superseded"], drops["overflow"],
         )  # fmt: skip
         if self.assembler is not None:
             log.info("%d rollout chunks sent; partial chunks dropped: %s", self.chunks_sent,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import math
+import secrets
 import threading
 import time
 from collections import Counter, deque
@@ -34,6 +35,10 @@ T = TypeVar("T")
 
 CATCH_UP_PERIOD_S = 1.0
 """`Inbox.catch_up` asks the same key at most this often, s (and waits this long for replies)."""
+
+PROCESS_RUN = secrets.randbits(63) + 1
+"""This process's run identity, stamped into `header.run` of everything it publishes: new at
+every start, never 0 (`hamnet.runtime.freshness` tells restarts from stale steps by it)."""
 
 
 class DropCounter:
@@ -209,7 +214,8 @@ class Publisher:
         self._publisher = session.declare_publisher(key)
 
     def put(self, message: Message) -> None:
-        """Encode and publish; fills `header.source` and `header.stamp_ns` where unset.
+        """Encode and publish; fills `header.source`, `header.stamp_ns` and `header.run`
+        (`PROCESS_RUN`) where unset.
 
         Set fields are kept, so a message forwarded unchanged (echo, replay) stays equal.
         """
@@ -226,6 +232,7 @@ class Publisher:
             header = message.header
             header.source = header.source or self.source
             header.stamp_ns = header.stamp_ns or time.time_ns()
+            header.run = header.run or PROCESS_RUN
         return encode(message)
 
     def put_encoded(self, payload: bytes) -> None:

@@ -20,6 +20,9 @@ While the e-stop is latched, actions are ignored and every state gets the brake.
 commands are paced at about the policy period (`BRAKE_PACE`), so a lock-step sim stays near
 real time while no policy drives it.
 One mode per message: STOP when every environment is stopping, else TRACK.
+A state of another run of the sim (`Header.run`: the sim restarted) starts every
+environment's episode afresh in the filter (a new sim may reuse the old episode ids) and
+forgets the old run's answer and action.
 """
 
 from __future__ import annotations
@@ -103,6 +106,8 @@ executor sends one state per period anyway (the 10% absorbs its jitter)."""
 class StateIn:
     """What the filter needs of RobotState k."""
 
+    run: int
+    """The sim's run, `header.run`."""
     step: int
     """k, `header.step`."""
     q: np.ndarray
@@ -129,7 +134,9 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
             raise PayloadError("missing", f"RobotState.{name} is not set")
     episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
     episode_step = from_tensor(message.episode_step, np.int32, (b,))
-    return StateIn(message.header.step, q, dq, episode_ids.copy(), episode_step.copy())
+    return StateIn(
+        message.header.run, message.header.step, q, dq, episode_ids.copy(), episode_step.copy()
+    )
 
 
 @dataclass(frozen=True)
@@ -311,7 +318,8 @@ class SafetyShell:
         """Per clip stage: stats and (B,) clipped environments since its last event."""
         self.last_clip_event: dict[str, float] = {}
         self.counts: dict[str, int] = dict.fromkeys(
-            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog"), 0
+            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog",
+             "restarts"), 0
         )
         self.latencies: list[float] = []
         """State received -> command published, s, since the last rate line."""
@@ -369,6 +377,8 @@ class SafetyShell:
         return self.deadline if self.stopped_by is None else self.brake_at
 
     def _on_state(self, state: StateIn, received_ns: int) -> None:
+        if self.latest is not None and state.run != self.latest.run:
+            self._follow_new_run(state)
         # The sim sends a state again while it waits for its command.
         if self.pending is not None and self.pending.step == state.step:
             return  # still waiting: the first arrival's deadline holds
@@ -392,6 +402,18 @@ class SafetyShell:
         self.latest, self.pending, self.received_at = state, state, received
         self.brake_at = max(self.received_at, self.last_command_at + BRAKE_PACE * self.period)
         self._answer()
+
+    def _follow_new_run(self, state: StateIn) -> None:
+        """The sim restarted: nothing of its old run applies to the new one."""
+        log.warning("the sim restarted (another run) at step %d: every episode starts afresh",
+                    state.step)  # fmt: skip
+        self.counts["restarts"] += 1
+        self.answered, self.pending, self.action = None, None, None
+        if self.filter is not None and len(state.q) == self.num_envs:
+            every = np.arange(self.num_envs)
+            self.filter.start_episodes(every, state.q)
+            if self.stopped_by is not None:  # a restart does not lift a stop
+                self.filter.stop(every)
 
     def _start_episodes(self, state: StateIn) -> None:
         previous = self.latest.episode_ids if self.latest is not None else None
@@ -537,10 +559,10 @@ class SafetyShell:
             log.info(
                 "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
                 "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, stopped by %s, %d env transitions",
+                "%d watchdog stops, %d sim restarts, stopped by %s, %d env transitions",
                 (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
                 c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                self.stopped_by or "nothing", self.env_transitions,
+                c["restarts"], self.stopped_by or "nothing", self.env_transitions,
             )  # fmt: skip
             self.counts = dict.fromkeys(self.counts, 0)
             self.latencies.clear()

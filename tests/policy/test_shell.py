@@ -102,6 +102,30 @@ def test_pairs_by_step_in_any_order_and_a_lost_half_blocks_nothing() -> None:
     assert shell.pairing.dropped["superseded"] == 1 and shell.counts["stale"] == 1
 
 
+def test_a_restarted_sim_is_followed_at_once_and_a_far_future_step_is_refused() -> None:
+    """A new sim counts from 0 again: its first state is answered although the old run's
+    step 5 was answered last, with the episodes' carry started afresh; a state of the same
+    run 10^12 steps ahead is refused (adopting it would make every real step stale). A late
+    state of the old run switches back, and the new run's next state switches again: runs
+    are never retired, or a forger's run could shut the real sim out for good."""
+    policy = build("hamnet", seed=0)
+    old = [m for k in range(6) for m in (("state", state_message(k, B, run=7)),
+                                         ("tokens", tokens_message(k, B)))]  # fmt: skip
+    far = 10**12
+    actions, shell = run(policy, [
+        *old,
+        ("state", state_message(far, B, episode_step=np.zeros(B), run=7)),
+        ("tokens", tokens_message(far, B)),
+        ("state", state_message(0, B, run=8)), ("tokens", tokens_message(0, B)),
+        ("state", state_message(4, B, run=7)),  # late, from the old run
+        ("state", state_message(1, B, run=8)), ("tokens", tokens_message(1, B)),
+    ])  # fmt: skip
+    assert [a.header.step for a in actions] == [0, 1, 2, 3, 4, 5, 0, 1]
+    first = torch.from_numpy(np.frombuffer(actions[6].action.data, np.float32).reshape(B, 21).copy())
+    torch.testing.assert_close(first, expected(policy, 0), atol=1e-5, rtol=1e-5)  # no carry
+    assert shell.counts["implausible"] == 2 and shell.counts["restarts"] == 3
+
+
 def test_a_resent_state_gets_the_same_answer_again() -> None:
     policy = build("mlp", seed=0)
     actions, _ = run(policy, [("state", state_message(0, B)), ("tokens", tokens_message(0, B)),

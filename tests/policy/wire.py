@@ -20,11 +20,13 @@ def _f32(tensor: torch.Tensor, out) -> None:
     to_tensor(tensor.numpy().astype(np.float32), out)
 
 
-def state_message(step: int, batch: int, episode_ids=None, episode_step=None) -> RobotState:
-    """RobotState `step` with the privileged block and the pose estimate (the exact pose, as
-    the sim sends it); random but reproducible per step."""
+def state_message(
+    step: int, batch: int, episode_ids=None, episode_step=None, run: int = 0
+) -> RobotState:
+    """RobotState `step` of the sim's `run` with the privileged block and the pose estimate
+    (the exact pose, as the sim sends it); random but reproducible per step."""
     robot = random_robot(batch, seed=step)
-    message = RobotState(header=Header(step=step))
+    message = RobotState(header=Header(step=step, run=run))
     ids = np.zeros(batch, np.int64) if episode_ids is None else np.asarray(episode_ids, np.int64)
     to_tensor(ids, message.episode_ids)
     steps = np.full(batch, step, np.int32) if episode_step is None else np.asarray(episode_step, np.int32)

@@ -43,10 +43,12 @@ B, S, J = 2, 8, 7
 CONTROL_DT = 0.1 / S
 
 
-def robot_state(step: int, q: np.ndarray | None = None, episode_step: int | None = None):
-    """RobotState `step` of B environments at q (default: home, at rest)."""
+def robot_state(
+    step: int, q: np.ndarray | None = None, episode_step: int | None = None, run: int = 0
+):
+    """RobotState `step` of the sim's `run`, B environments at q (default: home, at rest)."""
     q = np.tile(Q_HOME, (B, 1)) if q is None else q
-    message = RobotState(header=Header(step=step))
+    message = RobotState(header=Header(step=step, run=run))
     to_tensor(q.astype(np.float32), message.q)  # (B, J)
     to_tensor(np.zeros((B, J), np.float32), message.dq)  # (B, J)
     to_tensor(np.arange(B, dtype=np.int64), message.episode_ids)  # (B,)
@@ -270,6 +272,26 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
     assert from_tensor(rejections[0].env_ids).tolist() == [0]
     assert shell.env_transitions == 4096
     assert dict(service.drops.counts) == {("hamnet/t/policy/0/action", "decode"): 1}
+
+
+def test_a_restarted_sim_starts_every_episode_afresh() -> None:
+    """A new run of the sim at step 0 with the old episode ids and episode steps (a sim
+    restarted with the same seed): its command is a fresh filter's, not one that smooths on
+    from the old run's residuals; and it is answered although the old run was at step 3."""
+    action = np.full((B, 21), 0.5, np.float32)
+    old = [m for k in range(4) for m in (("state", encode(robot_state(k, run=1))),
+                                         ("action", encode(policy_action(k, action))))]  # fmt: skip
+    q = np.tile(Q_HOME, (B, 1)) + 0.05
+    items = iter([*old, ("state", encode(robot_state(0, q, episode_step=4, run=2))),
+                  ("action", encode(policy_action(0, action)))])  # fmt: skip
+    service = scripted(lambda published: next(items, "end"))
+    shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
+    assert shell.run() == 0
+    commands = of(service.published, "command")
+    assert [c.header.step for c in commands] == [0, 1, 2, 3, 0]
+    fresh = SafetyFilter(q).command(action.astype(np.float64), q, np.zeros((B, J)), 0)
+    _, restarted = decode_command(commands[-1], B, S, CONTROL_DT)
+    np.testing.assert_allclose(restarted.q_ref, fresh.q_ref, atol=1e-6)
 
 
 def test_watchdog_brakes_without_actions_and_resumes_when_they_return() -> None:
