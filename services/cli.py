@@ -1,7 +1,8 @@
 """`hamnet`: one command for every service and tool of the stack.
 
 `hamnet <command> [options]` runs one command; `hamnet <command> --help` documents its
-options. Commands whose service is not built yet say so and exit with status 2.
+options. Commands whose service is not built yet say so and exit with status 2, as do
+commands given a value they cannot run with (`hamnet.runtime.errors`): one line, no traceback.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 
 from hamnet import __version__
 from hamnet.runtime.allocator import keep_large_buffers
+from hamnet.runtime.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -81,4 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hamnet {command.name}: not built yet{issue}. {command.summary}.", file=sys.stderr)
         return 2
     keep_large_buffers()
-    return importlib.import_module(command.module).main(args[1:])
+    try:
+        return importlib.import_module(command.module).main(args[1:])
+    except ConfigError as error:
+        print(f"hamnet {command.name}: {error}", file=sys.stderr)
+        return 2

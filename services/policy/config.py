@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal, TypeVar, get_args
 
 from hamnet.fr3.limits import ACTION_DIM
 from hamnet.policy.observation import ObservationSpec
@@ -21,6 +22,12 @@ from hamnet.sim.rewards import REWARD_NAMES
 SceneInput = Literal["tokens", "env_code"]
 """What tells the modulation network about the scene: UniCORN scene tokens (local and global
 clouds) or the oracle EnvCode (25 procedural-generation parameters, paper Table tab:env-code)."""
+
+LOG_STD_RANGE = (-20.0, 2.0)
+"""Bounds of the initial log sigma: below e^-20 the Gaussian's log-probabilities overflow
+float32; above e^2 (sigma 7.4) the noise swamps every action component's range."""
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -39,7 +46,10 @@ class LogStdConfig:
     """env_transitions per decay: 1024 vectorized steps of 1024 environments (train.py:564)."""
 
     def __post_init__(self) -> None:
-        if self.decay > 0.0:
+        low, high = LOG_STD_RANGE
+        if not low <= self.initial <= high:
+            raise ValueError(f"log_std.initial must be in [{low:g}, {high:g}], got {self.initial}")
+        if not math.isfinite(self.decay) or self.decay > 0.0:
             raise ValueError(f"decay must be <= 0 (the std shrinks), got {self.decay}")
         if self.interval < 1:
             raise ValueError(f"interval must be >= 1, got {self.interval}")
@@ -109,14 +119,24 @@ class ModelConfig:
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
 
     def __post_init__(self) -> None:
-        for name in ("num_modules", "hyper_rank", "routing_dim", "action_dim"):
+        if self.scene_input not in get_args(SceneInput):
+            raise ValueError(f"scene_input must be one of {get_args(SceneInput)}, "
+                             f"got {self.scene_input!r}")  # fmt: skip
+        for name in ("num_tokens", "token_dim", "env_code_dim", "base_memory", "num_modules",
+                     "hyper_rank", "routing_dim", "action_dim", "num_values"):  # fmt: skip
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for dim, heads in ((self.object_attention_dim, self.object_heads),
                            (self.scene_attention_dim, self.scene_heads)):  # fmt: skip
             if heads < 1 or dim < 1 or dim % heads:
                 raise ValueError(f"attention dim {dim} is not a positive multiple of {heads} heads")
-        for name in ("modulation_hidden", "base_hidden", "mlp_hidden", "attention_out", "state_hidden"):
+        for name in (
+            "modulation_hidden",
+            "base_hidden",
+            "mlp_hidden",
+            "attention_out",
+            "state_hidden",
+        ):
             widths = getattr(self, name)
             if not widths or min(widths) < 1:
                 raise ValueError(f"{name} needs at least one positive width, got {widths}")
@@ -132,18 +152,41 @@ class ModelConfig:
 
     @classmethod
     def from_json(cls, text: str) -> ModelConfig:
-        """Inverse of `to_json`; an unknown or missing field is a ValueError naming it."""
+        """Inverse of `to_json`; an unknown field, or a value of the wrong type or out of
+        range, is a ValueError or TypeError naming it (missing fields take their defaults)."""
         try:
             values = json.loads(text)
         except json.JSONDecodeError as error:
             raise ValueError(f"config is not JSON: {error}") from None
-        if not isinstance(values, dict):
-            raise ValueError("config JSON must be an object")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - names)
-        if unknown:
-            raise ValueError(f"unknown model config fields {unknown}")
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        if isinstance(values.get("log_std"), dict):
-            values["log_std"] = LogStdConfig(**values["log_std"])
-        return cls(**values)
+        return _from_dict(cls, values, "config")
+
+
+def _from_dict(cls: type[T], values: Any, name: str) -> T:
+    """Config `cls` from JSON `values`, each checked against the type of its default."""
+    if not isinstance(values, dict):
+        raise TypeError(f"{name} must be a JSON object, got {values!r}")
+    unknown = sorted(set(values) - {f.name for f in dataclasses.fields(cls)})  # type: ignore[arg-type]
+    if unknown:
+        raise ValueError(f"unknown model config fields {unknown}")
+    defaults = cls()
+    return cls(**{k: _typed(v, getattr(defaults, k), k) for k, v in values.items()})
+
+
+def _typed(value: Any, default: Any, name: str) -> Any:
+    """JSON `value` as the type of `default` (a nested config, bool, int, finite float, str or
+    tuple of those); a TypeError naming the field otherwise."""
+    if dataclasses.is_dataclass(default):
+        return _from_dict(type(default), value, name)
+    if isinstance(default, tuple):
+        if not isinstance(value, list):
+            raise TypeError(f"{name} must be a JSON list, got {value!r}")
+        return tuple(_typed(v, default[0], name) for v in value) if default else tuple(value)
+    if isinstance(default, bool) or isinstance(value, bool):
+        fits = isinstance(value, bool) and isinstance(default, bool)
+    elif isinstance(default, float):
+        fits = isinstance(value, (int, float)) and math.isfinite(value)
+    else:
+        fits = isinstance(value, type(default))
+    if not fits:
+        raise TypeError(f"{name} must be of type {type(default).__name__}, got {value!r}")
+    return value

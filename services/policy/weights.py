@@ -5,7 +5,9 @@ The same bytes travel in `WeightsAnnouncement.safetensors` and sit in checkpoint
 checkpoint is one announcement written to disk. Loading is checked: metadata present and
 known, architecture and config equal to the serving model's, every tensor present with the
 right shape and dtype, nothing extra, every value finite. Any failure is a `WeightsError`
-saying what is wrong; the target model is untouched then.
+saying what is wrong; the target model is untouched then. A network rebuilt from metadata is
+first built on the meta device (shapes, no memory) and checked against the file's tensors,
+so a config asking for a huge network is refused before anything is allocated.
 """
 
 from __future__ import annotations
@@ -91,7 +93,9 @@ def from_bytes(data: bytes) -> Weights:
         config = ModelConfig.from_json(meta["config"])
         version = int(meta["version"])
         architecture = meta["architecture"]
-    except (KeyError, ValueError, TypeError) as error:
+    except KeyError as error:
+        raise WeightsError(f"bad metadata: no {error}") from None
+    except (ValueError, TypeError) as error:
         raise WeightsError(f"bad metadata: {error}") from None
     try:
         tensors = load_tensors(data)
@@ -115,7 +119,9 @@ def from_announcement(message: WeightsAnnouncement) -> Weights:
 def check_fits(policy: Policy, weights: Weights) -> None:
     """Raise WeightsError unless `weights` can replace `policy`'s parameters as they are."""
     if weights.architecture != policy.architecture:
-        raise WeightsError(f"architecture {weights.architecture!r}, serving {policy.architecture!r}")
+        raise WeightsError(
+            f"architecture {weights.architecture!r}, serving {policy.architecture!r}"
+        )
     if weights.config != policy.config:
         raise WeightsError("model config differs from the serving model's")
     expected = policy.state_dict()
@@ -139,13 +145,31 @@ def load_into(policy: Policy, weights: Weights) -> None:
 
 
 def policy_from(weights: Weights, device: str | torch.device = "cpu") -> Policy:
-    """A policy rebuilt from the weights' metadata and loaded with them, in eval mode."""
-    try:
-        policy = build(weights.architecture, weights.config)
-    except (ValueError, TypeError) as error:
-        raise WeightsError(f"cannot build {weights.architecture!r}: {error}") from None
+    """A policy rebuilt from the weights' metadata and loaded with them, in eval mode.
+
+    The metadata is checked against the tensors on a meta-device build first, so a config
+    that asks for more parameters than the file holds allocates nothing.
+    """
+    check_fits(_described(weights), weights)
+    policy = build(weights.architecture, weights.config)
     load_into(policy, weights)
     return policy.to(device).eval()
+
+
+def _described(weights: Weights) -> Policy:
+    """The policy the weights' metadata describes, built on the meta device (shapes only,
+    no memory), once its parameter count matches the tensors in the file."""
+    try:
+        with torch.device("meta"):
+            described = build(weights.architecture, weights.config)
+    except (ValueError, TypeError) as error:
+        raise WeightsError(f"cannot build {weights.architecture!r}: {error}") from None
+    expected = sum(t.numel() for t in described.state_dict().values())
+    held = sum(t.numel() for t in weights.tensors.values())
+    if expected != held:
+        raise WeightsError(f"the model config describes {expected:,} parameters, "
+                           f"the file holds {held:,}")  # fmt: skip
+    return described
 
 
 def save_checkpoint(path: str | Path, policy: Policy, version: int) -> None:

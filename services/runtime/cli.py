@@ -1,15 +1,24 @@
 """Command-line parsing for every `hamnet <command>`: flags generated from the command's
 frozen config dataclass (field docstrings become the `--help` text), with the shared
-transport and logging options flattened to `--namespace`, `--connect`, `--log-level`..."""
+transport and logging options flattened to `--namespace`, `--connect`, `--log-level`...
+
+A value the config refuses is one line on stderr and exit status 2, whichever config it is
+in; so is a period (any field named `*period_s`: report, stats, checkpoint...) that is not
+a positive number of seconds.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Protocol, TypeVar
 
 import tyro
 
+from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.keys import check_segment
 from hamnet.runtime.logs import LogFormat, configure_logging
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.transport import TransportConfig
@@ -40,19 +49,50 @@ class CommonConfig:
     transport: Annotated[TransportConfig, Flattened] = field(default_factory=TransportConfig)
     logging: Annotated[LogConfig, Flattened] = field(default_factory=LogConfig)
 
+    def __post_init__(self) -> None:
+        try:
+            check_segment("worker", self.worker)
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+
 
 def parse(
     config_type: type[C], argv: Sequence[str], prog: str, description: str, default: C | None = None
 ) -> C:
     """Build `config_type` from `argv`, starting from `default` (the type's defaults when
-    None); `--help` prints every option with its docstring."""
-    return tyro.cli(  # type: ignore[call-overload]
-        config_type,
-        args=list(argv),
-        prog=prog,
-        description=description,
-        default=default,
-    )
+    None); `--help` prints every option with its docstring.
+
+    A value the config refuses (a `ConfigError`, or a ValueError from a config's
+    `__post_init__` that tyro lets through) is printed as one line, `prog: message`, and
+    raised as SystemExit(2), the way tyro reports the flags it cannot parse itself.
+    """
+    try:
+        config = tyro.cli(  # type: ignore[call-overload]
+            config_type,
+            args=list(argv),
+            prog=prog,
+            description=description,
+            default=default,
+        )
+        check_periods(config)
+    except (ConfigError, ValueError) as error:
+        print(f"{prog}: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+    return config
+
+
+def check_periods(config: object) -> None:
+    """Raise ConfigError for any field named `*period_s` in `config` (or a config nested in
+    it) that is not a positive number of seconds: a period of 0 or less would make a loop
+    report, log or save on every turn."""
+    for item in dataclasses.fields(config) if dataclasses.is_dataclass(config) else ():
+        value = getattr(config, item.name)
+        if item.name.endswith("period_s") and isinstance(value, (int, float)):
+            if not value > 0:
+                flag = item.name.replace("_", "-")
+                raise ConfigError(f"--{flag} must be > 0 s, got {value}")
+        elif dataclasses.is_dataclass(value):
+            check_periods(value)
 
 
 class HasCommon(Protocol):
@@ -63,7 +103,11 @@ class HasCommon(Protocol):
 
 
 def parse_service(
-    config_type: type[S], argv: Sequence[str], service: str, description: str, default: S | None = None
+    config_type: type[S],
+    argv: Sequence[str],
+    service: str,
+    description: str,
+    default: S | None = None,
 ) -> tuple[S, ServiceIdentity]:
     """Parse a service's command line (from `default`, if given) and set up its logging.
 

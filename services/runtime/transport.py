@@ -6,11 +6,16 @@ rendezvous) and connects to it. Whichever process holds the rendezvous introduce
 others through gossip, so peers form a full mesh with no router and nothing leaves the
 machine; when it exits, the others stay connected and the next process to start takes the
 endpoint over. Routers and remote peers are added with `connect`/`listen`.
+
+Bad settings fail before any session opens, as one-line `ConfigError`s: an endpoint that is
+not a locator `<protocol>/<address>`, a Zenoh config file that is missing or unreadable;
+a session Zenoh then refuses to open is one too, without Zenoh's source locations.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import socket
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,8 +23,17 @@ from typing import Literal
 
 import zenoh
 
+from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.keys import check_segment
+
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7448"
 """Loopback endpoint where local peers meet (7447 is left to Zenoh routers)."""
+
+LOCATOR = re.compile(r"[A-Za-z][A-Za-z0-9_-]*/[^\s?#]+(\?[^\s#]*)?(#\S*)?")
+"""A Zenoh endpoint: `<protocol>/<address>[?<metadata>][#<config>]`, e.g. tcp/127.0.0.1:7447."""
+
+SOURCE_LOCATION = re.compile(r" at /\S+\.rs:\d+\.?")
+"""Where in Zenoh's Rust sources an error was raised: noise on a command line."""
 
 
 @dataclass(frozen=True)
@@ -46,17 +60,37 @@ class TransportConfig:
     """Payload size in bytes from which shared memory is used."""
 
     def __post_init__(self) -> None:
-        if not self.namespace or any(c in self.namespace for c in "/*$?#"):
-            raise ValueError(f"namespace must be one key segment, got {self.namespace!r}")
+        try:
+            check_segment("namespace", self.namespace)
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+        endpoints = {"rendezvous": (self.rendezvous,) if self.rendezvous else (),
+                     "connect": self.connect, "listen": self.listen}  # fmt: skip
+        for name, values in endpoints.items():
+            for endpoint in values:
+                if not LOCATOR.fullmatch(endpoint):
+                    raise ConfigError(f"{name} endpoint {endpoint!r} is not a Zenoh locator "
+                                      "<protocol>/<address>, e.g. tcp/127.0.0.1:7447")  # fmt: skip
+        if self.zenoh_config is not None and not self.zenoh_config.is_file():
+            raise ConfigError(f"Zenoh config file not found: {self.zenoh_config}")
         if self.shm_pool_mb <= 0 or self.shm_threshold < 0:
-            raise ValueError("shm_pool_mb must be > 0 and shm_threshold >= 0")
+            raise ConfigError("shm_pool_mb must be > 0 and shm_threshold >= 0")
 
 
 def zenoh_config(transport: TransportConfig) -> zenoh.Config:
-    """Build the Zenoh config of `transport` (pure: opens nothing)."""
+    """Build the Zenoh config of `transport` (pure: opens nothing).
+
+    Raises:
+        ConfigError: Zenoh refuses the config file or a setting.
+    """
+    try:
+        return _zenoh_config(transport)
+    except zenoh.ZError as error:
+        raise ConfigError(f"Zenoh config: {zenoh_message(error)}") from None
+
+
+def _zenoh_config(transport: TransportConfig) -> zenoh.Config:
     if transport.zenoh_config is not None:
-        if not transport.zenoh_config.is_file():
-            raise FileNotFoundError(f"Zenoh config file not found: {transport.zenoh_config}")
         config = zenoh.Config.from_file(str(transport.zenoh_config))
     else:
         config = zenoh.Config()
@@ -98,8 +132,21 @@ def zenoh_config(transport: TransportConfig) -> zenoh.Config:
 
 
 def open_session(transport: TransportConfig) -> zenoh.Session:
-    """Open a Zenoh session as `transport` describes."""
-    return zenoh.open(zenoh_config(transport))
+    """Open a Zenoh session as `transport` describes.
+
+    Raises:
+        ConfigError: Zenoh cannot open it (for example an endpoint it cannot listen on).
+    """
+    config = zenoh_config(transport)
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        raise ConfigError(f"cannot open the Zenoh session: {zenoh_message(error)}") from None
+
+
+def zenoh_message(error: zenoh.ZError) -> str:
+    """Zenoh's error message on one line, without its Rust source locations."""
+    return " ".join(SOURCE_LOCATION.sub("", str(error)).split())
 
 
 def free_port() -> int:

@@ -51,8 +51,11 @@ class SimConfig:
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
 
     def __post_init__(self) -> None:
-        if self.num_envs < 1 or self.num_objects < 1 or self.size_bins < 1:
-            raise ValueError("num_envs, num_objects and size_bins must be >= 1")
+        for name in ("num_envs", "num_objects", "size_bins"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.nthread < 0:
+            raise ValueError(f"nthread must be >= 0 (0: every core), got {self.nthread}")
         period = self.physics_steps_per_sample * self.control_samples * TIMESTEP
         if self.physics_steps_per_sample < 1 or abs(period - self.policy_period_s) > 1e-9:
             raise ValueError(
@@ -67,8 +70,12 @@ class SimConfig:
         success preset."""
         return dataclasses.replace(
             self.placement,
-            min_position_separation=max(self.placement.min_position_separation, self.task.success_radius),
-            min_orientation_separation=max(self.placement.min_orientation_separation, self.task.success_angle),
+            min_position_separation=max(
+                self.placement.min_position_separation, self.task.success_radius
+            ),
+            min_orientation_separation=max(
+                self.placement.min_orientation_separation, self.task.success_angle
+            ),
         )
 
     @property

@@ -29,7 +29,7 @@ def test_built_command_with_valid_args_is_ok() -> None:
     [
         ({"period-s": "fast"}, "error: Error parsing --period-s: could not convert string to float: 'fast'"),
         ({"perod-s": 1}, "error: Unrecognized options: --perod-s"),
-        ({"shm-pool-mb": 0}, "error: Error parsing common.transport: shm_pool_mb must be > 0"),
+        ({"shm-pool-mb": 0}, "error: hamnet echo: shm_pool_mb must be > 0"),
     ],
 )
 def test_bad_args_of_a_built_command_name_the_flag(args: dict, expected: str) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.transport import TransportConfig, zenoh_config
 
 
@@ -49,7 +50,16 @@ def test_shared_memory_settings_reach_zenoh() -> None:
 
 
 def test_bad_settings_fail_with_clear_errors(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="namespace"):
+    with pytest.raises(ConfigError, match="namespace"):
         TransportConfig(namespace="a/b")
-    with pytest.raises(FileNotFoundError, match="Zenoh config file not found"):
-        zenoh_config(TransportConfig(zenoh_config=tmp_path / "missing.json5"))
+    with pytest.raises(ConfigError, match="Zenoh config file not found"):
+        TransportConfig(zenoh_config=tmp_path / "missing.json5")
+    for endpoint in ("garbage", "tcp/", "/127.0.0.1:7447", "tcp/127.0.0.1:7447 x"):
+        with pytest.raises(ConfigError, match="not a Zenoh locator"):
+            TransportConfig(connect=(endpoint,))
+
+
+def test_locators_zenoh_accepts_pass() -> None:
+    endpoints = ("tcp/127.0.0.1:7447", "tcp/[::1]:7447", "udp/10.0.0.1:7447#iface=eth0",
+                 "tls/example.org:7447?prio=1", "unixsock-stream//tmp/zenoh.sock")  # fmt: skip
+    zenoh_config(TransportConfig(mode="client", rendezvous="", connect=endpoints))
