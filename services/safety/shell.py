@@ -22,7 +22,8 @@ real time while no policy drives it.
 One mode per message: STOP when every environment is stopping, else TRACK.
 A state of another run of the sim (`Header.run`: the sim restarted) starts every
 environment's episode afresh in the filter (a new sim may reuse the old episode ids) and
-forgets the old run's answer and action.
+forgets the old run's answer and action; a state implausibly far ahead of the newest one
+(`hamnet.runtime.freshness`) is dropped, so a forged step cannot supersede the real one.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.safety.config import SafetyConfig
@@ -319,8 +321,11 @@ class SafetyShell:
         self.last_clip_event: dict[str, float] = {}
         self.counts: dict[str, int] = dict.fromkeys(
             ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog",
-             "restarts"), 0
+             "restarts", "implausible"), 0
         )
+        self.watermark = Watermark()
+        """The sim's run and its newest state: a restart is followed, a step implausibly
+        far ahead is dropped."""
         self.latencies: list[float] = []
         """State received -> command published, s, since the last rate line."""
         now = time.monotonic()
@@ -377,8 +382,15 @@ class SafetyShell:
         return self.deadline if self.stopped_by is None else self.brake_at
 
     def _on_state(self, state: StateIn, received_ns: int) -> None:
-        if self.latest is not None and state.run != self.latest.run:
-            self._follow_new_run(state)
+        verdict = self.watermark.judge(state.run, state.step)
+        if verdict is Verdict.IMPLAUSIBLE:
+            self.counts["implausible"] += 1  # a forged or corrupt step must not supersede
+            return
+        if verdict is Verdict.RESTART:
+            if self.watermark.run is not None:
+                self._follow_new_run(state)
+            self.watermark.restart(state.run)
+        self.watermark.advance(max(state.step, self.watermark.step or 0))
         # The sim sends a state again while it waits for its command.
         if self.pending is not None and self.pending.step == state.step:
             return  # still waiting: the first arrival's deadline holds
@@ -559,10 +571,12 @@ class SafetyShell:
             log.info(
                 "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
                 "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, %d sim restarts, stopped by %s, %d env transitions",
+                "%d watchdog stops, %d sim restarts, %d implausible states, stopped by %s, "
+                "%d env transitions",
                 (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
                 c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                c["restarts"], self.stopped_by or "nothing", self.env_transitions,
+                c["restarts"], c["implausible"], self.stopped_by or "nothing",
+                self.env_transitions,
             )  # fmt: skip
             self.counts = dict.fromkeys(self.counts, 0)
             self.latencies.clear()
