@@ -76,8 +76,10 @@ def validate_args(command: Command, argv: list[str]) -> str:
     try:
         with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
             parse(config_type, argv, f"hamnet {command.name}", "")
-    except SystemExit:  # tyro reports bad flags and `__post_init__` errors this way
+    except SystemExit:  # tyro reports bad flags and nested `__post_init__` errors this way
         return _first_lines(output.getvalue()) or "invalid arguments"
+    except ValueError as error:  # a top-level config's `__post_init__` reaches us raw
+        return str(error)
     return ""
 
 
@@ -104,13 +106,15 @@ def not_built(verdicts: list[Verdict]) -> str:
 
 
 def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
-    """The `--check` report: one line per service with its command line and verdict."""
+    """The `--check` report: one line per service with its command line, whether it is
+    critical or auxiliary, and its verdict."""
     commands = [f"hamnet {s.command} [{','.join(s.workers)}]" for s in stack.services.values()]
     name_width = max(len(name) for name in stack.services)
     command_width = max(len(command) for command in commands)
     lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}"]
     for v, command in zip(verdicts, commands, strict=True):
-        lines.append(f"  {v.service:<{name_width}}  {command:<{command_width}}  {v.status}")
+        role = "critical" if stack.services[v.service].is_critical else "auxiliary"
+        lines.append(f"  {v.service:<{name_width}}  {command:<{command_width}}  {role:<9}  {v.status}")
     errors = sum(1 for v in verdicts if v.error)
     missing = not_built(verdicts)
     if errors:

@@ -8,6 +8,7 @@ defaults; `--namespace` (unless `default`) replaces the stack file's namespace.
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -40,6 +41,10 @@ class UpConfig:
     """Also write the end-of-run summary to this file as JSON."""
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
 
+    def __post_init__(self) -> None:
+        if self.duration_s is not None and not (self.duration_s > 0 and math.isfinite(self.duration_s)):
+            raise ValueError(f"--duration-s must be a positive number of seconds, got {self.duration_s}")
+
 
 CONFIG = UpConfig
 """The config `hamnet up` parses."""
@@ -59,10 +64,14 @@ def main(argv: Sequence[str]) -> int:
         return 2
     verdicts = check.check(stack, forwarded(common))
     errors = [v for v in verdicts if v.error]
-    if config.check or errors:
-        report = check.render(str(config.stack), stack, verdicts)
-        print(report, file=sys.stderr if errors and not config.check else sys.stdout)
+    if config.check:
+        print(check.render(str(config.stack), stack, verdicts))
         return 2 if errors else 0
+    for verdict in errors:
+        print(f"hamnet up: {config.stack}: service {verdict.service}: {verdict.error}",
+              file=sys.stderr)
+    if errors:
+        return 2
     duration_s = stack.duration_s if config.duration_s is None else config.duration_s
     report = run(stack, verdicts, common, duration_s)
     print(render(report), flush=True)

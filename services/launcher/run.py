@@ -3,7 +3,9 @@ reports, decide when the run ends, stop every process, and build the report.
 
 The run ends when the user stops it (SIGINT/SIGTERM), when `duration_s` elapses, when the
 `until` service has finished, or when every process has finished: exit status 0. It ends
-with exit status 1 when a process crashes with no restarts left. The launcher itself is a
+with exit status 1 when a process of a critical service fails (crashes with no restarts
+left); a failed process of an auxiliary service (`record`, `monitor` by default) is logged
+and listed in the summary while the rest of the stack goes on. The launcher itself is a
 service (`up/<worker>`) of the stack's namespace: it holds a token and reports its health.
 """
 
@@ -111,11 +113,15 @@ def _supervise(
     all_ready = False
     while service.running:
         for process in supervisor.step():
-            if process.outcome is Outcome.FAILED:
+            if process.outcome is not Outcome.FAILED:
+                continue
+            if process.spec.is_critical:
                 return Ending(f"{process.label} crashed with no restarts left", 1)
+            log.error("%s failed (%s); it is auxiliary: the rest of the stack goes on without it",
+                      process.label, process.exit_text)
         if until and all(p.outcome is Outcome.FINISHED for p in until):
             return Ending(f"{stack.until} finished", 0)
-        if all(p.outcome is Outcome.FINISHED for p in processes):
+        if all(p.outcome in (Outcome.FINISHED, Outcome.FAILED) for p in processes):
             return Ending("every process finished", 0)
         if duration_s is not None and time.monotonic() - started >= duration_s:
             return Ending(f"duration of {duration_s:g} s reached", 0)

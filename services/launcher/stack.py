@@ -12,7 +12,8 @@ same file runs side by side under `--namespace other` without overwriting files.
     outputs: [runs/<namespace>/stack.mcap]
     services:
       sim: {workers: [0, 1], args: {num-envs: 4}, restart: {max_restarts: 3}}
-      watch: {command: echo, args: {period-s: 5}}
+      record: {args: {output: runs/<namespace>/stack.mcap}}   # auxiliary by default
+      watch: {command: echo, args: {period-s: 5}, critical: false}
 """
 
 from __future__ import annotations
@@ -36,6 +37,10 @@ RESERVED_ARGS = {
     "namespace": "the stack's `namespace` key or `hamnet up --namespace`",
 }
 """Flags the launcher sets itself, and where their values come from instead."""
+
+AUXILIARY_COMMANDS = frozenset({"record", "monitor"})
+"""Commands whose services are auxiliary unless a stack file says `critical: true`: they
+observe the control loop, so their failure must not stop it."""
 
 NAMESPACE = "<namespace>"
 """Placeholder replaced by the stack's namespace in arguments and output paths."""
@@ -82,6 +87,11 @@ class ServiceSpec:
     """Command-line options: flag name (without dashes) -> value."""
     restart: RestartPolicy = field(default_factory=RestartPolicy)
     """Restart policy of each of its processes."""
+    critical: bool | None = None
+    """Whether its failure (a crash with no restarts left) stops the stack with exit status 1.
+    An auxiliary service (false) fails alone: the launcher logs it, the rest of the stack goes
+    on, and the summary lists it. null (default): auxiliary for `record` and `monitor`,
+    critical for every other command."""
 
     def __post_init__(self) -> None:
         if not self.workers:
@@ -97,6 +107,11 @@ class ServiceSpec:
                 raise ValueError(
                     f"args: {flag!r} is set by the launcher from {RESERVED_ARGS[flag]}"
                 )
+
+    @property
+    def is_critical(self) -> bool:
+        """`critical`, or its default for the command."""
+        return self.command not in AUXILIARY_COMMANDS if self.critical is None else self.critical
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,8 @@ class ProcessReport:
     service: str
     worker: str
     command: str
+    critical: bool
+    """Whether its failure stops the stack (false: an auxiliary service)."""
     outcome: str
     """finished, stopped, killed, failed, crashed or pending (see supervisor.Outcome)."""
     exit: str
@@ -62,6 +64,12 @@ class Report:
     outputs_missing: list[str]
     """Declared outputs that do not exist."""
 
+    @property
+    def auxiliary_failed(self) -> list[str]:
+        """`record/0 (exit 74)`: every failed process of an auxiliary service."""
+        return [f"{p.service}/{p.worker} ({p.exit})" for p in self.processes
+                if p.outcome == "failed" and not p.critical]
+
     def to_json(self) -> str:
         """The report as a JSON document."""
         return json.dumps(dataclasses.asdict(self), indent=2)
@@ -75,6 +83,7 @@ def process_report(process: Process, liveliness: Liveliness, health: HealthBoard
         service=process.service,
         worker=process.worker,
         command=command,
+        critical=process.spec.is_critical,
         outcome=process.outcome.value,
         exit=process.exit_text,
         returncode=process.returncode,
@@ -125,6 +134,8 @@ def render(report: Report) -> str:
         lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
     for p in report.processes:
         lines += [f"  {p.service}/{p.worker} dropped {n} on {kind}" for kind, n in p.drops.items()]
+    if report.auxiliary_failed:
+        lines.append(f"auxiliary, failed while the stack went on: {', '.join(report.auxiliary_failed)}")
     if report.not_built:
         lines.append(f"not built yet: {report.not_built}")
     for path, size in report.outputs.items():

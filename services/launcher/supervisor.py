@@ -4,7 +4,9 @@ Every worker of a service runs as `python -m hamnet <command> ...` in a session 
 own, so a Ctrl-C in the terminal reaches only the launcher, and the launcher can signal
 the worker's whole process group (its own children included). A process that exits 0 has
 finished and stays down; a non-zero exit or a signal is a crash, restarted after an
-exponential back-off until its service's `max_restarts` is spent. Stopping sends SIGTERM
+exponential back-off until its service's `max_restarts` is spent. Exit status
+`EXIT_NO_RESTART` (74) says a restart would fail the same way (e.g. a full disk): that
+process fails at once, without restarts. Stopping sends SIGTERM
 to every group, waits up to a grace period, then sends SIGKILL to what is left.
 """
 
@@ -23,7 +25,7 @@ from enum import Enum
 
 from hamnet.launcher.output import Output
 from hamnet.launcher.stack import ServiceSpec
-from hamnet.runtime.service import SUPERVISOR_PID_ENV
+from hamnet.runtime.service import EXIT_NO_RESTART, SUPERVISOR_PID_ENV
 
 log = logging.getLogger(__name__)
 
@@ -155,6 +157,10 @@ class Supervisor:
         if process.returncode == 0:
             process.outcome = Outcome.FINISHED
             log.info("%s finished (exit 0)", process.label)
+        elif process.returncode == EXIT_NO_RESTART:
+            process.outcome = Outcome.FAILED
+            log.error("%s stopped on a fault a restart cannot fix (exit %d): not restarted",
+                      process.label, EXIT_NO_RESTART)
         elif process.restarts < policy.max_restarts:
             delay = policy.delay_s(process.restarts)
             process.outcome, process.restart_at = Outcome.RESTARTING, time.monotonic() + delay

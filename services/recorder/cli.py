@@ -4,6 +4,7 @@ schema of each topic (readable by the mcap CLI, Foxglove and Rerun).
     hamnet record -o runs/demo.mcap                      # every key of the namespace
     hamnet record --key-exprs 'hamnet/default/sim/**'    # only the sim's topics
     hamnet record --rotate-mb 500 -o runs/long.mcap      # long-0000.mcap, long-0001.mcap...
+    hamnet record -o runs/demo.mcap                      # again: runs/demo.1.mcap (never replaced)
     hamnet record info runs/demo.mcap [--json]           # topics, counts, rates, duration
 
 Stop it with Ctrl-C (or SIGTERM): the file is finished. Killed harder, it still reads up to
@@ -23,7 +24,7 @@ from hamnet.recorder.config import RecorderConfig
 from hamnet.recorder.record_shell import RecordShell
 from hamnet.recorder.writer import RecordingWriter
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
-from hamnet.runtime.service import Service
+from hamnet.runtime.service import EXIT_NO_RESTART, Service
 
 log = logging.getLogger(__name__)
 
@@ -72,12 +73,16 @@ def main(argv: Sequence[str]) -> int:
     try:
         writer = RecordingWriter(config.recorder, metadata, start_ns)
     except OSError as error:
-        log.error("cannot record: %s", error)
-        return 2
+        log.error("cannot record to %s: %s", error.filename or config.recorder.output,
+                  error.strerror or error)  # fmt: skip
+        return EXIT_NO_RESTART
+    if writer.output != writer.requested:
+        log.warning("%s exists: recording to %s (a recording never replaces a file)",
+                    writer.requested, writer.output)  # fmt: skip
     try:
         with Service(identity, config.common.transport, inbox_capacity=config.queue_size) as service:
             shell = RecordShell(service, writer, config.key_exprs, config.duration_s,
                                 config.report_period_s)  # fmt: skip
             return shell.run()
     finally:
-        writer.close()
+        writer.abandon()  # only when the service failed to start: run() ends the file

@@ -25,12 +25,10 @@ class RecorderConfig:
     """Where a recording goes, its chunks and its rotation."""
 
     output: Annotated[Path | None, tyro.conf.arg(aliases=("-o",))] = None
-    """Recording file. None: runs/record/<UTC date-time>.mcap. With rotation, files are
-    <stem>-0000.mcap, <stem>-0001.mcap, ... beside it (replay and info take them all)."""
-    overwrite: bool = True
-    """Replace existing files (a rotating recording also removes the numbered files of an
-    earlier one with the same name), as `hamnet up` does when it reruns a stack;
-    --no-overwrite refuses to start instead."""
+    """Recording file. None: runs/record/<UTC date-time>.mcap. Never replaced: when it
+    exists, the recording goes to <stem>.1.mcap, <stem>.2.mcap, ... (the first free part).
+    With rotation, files are <stem>-0000.mcap, <stem>-0001.mcap, ... beside it. Replay and
+    info given <stem>.mcap read every part and file."""
     compression: Compression = "zstd"
     """Chunk compression: zstd (smaller), lz4 (faster) or none."""
     chunk_mb: float = 1.0

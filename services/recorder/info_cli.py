@@ -1,5 +1,5 @@
-"""`hamnet record info FILE...`: summarise a recording (one file, or the rotated files of
-one recording): topics with message counts, rates and sizes, duration, files with their
+"""`hamnet record info FILE...`: summarise a recording (one file, the parts of a restarted
+recorder's sequence, or the rotated files of one recording): topics with message counts, rates and sizes, duration, files with their
 size, chunks and compression, and whether each was finished (a recorder killed mid-file
 leaves a file read up to its last chunk)."""
 
@@ -15,6 +15,8 @@ from typing import Annotated
 import tyro
 
 from hamnet.recorder.info import format_text, summarise
+from hamnet.recorder.reading import unreadable
+from hamnet.recorder.sequence import recording_files
 from hamnet.runtime.cli import parse
 
 
@@ -23,7 +25,8 @@ class InfoConfig:
     """Which recording to summarise and how to print it."""
 
     files: Annotated[tuple[Path, ...], tyro.conf.Positional]
-    """MCAP files of one recording (e.g. runs/long-*.mcap)."""
+    """MCAP files of one recording (e.g. runs/long-*.mcap); the first file of a sequence
+    (runs/demo.mcap) stands for every part of it (runs/demo.1.mcap, ...)."""
     json: bool = False
     """Print one JSON object instead of text."""
 
@@ -31,11 +34,11 @@ class InfoConfig:
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet record info` with arguments `argv`; returns the exit status."""
     config = parse(InfoConfig, argv, "hamnet record info", __doc__)
-    missing = [str(path) for path in config.files if not path.is_file()]
-    if not config.files or missing:
-        detail = f"no such file: {', '.join(missing)}" if missing else "give at least one file"
-        print(f"hamnet record info: {detail}", file=sys.stderr)
+    files = recording_files(config.files)
+    problem = unreadable(files)
+    if problem:
+        print(f"hamnet record info: {problem}", file=sys.stderr)
         return 2
-    info = summarise(config.files)
+    info = summarise(files)
     print(json.dumps(info.to_json()) if config.json else format_text(info))
     return 0

@@ -18,7 +18,7 @@ from pathlib import Path
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap.stream_reader import StreamReader, breakup_chunk
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,30 @@ class FileContents:
     """Whether the footer was reached (False: the writer never finished it, e.g. a crash)."""
     stopped: str = ""
     """Why reading stopped before the footer (truncated chunk, corrupt record...)."""
+
+
+MAGIC = b"\x89MCAP0\r\n"
+"""The 8 bytes every MCAP file starts with."""
+
+
+def unreadable(paths: Sequence[Path]) -> str:
+    """Why `paths` cannot be read as a recording, in one line; '' when they can (each exists
+    and starts with the MCAP magic; a file cut short later on still reads to its last chunk).
+    """
+    if not paths:
+        return "give at least one file"
+    missing = [str(path) for path in paths if not path.is_file()]
+    if missing:
+        return f"no such file: {', '.join(missing)}"
+    for path in paths:
+        try:
+            with open(path, "rb") as stream:
+                start = stream.read(len(MAGIC))
+        except OSError as error:
+            return f"cannot read {path}: {error.strerror}"
+        if start != MAGIC:
+            return f"{path} is not an MCAP file (it does not start with the MCAP magic)"
+    return ""
 
 
 def read_file(path: Path, contents: FileContents | None = None) -> Iterator[RecordedMessage]:

@@ -7,6 +7,10 @@ other processes. Zenoh callbacks only enqueue the payload in the service's bound
 thread reads each payload's header stamp (the publish time) and writes it with its receive
 time as log time. A payload on a contract key that is not its contract's message is counted
 (`decode`) and dropped, so that every protobuf channel decodes with standard tools.
+
+A write that fails (a full disk, an I/O error) stops the recording: one error line, the
+file cut back to its last complete chunk (readable), exit status `EXIT_NO_RESTART`, which
+`hamnet up` does not restart (a new recorder would fail the same way).
 """
 
 from __future__ import annotations
@@ -18,7 +22,8 @@ from dataclasses import dataclass
 from hamnet.recorder.headers import header_of
 from hamnet.recorder.writer import RecordingWriter
 from hamnet.runtime import keys
-from hamnet.runtime.service import Service
+from hamnet.runtime.pubsub import Received
+from hamnet.runtime.service import EXIT_NO_RESTART, Service
 
 log = logging.getLogger(__name__)
 
@@ -61,30 +66,46 @@ class RecordShell:
                                     remote_only=True)  # fmt: skip
 
     def run(self) -> int:
-        """Record until stopped (signal, or `duration_s`), then finish the file."""
+        """Record until stopped (signal, or `duration_s`), then finish the file; returns the
+        exit status (`EXIT_NO_RESTART` after a failed write)."""
+        writer = self.writer
+        log.info("recording %s to %s", ", ".join(self.key_exprs), writer.paths[0])
+        try:
+            self._record()
+            writer.close()
+        except OSError as error:
+            writer.abandon()
+            log.error("cannot write the recording (%s): stopped; %s reads up to its last "
+                      "complete chunk", error.strerror or error, ", ".join(map(str, writer.paths)))  # fmt: skip
+            return EXIT_NO_RESTART
+        log.info("recorded %d messages (%d payload bytes, %d dropped) in %s", writer.messages,
+                 writer.payload_bytes, self.service.drops.total, ", ".join(map(str, writer.paths)))  # fmt: skip
+        return 0
+
+    def _record(self) -> None:
         service, writer = self.service, self.writer
         started = last_report = time.monotonic()
         reported = (0, 0)
-        log.info("recording %s to %s", ", ".join(self.key_exprs), writer.paths[0])
-        try:
-            while service.running:
-                now = time.monotonic()
-                if self.duration_s and now - started >= self.duration_s:
-                    break
-                received = service.receive(timeout=0.1)
-                if received is not None:
-                    log_time = received.received_ns + self._wall_offset_ns
-                    payload: Payload = received.value
-                    writer.write(received.key, payload.data, log_time, payload.stamp_ns or log_time)
-                writer.poll(time.time_ns())
-                if now - last_report >= self.report_period_s:
-                    reported = self._report(now - last_report, reported)
-                    last_report = now
-        finally:
-            writer.close()
-        log.info("recorded %d messages (%d payload bytes, %d dropped) in %s", writer.messages,
-                 writer.payload_bytes, service.drops.total, ", ".join(map(str, writer.paths)))  # fmt: skip
-        return 0
+        while service.running:
+            now = time.monotonic()
+            if self.duration_s and now - started >= self.duration_s:
+                break
+            received = service.receive(timeout=0.1)
+            if received is not None:
+                self._write(received)
+            writer.poll(time.time_ns())
+            if now - last_report >= self.report_period_s:
+                reported = self._report(now - last_report, reported)
+                last_report = now
+        # What was received before the stop goes into the file too: every payload the
+        # subscriptions counted is written or counted as dropped.
+        while (received := service.inbox.get(timeout=0)) is not None:
+            self._write(received)
+
+    def _write(self, received: Received) -> None:
+        log_time = received.received_ns + self._wall_offset_ns
+        payload: Payload = received.value
+        self.writer.write(received.key, payload.data, log_time, payload.stamp_ns or log_time)
 
     def _report(self, elapsed_s: float, before: tuple[int, int]) -> tuple[int, int]:
         writer = self.writer

@@ -8,7 +8,8 @@ monitor and perception work on it unchanged.
     hamnet replay runs/demo.mcap --step             # Enter: one step (state to state)
     hamnet replay runs/long-*.mcap --topics 'hamnet/*/sim/**' --namespace replayed
 
-Files of one rotated recording are merged in log-time order; an unfinished file (recorder
+Files of one rotated recording, and the parts of a restarted recorder's sequence
+(demo.mcap, demo.1.mcap, ...: give the first), are merged in log-time order; an unfinished file (recorder
 killed) replays up to its last chunk. See docs/recorder.md.
 """
 
@@ -23,8 +24,9 @@ from typing import Annotated
 import tyro
 
 from hamnet.recorder.config import ReplayConfig
-from hamnet.recorder.reading import read_recording, summary_counts
+from hamnet.recorder.reading import read_recording, summary_counts, unreadable
 from hamnet.recorder.replay_shell import ReplayShell
+from hamnet.recorder.sequence import recording_files
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 
@@ -36,7 +38,8 @@ class ReplayServiceConfig:
     """Which recording to replay, and how."""
 
     files: Annotated[tuple[Path, ...], tyro.conf.Positional] = ()
-    """MCAP files of one recording (e.g. runs/long-*.mcap)."""
+    """MCAP files of one recording (e.g. runs/long-*.mcap); the first file of a sequence
+    (runs/demo.mcap) stands for every part of it (runs/demo.1.mcap, ...)."""
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     replay: Annotated[ReplayConfig, Flattened] = field(default_factory=ReplayConfig)
 
@@ -48,12 +51,13 @@ CONFIG = ReplayServiceConfig
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet replay` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "replay", __doc__)
-    missing = [str(path) for path in config.files if not path.is_file()]
-    if not config.files or missing:
-        log.error("give the recording's files%s", f"; not found: {', '.join(missing)}" * bool(missing))
+    files = recording_files(config.files)
+    problem = unreadable(files)
+    if problem:
+        log.error("cannot replay: %s", problem)
         return 2
     # Totals for progress lines come from the files' summaries, when every file has one.
-    expected = None if config.replay.topics else summary_counts(config.files)
+    expected = None if config.replay.topics else summary_counts(files)
     with Service(identity, config.common.transport) as service:
-        messages = read_recording(config.files)
+        messages = read_recording(files)
         return ReplayShell(service, config.replay, messages, expected).run()

@@ -9,8 +9,11 @@ channel without schema (schema id 0, message encoding "") rather than dropped.
 Crash safety: the writer closes each chunk itself (by size or age) and hands it to the
 operating system at once, so a process killed even with SIGKILL leaves a file that the
 standard sequential MCAP reader reads up to its last completed chunk (only the summary at
-the end is missing). Rotation starts a new self-contained file (its own schemas and
-channels) by size or by the time it spans.
+the end is missing). A write that fails (a full disk) raises OSError; `abandon` then cuts
+the file back to its last complete chunk. Rotation starts a new self-contained file (its
+own schemas and channels) by size or by the time it spans. Existing files are never
+replaced: the recording goes to the next free part of the output's sequence
+(`hamnet.recorder.sequence`).
 """
 
 from __future__ import annotations
@@ -18,7 +21,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
 
 from mcap.well_known import MessageEncoding
 from mcap.writer import CompressionType, Writer
@@ -26,6 +28,8 @@ from mcap_protobuf.schema import register_schema
 
 from hamnet import __version__
 from hamnet.recorder.config import Compression, RecorderConfig
+from hamnet.recorder.sequence import file_path, next_part
+from hamnet.recorder.sink import FileSink
 from hamnet.runtime.contract import match_key
 
 COMPRESSION: dict[Compression, CompressionType] = {
@@ -54,18 +58,12 @@ def default_output(start_ns: int) -> Path:
     return Path("runs") / "record" / f"{stamp}.mcap"
 
 
-def file_path(output: Path, rotates: bool, index: int) -> Path:
-    """The `index`-th file of a recording: `output` itself, or `<stem>-<index:04d>.mcap`
-    beside it when the recording rotates (names sort in recording order)."""
-    return output.with_name(f"{output.stem}-{index:04d}.mcap") if rotates else output
-
-
 @dataclass
 class _OpenFile:
     """The file being written and what it already holds."""
 
     path: Path
-    stream: BinaryIO
+    stream: FileSink
     writer: Writer
     opened_ns: int
     channels: dict[str, int] = field(default_factory=dict)
@@ -88,7 +86,11 @@ class RecordingWriter:
         """
         self.config = config
         self.metadata = dict(metadata)
-        self.output = config.output or default_output(start_ns)
+        self.requested = config.output or default_output(start_ns)
+        """The output asked for; `output` differs when that one already exists."""
+        self.requested.parent.mkdir(parents=True, exist_ok=True)
+        self.output = next_part(self.requested)
+        """The part of the output's sequence this recording writes."""
         self.paths: list[Path] = []
         """Every file of the recording so far, in order."""
         self.messages = 0
@@ -98,10 +100,12 @@ class RecordingWriter:
         self._sequence: dict[str, int] = {}
         self._pending_bytes = 0
         self._chunk_opened_ns: int | None = None
-        if config.overwrite and config.rotates:
-            for stale in self.output.parent.glob(f"{self.output.stem}-[0-9][0-9][0-9][0-9].mcap"):
-                stale.unlink()  # else an earlier, longer recording's tail would mix with this one
-        self._file: _OpenFile | None = self._open(start_ns)
+        self._file: _OpenFile | None = None
+        try:
+            self._open(start_ns)
+        except OSError:
+            self.abandon()  # no empty or torn file left behind
+            raise
 
     def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
         """Append one message, unchanged.
@@ -146,23 +150,33 @@ class RecordingWriter:
         self._maybe_rotate(now_ns)
 
     def close(self) -> None:
-        """Finish the current file (last chunk, indexes, summary, footer)."""
+        """Finish the current file (last chunk, indexes, summary, footer).
+
+        Raises:
+            OSError: the file could not be finished (call `abandon`).
+        """
         if self._file is not None:
             self._finish(self._file)
             self._file = None
 
+    def abandon(self) -> None:
+        """Stop after a failed write: close the current file without writing more, cut back
+        to its last complete chunk (what it holds stays readable, without a summary)."""
+        if self._file is not None:
+            if self._file.stream.abandon():
+                self.paths.remove(self._file.path)  # it held nothing: no empty file is left
+            self._file = None
+
     def _open(self, now_ns: int) -> _OpenFile:
         path = file_path(self.output, self.config.rotates, len(self.paths))
-        if path.exists() and not self.config.overwrite:
-            raise FileExistsError(f"{path} exists (--no-overwrite)")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        stream = open(path, "wb")  # noqa: SIM115 - closed by _finish
-        writer = Writer(stream, chunk_size=NEVER, compression=COMPRESSION[self.config.compression])
-        writer.start(profile=PROFILE, library=LIBRARY)
-        writer.add_metadata("hamnet", {**self.metadata, "file_index": str(len(self.paths))})
-        stream.flush()
+        stream = FileSink(path)
         self.paths.append(path)
-        return _OpenFile(path, stream, writer, now_ns)
+        self._file = _OpenFile(path, stream, Writer(
+            stream, chunk_size=NEVER, compression=COMPRESSION[self.config.compression]), now_ns)
+        self._file.writer.start(profile=PROFILE, library=LIBRARY)
+        self._file.writer.add_metadata("hamnet", {**self.metadata, "file_index": str(len(self.paths) - 1)})
+        self._file.writer.flush()
+        return self._file
 
     def _channel(self, key: str) -> int:
         """Channel id of `key` in the current file, registering it (and its schema) first."""
@@ -200,6 +214,6 @@ class RecordingWriter:
 
     def _finish(self, file: _OpenFile) -> None:
         file.writer.finish()
-        file.stream.close()
+        file.stream.close()  # a failure leaves it open for `abandon`
         self._pending_bytes = 0
         self._chunk_opened_ns = None

@@ -18,6 +18,7 @@ import os
 import signal
 import threading
 import time
+from collections import Counter
 from dataclasses import dataclass
 from types import FrameType, TracebackType
 
@@ -33,6 +34,11 @@ log = logging.getLogger(__name__)
 SUPERVISOR_PID_ENV = "HAMNET_SUPERVISOR_PID"
 """Set by `hamnet up` for its children: they stop when that process is gone, so a launcher
 killed with SIGKILL leaves nothing behind."""
+
+EXIT_NO_RESTART = 74
+"""Exit status of a service that stopped on a fault a restart cannot fix (EX_IOERR of
+sysexits.h: its output cannot be written, e.g. the disk is full): `hamnet up` does not
+restart it, it fails at once."""
 
 ALIVE = contract.topic("alive/<service>/<w>")
 HEALTH = contract.topic("health/<service>/<w>")
@@ -66,6 +72,8 @@ class Service:
         self.identity = identity
         self.transport = transport
         self.drops = DropCounter()
+        self.events: Counter[str] = Counter()
+        """Notable events by name since the start (`count_event`), in every health report."""
         self.health_period_s = health_period_s
         self._inbox_capacity = inbox_capacity
         self._stop = threading.Event()
@@ -134,6 +142,11 @@ class Service:
             self._publishers[key] = Publisher(self.session, key, self.identity.source)
         return self._publishers[key]
 
+    def count_event(self, name: str) -> None:
+        """Count one `name` event (e.g. the sim's `loop_stalls`): health reports carry the
+        totals, and `hamnet up` sums them in its summary."""
+        self.events[name] += 1
+
     def receive(self, timeout: float = 0.1) -> Received | None:
         """Next message for the run loop; publishes health when it is due."""
         self._loops += 1
@@ -162,6 +175,7 @@ class Service:
         if self.inbox is not None:
             report.received.update(self.inbox.received)
         report.published.update({key: p.published for key, p in self._publishers.items()})
+        report.events.update(self.events)
         report.drops.extend(
             DropCount(key=key, reason=reason, count=count)
             for (key, reason), count in sorted(self.drops.counts.items())

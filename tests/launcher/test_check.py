@@ -72,7 +72,7 @@ def test_check_exits_2_and_names_the_problem(tmp_path: Path, capsys) -> None:
     path.write_text("services: {watch: {command: echo, args: {period-s: fast}}}")
     assert main(["--check", str(path)]) == 2
     out = capsys.readouterr().out
-    assert "watch  hamnet echo [0]  error: Error parsing --period-s" in out
+    assert "watch  hamnet echo [0]  critical   error: Error parsing --period-s" in out
     assert out.rstrip().endswith("1 of 1 services cannot run as written")
 
 
@@ -81,3 +81,24 @@ def test_check_of_a_file_with_an_unknown_key_exits_2(tmp_path: Path, capsys) -> 
     path.write_text("services: {echo: {}}\nuntill: echo\n")
     assert main(["--check", str(path)]) == 2
     assert "untill: unknown key (did you mean 'until'?)" in capsys.readouterr().err
+
+
+def test_a_value_a_command_refuses_is_one_line_for_check_and_up(tmp_path: Path, capsys) -> None:
+    """`num-envs: -1` printed a traceback from the sim's config (issue 13)."""
+    path = tmp_path / "bad.yaml"
+    path.write_text("services: {sim: {args: {num-envs: -1}}}")
+    assert main(["--check", str(path)]) == 2
+    assert "sim  hamnet sim [0]  critical   error: " in capsys.readouterr().out
+    assert main([str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"hamnet up: {path}: service sim: ") and "\n" not in err
+
+
+def test_a_negative_duration_is_refused(tmp_path: Path, capsys) -> None:
+    """`hamnet up --duration-s -5` started the stack and stopped it at once with exit 0."""
+    path = tmp_path / "ok.yaml"
+    path.write_text("services: {echo: {}}")
+    with pytest.raises(SystemExit) as exited:
+        main([str(path), "--duration-s", "-5"])
+    assert exited.value.code == 2
+    assert "--duration-s must be a positive number of seconds" in capsys.readouterr().err

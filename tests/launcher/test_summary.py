@@ -45,7 +45,7 @@ def test_output_files_lists_files_and_folders_with_sizes(tmp_path: Path) -> None
 
 def test_render_shows_processes_missing_services_and_outputs() -> None:
     process = ProcessReport(
-        service="watch", worker="0", command="echo", outcome="stopped", exit="exit 0",
+        service="watch", worker="0", command="echo", critical=True, outcome="stopped", exit="exit 0",
         returncode=0, restarts=1, uptime_s=4.2, ready_s=0.3, announced=2, pids=[11, 12],
         received={"stack": 12}, published={}, drops={"hamnet/ns/x: decode": 3}, loop_rate_hz=9.87,
     )

@@ -47,3 +47,15 @@ def test_cli_prints_json_and_flags_an_unfinished_file(tmp_path: Path, capsys) ->
     assert main(["info", str(tmp_path / "cut.mcap")]) == 0
     assert "UNFINISHED" in capsys.readouterr().out
     assert main(["info", str(tmp_path / "missing.mcap")]) == 2
+
+
+def test_a_file_that_is_not_mcap_is_refused_by_info_and_replay(tmp_path: Path, capsys) -> None:
+    """`record info` and `replay` on a text file exited 0 (issue 13)."""
+    from hamnet.recorder.replay_cli import main as replay_main
+
+    path = tmp_path / "notes.mcap"
+    path.write_text("not a recording\n")
+    assert main(["info", str(path)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"hamnet record info: {path} is not an MCAP file (it does not start with the MCAP magic)")
+    assert replay_main([str(path)]) == 2

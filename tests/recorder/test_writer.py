@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 from mcap.exceptions import McapError
-from mcap.reader import make_reader, NonSeekingReader
+from mcap.reader import NonSeekingReader, make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from hamnet.recorder.config import RecorderConfig
 from hamnet.recorder.reading import FileContents, read_file, read_recording
-from hamnet.recorder.writer import RecordingWriter, file_path
-from tests.recorder.recordings import RAW, STATE, T0, lock_step, write
+from hamnet.recorder.sequence import file_path, recording_files
+from tests.recorder.recordings import RAW, STATE, lock_step, write
 
 STEPS = 20
 
@@ -111,25 +111,28 @@ def test_a_file_cut_anywhere_reads_up_to_its_last_complete_chunk(tmp_path: Path)
     assert 0 < counts[0] < max(counts) == len(messages)  # the last cuts are in the summary
 
 
-def test_existing_files_are_replaced_unless_no_overwrite(tmp_path: Path) -> None:
-    path = tmp_path / "a.mcap"
+def test_an_existing_file_is_never_replaced_the_recording_goes_to_the_next_part(
+    tmp_path: Path,
+) -> None:
+    """A restarted recorder used to reopen its output and overwrite it (27 MB became 3 MB);
+    now every run writes the next free part of the sequence and the readers take them all."""
+    path = tmp_path / "run.mcap"
     path.write_bytes(b"keep me")
-    with pytest.raises(FileExistsError, match="--no-overwrite"):
-        RecordingWriter(RecorderConfig(output=path, overwrite=False), {}, T0)
+    second = write(path, lock_step(3))
+    third = write(path, lock_step(4))
     assert path.read_bytes() == b"keep me"
-    RecordingWriter(RecorderConfig(output=path), {}, T0).close()
-    assert list(read_file(path)) == []
+    assert (second.paths, third.paths) == ([tmp_path / "run.1.mcap"], [tmp_path / "run.2.mcap"])
+    assert recording_files([path]) == [path, *second.paths, *third.paths]
+    assert recording_files([tmp_path / "run.1.mcap"]) == second.paths  # its own sequence: none
 
 
-def test_a_rotating_recording_replaces_every_file_of_an_earlier_one(tmp_path: Path) -> None:
-    """A shorter rerun under the same name must not leave the earlier run's later files,
-    which `replay run-*.mcap` would mix in."""
+def test_a_rotating_recording_run_again_rotates_within_the_next_part(tmp_path: Path) -> None:
     first = write(tmp_path / "run.mcap", lock_step(STEPS), rotate_s=0.5)
-    other = tmp_path / "run-other.mcap"
-    other.write_bytes(b"not ours")
     second = write(tmp_path / "run.mcap", lock_step(3), rotate_s=0.5)
-    assert len(first.paths) > len(second.paths) == 1
-    assert sorted(tmp_path.iterdir()) == [second.paths[0], other]
+    assert len(first.paths) > 1 and second.paths == [tmp_path / "run.1-0000.mcap"]
+    assert recording_files([tmp_path / "run.mcap"]) == first.paths + second.paths
+    merged = list(read_recording(recording_files([tmp_path / "run.mcap"])))
+    assert len(merged) == len(lock_step(STEPS)) + len(lock_step(3))
 
 
 def test_file_names_are_predictable() -> None:

@@ -237,14 +237,23 @@ def test_a_recorder_killed_with_sigkill_leaves_a_file_readable_to_its_last_chunk
 def test_a_burst_beyond_the_queue_is_recorded_or_counted_as_overflow_in_health(
     spawn, transport: TransportConfig, tmp_path: Path
 ) -> None:
-    """The recorder never blocks Zenoh: with a queue of 1 payload, a burst of large
-    messages overflows it; every payload delivered is either in the file or counted as
-    overflow in Health."""
-    ns, path = transport.namespace, tmp_path / "burst.mcap"
+    """The recorder never blocks Zenoh: with a queue of 1 payload and a writer that cannot
+    write, a burst overflows the queue; every payload delivered is either in the file or
+    counted as overflow in Health.
+
+    This failed once when the recorder kept up with the burst and nothing overflowed. The
+    writer is now held by the test: the output is a FIFO that the test reads only after the
+    burst, so the recorder's first full chunk (1 MB) blocks in `write` and the burst can only
+    overflow."""
+    ns, fifo = transport.namespace, tmp_path / "burst.mcap"
     key = f"hamnet/{ns}/test/burst"
+    os.mkfifo(fifo)
+    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)  # the recorder's open does not wait
+    os.set_blocking(reader, True)
+    drained = bytearray()
     session = open_session(transport)
     try:
-        recorder = spawn("record", "-o", str(path), "--queue-size", "1",
+        recorder = spawn("record", "-o", str(fifo), "--queue-size", "1",
                          *transport_args(transport))  # fmt: skip
         wait_until_recording(session, transport, recorder)
         health = Inbox(session, DropCounter())
@@ -254,12 +263,19 @@ def test_a_burst_beyond_the_queue_is_recorded_or_counted_as_overflow_in_health(
         for index in range(BURST):
             burst.put_encoded(index.to_bytes(4, "little") + payload)
         time.sleep(1.0)
+        drain = threading.Thread(target=lambda: [drained.extend(part) for part in iter(
+            lambda: os.read(reader, 1 << 20), b"")])  # fmt: skip
+        drain.start()
         assert stop(recorder) == 0
+        drain.join(timeout=30)
         reports = []
         while (received := health.get(timeout=1.0)) is not None:
             reports.append(received.value)
     finally:
         session.close()
+        os.close(reader)
+    path = tmp_path / "drained.mcap"
+    path.write_bytes(drained)
     recorded = list(read_file(path))
     final = reports[-1]
     overflow = {d.key: d.count for d in final.drops if d.reason == "overflow"}

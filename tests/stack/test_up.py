@@ -134,17 +134,19 @@ services:
 
 
 def test_process_that_keeps_crashing_exhausts_its_restarts_and_fails_the_stack(tmp_path, transport):
-    stack = write_stack(tmp_path, """
+    bad_config = tmp_path / "bad.json5"
+    bad_config.write_text("{ not json5")  # passes `--check` (the file exists), fails at start
+    stack = write_stack(tmp_path, f"""
 services:
   broken:
     command: echo
-    args: {zenoh-config: /nonexistent/zenoh.json5}
-    restart: {max_restarts: 2, backoff_s: 0.05, backoff_max_s: 0.1}
-  watch: {command: echo, workers: [w]}
+    args: {{zenoh-config: {bad_config}}}
+    restart: {{max_restarts: 2, backoff_s: 0.05, backoff_max_s: 0.1}}
+  watch: {{command: echo, workers: [w]}}
 """)
     with up(stack, transport, cwd=tmp_path) as run:
         assert run.wait(timeout=30) == 1, run.output
-    assert "broken/0 crashed (exit 1) with no restarts left (max_restarts: 2)" in run.output
+    assert "broken/0 crashed (exit 2) with no restarts left (max_restarts: 2)" in run.output
     summary = run.summary()
     assert summary["exit_code"] == 1
     assert summary["ended"] == "broken/0 crashed with no restarts left"

@@ -12,7 +12,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -34,12 +34,17 @@ def alive(pid: int) -> bool:
 class Up:
     """One `python -m hamnet up` run."""
 
-    def __init__(self, stack: Path, transport: TransportConfig, *args: str, cwd: Path) -> None:
+    def __init__(
+        self, stack: Path, transport: TransportConfig, *args: str, cwd: Path,
+        wrapper: Sequence[str] = (),
+    ) -> None:
+        """`wrapper`: a command line that ends by running its arguments (e.g. `unshare ...
+        sh -c '...; exec "$@"' sh`); the launcher's pid is then that command's."""
         self.summary_path = cwd / "summary.json"
         self.lines: list[str] = []
         self._changed = threading.Condition()
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "hamnet", "up", str(stack), *transport_args(transport),
+            [*wrapper, sys.executable, "-m", "hamnet", "up", str(stack), *transport_args(transport),
              "--summary-json", str(self.summary_path), *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -106,9 +111,11 @@ class Up:
 
 
 @contextmanager
-def up(stack: Path, transport: TransportConfig, *args: str, cwd: Path) -> Iterator[Up]:
+def up(
+    stack: Path, transport: TransportConfig, *args: str, cwd: Path, wrapper: Sequence[str] = ()
+) -> Iterator[Up]:
     """Run `hamnet up stack` for the duration of the block; nothing outlives it."""
-    run = Up(stack, transport, *args, cwd=cwd)
+    run = Up(stack, transport, *args, cwd=cwd, wrapper=wrapper)
     try:
         yield run
     finally:
