@@ -30,7 +30,7 @@ class DropCount(_message.Message):
     def __init__(self, key: _Optional[str] = ..., reason: _Optional[str] = ..., count: _Optional[int] = ...) -> None: ...
 
 class Health(_message.Message):
-    __slots__ = ("header", "service", "worker", "state", "uptime_s", "received", "published", "drops", "loop_rate_hz")
+    __slots__ = ("header", "service", "worker", "state", "uptime_s", "received", "published", "drops", "loop_rate_hz", "events")
     class ReceivedEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -39,6 +39,13 @@ class Health(_message.Message):
         value: int
         def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     class PublishedEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class EventsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
         VALUE_FIELD_NUMBER: _ClassVar[int]
@@ -54,6 +61,7 @@ class Health(_message.Message):
     PUBLISHED_FIELD_NUMBER: _ClassVar[int]
     DROPS_FIELD_NUMBER: _ClassVar[int]
     LOOP_RATE_HZ_FIELD_NUMBER: _ClassVar[int]
+    EVENTS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     service: str
     worker: str
@@ -63,4 +71,5 @@ class Health(_message.Message):
     published: _containers.ScalarMap[str, int]
     drops: _containers.RepeatedCompositeFieldContainer[DropCount]
     loop_rate_hz: float
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., service: _Optional[str] = ..., worker: _Optional[str] = ..., state: _Optional[_Union[ServiceState, str]] = ..., uptime_s: _Optional[float] = ..., received: _Optional[_Mapping[str, int]] = ..., published: _Optional[_Mapping[str, int]] = ..., drops: _Optional[_Iterable[_Union[DropCount, _Mapping]]] = ..., loop_rate_hz: _Optional[float] = ...) -> None: ...
+    events: _containers.ScalarMap[str, int]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., service: _Optional[str] = ..., worker: _Optional[str] = ..., state: _Optional[_Union[ServiceState, str]] = ..., uptime_s: _Optional[float] = ..., received: _Optional[_Mapping[str, int]] = ..., published: _Optional[_Mapping[str, int]] = ..., drops: _Optional[_Iterable[_Union[DropCount, _Mapping]]] = ..., loop_rate_hz: _Optional[float] = ..., events: _Optional[_Mapping[str, int]] = ...) -> None: ...

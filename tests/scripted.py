@@ -5,6 +5,7 @@ publishes."""
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -60,6 +61,7 @@ class ScriptedService:
     session: _Session = field(default_factory=_Session)
     running: bool = True
     caught_up: list[tuple[str, str]] = field(default_factory=list)
+    events: Counter[str] = field(default_factory=Counter)
 
     def __post_init__(self) -> None:
         self.inbox, self.decoders = self, {}
@@ -77,6 +79,9 @@ class ScriptedService:
 
     def publisher(self, key: str) -> CapturingPublisher:
         return CapturingPublisher(key, self.published)
+
+    def count_event(self, name: str) -> None:
+        self.events[name] += 1
 
     def receive(self, timeout: float = 0.1) -> Received | None:
         while (item := self.script(self.published)) is not None:

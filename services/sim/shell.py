@@ -35,12 +35,14 @@ from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
 from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
+from hamnet.sim.stall import StallWatch
 
 log = logging.getLogger(__name__)
 
@@ -151,6 +153,16 @@ class LoopConfig:
     often, s, so services started after the sim get going."""
     report_period_s: float = 10.0
     """Seconds between rate lines in the log."""
+    stall_s: float = 2.0
+    """Seconds without a command, once the first has come, that make a stall of the closed
+    loop (`hamnet.sim.stall`): logged, and counted as a `loop_stalls` event in the health
+    reports that `hamnet up` sums. 2 s is 20 periods of the paper's 10 Hz policy."""
+
+    def __post_init__(self) -> None:
+        for name in ("resend_s", "stall_s"):
+            value = getattr(self, name)
+            if value <= 0:
+                raise ConfigError(f"--{name.replace('_', '-')} must be > 0 s, got {value}")
 
 
 class SimShell:
@@ -177,6 +189,7 @@ class SimShell:
         self.observation: Observation | None = None
         self.stale = 0
         """Commands ignored because they answered another step than the current one."""
+        self.stall = StallWatch(loop.stall_s)
         self._rates = _Rates(env)
 
     def run(self) -> int:
@@ -204,6 +217,7 @@ class SimShell:
         last_sent = time.monotonic()
         while not self.finished:
             self._rates.maybe_report(self)
+            self._watch_stall()
             received = self.service.receive(timeout=0.05)
             if received is None:
                 if time.monotonic() - last_sent >= self.loop.resend_s:
@@ -218,6 +232,7 @@ class SimShell:
                 self._stale(step)
                 continue
             self._step(command)
+            self._commanded()  # the wait for the next command starts once this step is done
             last_sent = time.monotonic()
 
     def _free_running(self) -> None:
@@ -226,11 +241,14 @@ class SimShell:
         tick = time.monotonic()
         while not self.finished:
             self._rates.maybe_report(self)
+            self._watch_stall()
             tick += period
             while self.service.running and (remaining := tick - time.monotonic()) > 0:
                 received = self.service.receive(timeout=min(remaining, 0.1))
                 answer = self._handle(received) if received is not None else None
-                command = answer[1] if answer is not None else command  # whatever its step
+                if answer is not None:
+                    command = answer[1]  # whatever its step
+                    self._commanded()
             if self.finished:
                 break
             if command is None:
@@ -275,6 +293,17 @@ class SimShell:
     def _scene_of(self, env_ids: np.ndarray) -> Scene:
         """The Scene message of the current episodes of `env_ids` (K,)."""
         return encode_scene(self.env.scenes(env_ids), self.step)
+
+    def _watch_stall(self) -> None:
+        if self.stall.check(time.monotonic()):
+            log.warning("no command for %.1f s at step %d: the closed loop is stalled",
+                        self.loop.stall_s, self.step)  # fmt: skip
+            self.service.count_event("loop_stalls")
+
+    def _commanded(self) -> None:
+        ended = self.stall.commanded(time.monotonic())
+        if ended is not None:
+            log.info("commands arrive again at step %d after a %.1f s stall", self.step, ended)
 
     def _stale(self, step: int) -> None:
         self.stale += 1
