@@ -147,11 +147,6 @@ class Service:
         totals, and `hamnet up` sums them in its summary."""
         self.events[name] += 1
 
-    def count_event(self, name: str) -> None:
-        """Count one `name` event (e.g. the sim's `loop_stalls`): health reports carry the
-        totals, and `hamnet up` sums them in its summary."""
-        self.events[name] += 1
-
     def receive(self, timeout: float = 0.1) -> Received | None:
         """Next message for the run loop; publishes health when it is due."""
         self._loops += 1
@@ -180,7 +175,6 @@ class Service:
         if self.inbox is not None:
             report.received.update(self.inbox.received)
         report.published.update({key: p.published for key, p in self._publishers.items()})
-        report.events.update(self.events)
         report.events.update(self.events)
         report.drops.extend(
             DropCount(key=key, reason=reason, count=count)
