@@ -42,6 +42,9 @@ class ProcessReport:
     """Messages published per key, from its Health reports."""
     drops: dict[str, int]
     """Dropped payloads per `key: reason`."""
+    events: dict[str, int]
+    """Notable events by name from its Health reports (the sim's `loop_stalls`: times the
+    closed loop sent no command for `--stall-s`)."""
     loop_rate_hz: float | None
     """Mean loop rate while running."""
 
@@ -95,6 +98,7 @@ def process_report(process: Process, liveliness: Liveliness, health: HealthBoard
         received=dict(totals.received),
         published=dict(totals.published),
         drops={f"{key}: {reason}": n for (key, reason), n in sorted(totals.drops.items())},
+        events=dict(sorted(totals.events.items())),
         loop_rate_hz=None if totals.loop_rate_hz is None else round(totals.loop_rate_hz, 2),
     )
 
@@ -134,6 +138,8 @@ def render(report: Report) -> str:
         lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
     for p in report.processes:
         lines += [f"  {p.service}/{p.worker} dropped {n} on {kind}" for kind, n in p.drops.items()]
+        lines += [f"  {p.service}/{p.worker}: {n} {name.replace('_', ' ')}"
+                  for name, n in p.events.items()]  # fmt: skip
     if report.auxiliary_failed:
         lines.append(f"auxiliary, failed while the stack went on: {', '.join(report.auxiliary_failed)}")
     if report.not_built:

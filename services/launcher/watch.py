@@ -4,7 +4,8 @@
 held by every service once it is ready), so the launcher can tell when each process has
 announced itself, and again after each restart. `HealthBoard` keeps the Health reports
 (`hamnet/<ns>/health/<service>/<w>`) of each process, summed over its restarts, for the
-summary: messages received and published, drops by reason, loop rate.
+summary: messages received and published, drops by reason, events (e.g. the sim's
+`loop_stalls`), loop rate.
 """
 
 from __future__ import annotations
@@ -75,6 +76,8 @@ class HealthTotals:
     """Messages published per key, over finished runs."""
     drops: Counter[tuple[str, str]] = field(default_factory=Counter)
     """Dropped payloads per (key, reason), over finished runs."""
+    events: Counter[str] = field(default_factory=Counter)
+    """Notable events by name (`Health.events`), over finished runs."""
     loop_rates_hz: list[float] = field(default_factory=list)
     """Loop rate of every report sent while running."""
     last: Health | None = None
@@ -92,10 +95,12 @@ class HealthTotals:
         self.received.update(dict(report.received))
         self.published.update(dict(report.published))
         self.drops.update({(d.key, d.reason): d.count for d in report.drops})
+        self.events.update(dict(report.events))
 
     def totals(self) -> HealthTotals:
         """The counters of every run, the current one included."""
-        total = HealthTotals(Counter(self.received), Counter(self.published), Counter(self.drops))
+        total = HealthTotals(Counter(self.received), Counter(self.published), Counter(self.drops),
+                             Counter(self.events))  # fmt: skip
         if self.last is not None:
             total._fold(self.last)
         total.loop_rates_hz = list(self.loop_rates_hz)

@@ -16,6 +16,7 @@ def health(uptime_s: float, received: int, rate: float, state: int = ServiceStat
     report.received["stack"] = received
     report.published["hamnet/ns/echo/0/out"] = received // 2
     report.drops.append(DropCount(key="hamnet/ns/x", reason="decode", count=received // 10))
+    report.events["loop_stalls"] = received // 10
     return report
 
 
@@ -30,6 +31,7 @@ def test_health_counters_add_up_over_restarts() -> None:
     assert totals.received == {"stack": 50}
     assert totals.published == {"hamnet/ns/echo/0/out": 25}
     assert totals.drops == {("hamnet/ns/x", "decode"): 5}
+    assert totals.events == {"loop_stalls": 5}
     assert totals.loop_rate_hz == 10.0  # mean of the RUNNING reports only
     assert board.totals("echo", "1").received == {}
 
@@ -47,7 +49,8 @@ def test_render_shows_processes_missing_services_and_outputs() -> None:
     process = ProcessReport(
         service="watch", worker="0", command="echo", critical=True, outcome="stopped", exit="exit 0",
         returncode=0, restarts=1, uptime_s=4.2, ready_s=0.3, announced=2, pids=[11, 12],
-        received={"stack": 12}, published={}, drops={"hamnet/ns/x: decode": 3}, loop_rate_hz=9.87,
+        received={"stack": 12}, published={}, drops={"hamnet/ns/x: decode": 3},
+        events={"loop_stalls": 2}, loop_rate_hz=9.87,
     )
     report = Report(
         stack="demo", namespace="demo", ended="duration of 5 s reached", exit_code=0,
@@ -62,6 +65,7 @@ def test_render_shows_processes_missing_services_and_outputs() -> None:
                                 "s", "12", "0", "3", "9.9", "Hz"]
     assert lines[3:] == [
         "  watch/0 dropped 3 on hamnet/ns/x: decode",
+        "  watch/0: 2 loop stalls",
         "not built yet: sim (issue #3), trainer",
         "written: runs/demo/stack.mcap (3.0 MiB)",
         "not written: runs/demo/monitor.rrd",
