@@ -1,6 +1,11 @@
 """Where the monitor's Rerun data goes: one recording stream teed to every chosen output
 (a viewer it spawns, a viewer at a URL, a served web viewer, an .rrd file), each getting
-the default layout (`hamnet.monitor.blueprint`)."""
+the default layout (`hamnet.monitor.blueprint`).
+
+The .rrd file is streamed without Rerun's footer: the footer indexes every chunk and Rerun
+keeps that index in memory until the file closes, which grew the monitor by about the
+file's size over a long run (issue 13). The file is still a valid recording; `rerun rrd
+optimize` adds the index afterwards where random access matters."""
 
 from __future__ import annotations
 
@@ -34,7 +39,7 @@ def open_recording(output: OutputConfig) -> rr.RecordingStream:
     sinks: list[object] = []
     if output.save is not None:
         output.save.parent.mkdir(parents=True, exist_ok=True)
-        sinks.append(rr.FileSink(str(output.save)))
+        sinks.append(rr.FileSink(str(output.save), write_footer=False))
     if output.spawn:
         rr.spawn(port=output.viewer_port, connect=False)
         sinks.append(rr.GrpcSink(local_url(output.viewer_port)))
