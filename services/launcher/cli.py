@@ -23,6 +23,7 @@ from hamnet.launcher.run import run
 from hamnet.launcher.stack import StackError, load
 from hamnet.launcher.summary import render
 from hamnet.runtime.cli import CommonConfig, Flattened, parse
+from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.logs import configure_logging
 from hamnet.runtime.transport import TransportConfig
 
@@ -43,7 +44,7 @@ class UpConfig:
 
     def __post_init__(self) -> None:
         if self.duration_s is not None and not (self.duration_s > 0 and math.isfinite(self.duration_s)):
-            raise ValueError(f"--duration-s must be a positive number of seconds, got {self.duration_s}")
+            raise ConfigError(f"--duration-s must be a positive number of seconds, got {self.duration_s}")
 
 
 CONFIG = UpConfig

@@ -17,18 +17,20 @@ def test_flags_spell_values_as_tyro_reads_them() -> None:
                               "--lr", "0.5", "--weights", "None", "--connect"]
 
 
-def test_only_non_default_transport_and_logging_options_are_forwarded() -> None:
+def test_only_non_default_transport_and_logging_options_are_forwarded(tmp_path: Path) -> None:
     assert forwarded(CommonConfig()) == {}
+    zenoh_config = tmp_path / "z.json5"  # a transport refuses a config file that is not there
+    zenoh_config.write_text("{}")
     common = CommonConfig(
         worker="7",
         transport=TransportConfig(namespace="ns", rendezvous="tcp/127.0.0.1:9000",
-                                  connect=("tcp/10.0.0.1:7447",), zenoh_config=Path("z.json5"),
+                                  connect=("tcp/10.0.0.1:7447",), zenoh_config=zenoh_config,
                                   shared_memory=False),
         logging=LogConfig(log_format="json"),
     )
     assert forwarded(common) == {
         "rendezvous": "tcp/127.0.0.1:9000", "connect": ("tcp/10.0.0.1:7447",),
-        "zenoh-config": "z.json5", "shared-memory": False, "log-format": "json",
+        "zenoh-config": str(zenoh_config), "shared-memory": False, "log-format": "json",
     }
 
 

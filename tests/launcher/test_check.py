@@ -101,4 +101,6 @@ def test_a_negative_duration_is_refused(tmp_path: Path, capsys) -> None:
     with pytest.raises(SystemExit) as exited:
         main([str(path), "--duration-s", "-5"])
     assert exited.value.code == 2
-    assert "--duration-s must be a positive number of seconds" in capsys.readouterr().err
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "hamnet up: --duration-s must be a positive number of seconds, got -5.0"
+    ]
