@@ -18,16 +18,9 @@ import pytest
 
 from hamnet.runtime.transport import TransportConfig
 from tests.conftest import transport_args
+from tests.stack.up import rss_mb
 
 SIM = ("sim", "--num-envs", "4", "--num-objects", "2", "--nthread", "1", "--realtime")
-
-
-def rss_mb(process: subprocess.Popen) -> float:
-    """Resident memory of `process`, MB (VmRSS in /proc/<pid>/status)."""
-    for line in Path(f"/proc/{process.pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    raise AssertionError(f"no VmRSS for pid {process.pid}")
 
 
 def wait_for_size(
@@ -76,7 +69,7 @@ def test_monitor_memory_stays_flat_while_its_recording_grows(spawn, transport, t
     for _ in range(31):
         for process in processes:
             assert process.poll() is None, process.stdout.read()
-        samples.append((rss_mb(processes[1]), path.stat().st_size))
+        samples.append((rss_mb(processes[1].pid), path.stat().st_size))
         time.sleep(10)
     grown_rss = samples[-1][0] - min(rss for rss, _ in samples[:6])
     grown_file = (samples[-1][1] - samples[0][1]) / 2**20

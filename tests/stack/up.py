@@ -31,6 +31,15 @@ def alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
+def rss_mb(pid: int) -> float | None:
+    """Resident memory of process `pid`, MB (VmRSS in /proc/<pid>/status); None once it is gone."""
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except FileNotFoundError:
+        return None
+    return next((int(line.split()[1]) / 1024 for line in lines if line.startswith("VmRSS:")), None)
+
+
 class Up:
     """One `python -m hamnet up` run."""
 
