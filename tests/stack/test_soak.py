@@ -46,5 +46,6 @@ def test_every_service_keeps_its_memory_flat_over_a_soak(tmp_path) -> None:
     minutes = (SOAK_S - WARM_UP_S) / 60
     limit = SLACK_MB + LEAK_MB_PER_MIN * minutes
     grown = {label: round(values[-1] - min(values), 1) for label, values in samples.items()}
+    print(f"growth after warm-up over {minutes:.0f} min, MB (limit {limit:.0f}): {grown}")
     assert {"sim/0", "perception/0", "policy/0", "safety/0", "monitor/0", "record/0"} <= set(grown)
     assert all(growth < limit for growth in grown.values()), (limit, grown, samples)
