@@ -351,10 +351,8 @@ class PolicyShell:
 
     def _restart(self, state: StateIn) -> None:
         """Follow the run of `state`: drop what belongs to the sim's previous run."""
-        first = self.watermark.run is None
-        self.watermark.restart(state.run)
-        if first:  # tokens that came before the first state are this run's
-            return
+        if not self.watermark.restart(state.run):
+            return  # the first state: tokens that came before it are this run's
         log.warning("the sim restarted (another run): following it from step %d", state.step)
         self.counts["restarts"] += 1
         self.pairing.clear("restart")

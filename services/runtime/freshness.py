@@ -73,10 +73,14 @@ class Watermark:
         states carry perception's run); never RESTART."""
         return Verdict.FRESH if self.step is None else self.judge(self.run, step)
 
-    def restart(self, run: int) -> None:
-        """Follow `run` from now on, with no step acted on yet."""
+    def restart(self, run: int) -> bool:
+        """Follow `run` from now on, with no step acted on yet; True when it replaces a run
+        followed before (the producer restarted), False on the very first message."""
+        restarted = self.run is not None
         self.run, self.step = run, None
+        return restarted
 
     def advance(self, step: int) -> None:
-        """Record that `step` of the current run was acted on."""
-        self.step = step
+        """Record that `step` of the current run was acted on (the watermark keeps the
+        newest step)."""
+        self.step = step if self.step is None else max(self.step, step)

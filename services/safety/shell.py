@@ -386,11 +386,9 @@ class SafetyShell:
         if verdict is Verdict.IMPLAUSIBLE:
             self.counts["implausible"] += 1  # a forged or corrupt step must not supersede
             return
-        if verdict is Verdict.RESTART:
-            if self.watermark.run is not None:
-                self._follow_new_run(state)
-            self.watermark.restart(state.run)
-        self.watermark.advance(max(state.step, self.watermark.step or 0))
+        if verdict is Verdict.RESTART and self.watermark.restart(state.run):
+            self._follow_new_run(state)
+        self.watermark.advance(state.step)
         # The sim sends a state again while it waits for its command.
         if self.pending is not None and self.pending.step == state.step:
             return  # still waiting: the first arrival's deadline holds

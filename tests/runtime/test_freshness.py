@@ -10,7 +10,7 @@ from hamnet.runtime.freshness import Verdict, Watermark
 def test_steps_of_one_run_are_fresh_repeated_or_stale() -> None:
     mark = Watermark(max_jump=100)
     assert mark.judge(5, 40) is Verdict.RESTART  # the first message: follow its run
-    mark.restart(5)
+    assert not mark.restart(5)  # nothing was followed before
     assert mark.judge(5, 40) is Verdict.FRESH and mark.judge_step(3) is Verdict.FRESH
     mark.advance(40)
     assert [mark.judge(5, k) for k in (39, 40, 41, 140, 141)] == [
@@ -27,7 +27,7 @@ def test_another_run_restarts_whatever_its_step() -> None:
     mark.restart(5)
     mark.advance(10**6)
     assert mark.judge(6, 0) is Verdict.RESTART
-    mark.restart(6)
+    assert mark.restart(6)
     assert mark.run == 6 and mark.step is None and mark.judge(6, 0) is Verdict.FRESH
     mark.advance(0)
     assert mark.judge(5, 10**6 + 1) is Verdict.RESTART
@@ -39,6 +39,8 @@ def test_a_far_future_step_leaves_the_watermark_where_it_was() -> None:
     mark.advance(3)
     assert mark.judge(1, 10**12) is Verdict.IMPLAUSIBLE
     assert (mark.run, mark.step) == (1, 3) and mark.judge(1, 4) is Verdict.FRESH
+    mark.advance(2)  # a late state acted on (the safety filter answers those too)
+    assert mark.step == 3
 
 
 def test_max_jump_must_be_positive() -> None:
