@@ -37,6 +37,7 @@ COMMANDS: tuple[Command, ...] = (
     Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", "hamnet.safety.cli", 4),
     Command("trainer", "PPO from streamed rollouts (or --inprocess: one process, no Zenoh)", "hamnet.trainer.cli", 12),
     Command("rollout", "rollout worker: in-process cores acting with the trainer's weights", "hamnet.trainer.rollout_cli", 12),
+    Command("pretrain", "UniCORN pre-training: contact pairs, training, held-out evaluation", "hamnet.pretrain.cli", 14),
     Command("monitor", "live Rerun view of the whole stack", "hamnet.monitor.cli", 7),
     Command("record", "record topics to MCAP (`hamnet record info FILE` summarises one)", "hamnet.recorder.cli", 7),
     Command("replay", "replay an MCAP recording onto Zenoh", "hamnet.recorder.replay_cli", 7),
