@@ -1,0 +1,105 @@
+"""Training on a tiny dataset: the loss falls, checkpoints load into perception, resume
+continues, and bad or mismatched checkpoints are refused with one clear line."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from hamnet.cli import main
+from hamnet.perception.checkpoint import load_checkpoint
+from hamnet.pretrain.batch import resample
+from hamnet.pretrain.config import AugmentConfig, GenerateConfig, OptimConfig, TrainConfig
+from hamnet.pretrain.dataset import generate, load_pairs
+from hamnet.pretrain.model import ContactModel, contact_loss
+from hamnet.pretrain.state import ENCODER, MODEL, STATE, RunError, load_run
+from hamnet.pretrain.train import METRICS, PairTensors, train
+
+STILL = AugmentConfig(rotation=0.0, translation=0.0, log_scale=0.0, noise=0.0)
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("pretrain") / "data"
+    generate(GenerateConfig(out=folder, pairs=300, chunk_size=100))
+    return folder
+
+
+def fixed_loss(model: ContactModel, data: PairTensors) -> float:
+    """The loss on the first 64 pairs with one fixed resample, no augmentation."""
+    model.train()
+    a, b = data.points_a[:64], data.points_b[:64]
+    labels = model.labels(a, b, data.labels_a[:64], data.labels_b[:64])
+    index = resample(labels, 0.5, torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        return float(contact_loss(model, a, b, labels, index).loss)
+
+
+def test_a_tiny_run_lowers_the_loss(data, tmp_path) -> None:
+    config = TrainConfig(data=data, out=tmp_path / "run", steps=30, batch_size=16, augment=STILL,
+                         optim=OptimConfig(lr=1e-3), log_every=5)  # fmt: skip
+    pairs = PairTensors(load_pairs(data))
+    torch.manual_seed(config.seed)
+    before = fixed_loss(ContactModel("unicorn", config.architecture, config.decoder), pairs)
+    state = train(config)
+    after = fixed_loss(load_run(config.out)[0], pairs)
+    assert after < before - 0.05, (before, after)
+    assert state["step"] == 30
+    rows = [json.loads(line) for line in (config.out / METRICS).read_text().splitlines()]
+    assert [r["step"] for r in rows] == [5, 10, 15, 20, 25, 30]
+
+
+def test_the_encoder_checkpoint_loads_into_perception_and_resume_continues(data, tmp_path) -> None:
+    config = TrainConfig(data=data, out=tmp_path / "run", steps=2, batch_size=8, checkpoint_every=1)
+    train(config)
+    _, version = load_checkpoint(config.out / ENCODER, config.architecture)
+    assert version == 2  # one per checkpoint, from 1 up
+    state = train(dataclasses.replace(config, steps=3, resume=True))
+    assert state["step"] == 3 and load_checkpoint(config.out / ENCODER)[1] == 3
+    with pytest.raises(RunError, match="already holds a run"):
+        train(config)
+
+
+@pytest.mark.parametrize("kind", ["random-frozen", "pointnet"])
+def test_baselines_train_and_reload(kind, data, tmp_path) -> None:
+    config = TrainConfig(data=data, out=tmp_path / kind, encoder=kind, steps=2, batch_size=8)
+    train(config)
+    model, state = load_run(config.out)
+    assert state["encoder"] == kind and model.kind == kind
+    assert (config.out / ENCODER).is_file() == (kind == "random-frozen")
+    if kind == "random-frozen":
+        torch.manual_seed(config.seed)
+        fresh = ContactModel(kind, config.architecture, config.decoder)
+        assert all(
+            torch.equal(p, q)
+            for p, q in zip(fresh.encoder.parameters(), model.encoder.parameters())
+        )
+        assert load_checkpoint(config.out / ENCODER)[1] == 0  # never trained: random version
+
+
+def test_corrupt_cut_short_and_mismatched_checkpoints_are_refused(data, tmp_path) -> None:
+    config = TrainConfig(data=data, out=tmp_path / "run", steps=1, batch_size=8)
+    train(config)
+    with pytest.raises(RunError, match="another model"):
+        load_run(config.out, ContactModel("pointnet", config.architecture, config.decoder))
+    state = json.loads((config.out / STATE).read_text())
+    (config.out / STATE).write_text(json.dumps({**state, "step": 7}))
+    with pytest.raises(RunError, match="cut short"):
+        load_run(config.out)
+    (config.out / MODEL).write_bytes(b"not a safetensors file")
+    with pytest.raises(RunError, match="not a readable safetensors"):
+        load_run(config.out)
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys) -> None:
+    assert main(["pretrain", "train", "--data", str(tmp_path / "missing")]) == 2
+    assert (
+        main(["pretrain", "eval", "--data", str(tmp_path), "--runs", str(tmp_path / "none")]) == 2
+    )
+    assert main(["pretrain", "fit"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 3 and all("hamnet pretrain" in line for line in lines), lines
