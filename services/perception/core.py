@@ -12,6 +12,11 @@ tokens every step):
 
 Sensor noise and dropout (`CloudConfig.noise_std`, `dropout`) corrupt each cloud where it
 is made: the global and object clouds once per episode, the local cloud every step.
+
+With `CloudConfig.visibility` "cameras" (the student) the clouds show only what the four
+cameras of the rig see (`visibility.py`): the scene pool keeps its visible points (resampled
+to S) at an episode's start, and every step the object cloud keeps the points visible in
+its current pose, is corrupted afresh and re-encoded (in its own frame, as the teacher's).
 No Zenoh, no protobuf: tensors in, tensors out, on any torch device.
 """
 
@@ -29,17 +34,27 @@ from hamnet.perception.clouds import (
     gather,
     local_cloud,
     pose_points,
+    quaternion_matrix,
     sample_surface,
     workspace_box,
 )
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.unicorn import UniCORN
+from hamnet.perception.visibility import (
+    CameraView,
+    RigVisibility,
+    camera_positions,
+    keep,
+    outward_normals,
+)
+from hamnet.sim.scene import TABLE
 
 CACHES = (
     "episode_ids", "scene_pool", "environment_cloud", "object_points", "keypoints",
     "object_tokens", "global_tokens",
 )  # fmt: skip
-"""`Perception`'s per-episode caches, (B, ...) tensors."""
+"""`Perception`'s per-episode caches, (B, ...) tensors (`Perception.caches` adds the
+cameras' own)."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +138,19 @@ class Perception:
         self.keypoints = zeros(b, k, 3)  # (B, K, 3) object frame
         self.object_tokens = zeros(b, n, d)  # (B, 1 + K, D)
         self.global_tokens = zeros(b, n, d)  # (B, 1 + K, D)
+        self.camera_view: CameraView | None = None
+        """Which points the cameras see; None: every point (`CloudConfig.visibility` full)."""
+        if config.visibility == "cameras":
+            self.camera_view = RigVisibility(
+                config.visibility_pixel, config.visibility_depth, config.tolerance
+            )
+            self.cameras = zeros(b, 4, 3)  # (B, 4, 3) world positions of the rig's cameras
+            self.object_normals = zeros(b, p, 3)  # (B, P, 3) object frame, outward
+
+    @property
+    def caches(self) -> tuple[str, ...]:
+        """The names of the per-episode caches (`CACHES`; with cameras also theirs)."""
+        return CACHES if self.camera_view is None else (*CACHES, "cameras", "object_normals")
 
     @property
     def num_envs(self) -> int:
@@ -145,12 +173,20 @@ class Perception:
         pool = sample_surface(
             cuboids, config.scene_pool, config.grid, config.tolerance, g, crop
         )  # (K, S, 3)
+        # Out of place: `Percepts` handed out earlier share these tensors and must not change.
+        update = lambda cache, rows: cache.index_copy(0, ids, rows)  # noqa: E731
+        if self.camera_view is not None:
+            cameras = camera_positions(cuboids.centre[:, TABLE])  # (K, 4, 3)
+            seen = self.camera_view.scene(pool, cuboids, cameras)  # (K, S)
+            pool = gather(pool, keep(seen, config.scene_pool, g))
+            self.cameras = update(self.cameras, cameras)
         environment = corrupt(pool[:, : config.num_points], config.noise_std, config.dropout, g)
         points = scenes.object_points.to(self.device, torch.float32)  # (K, P, 3)
         keypoints = gather(points, farthest_point_sample(points, config.num_keypoints))  # (K, 64, 3)
-        points = corrupt(points, config.noise_std, config.dropout, g)
-        # Out of place: `Percepts` handed out earlier share these tensors and must not change.
-        update = lambda cache, rows: cache.index_copy(0, ids, rows)  # noqa: E731
+        if self.camera_view is None:
+            points = corrupt(points, config.noise_std, config.dropout, g)
+        else:  # `step` corrupts what the cameras see
+            self.object_normals = update(self.object_normals, outward_normals(points))
         self.scene_pool = update(self.scene_pool, pool)
         self.environment_cloud = update(self.environment_cloud, environment)
         self.object_points, self.keypoints = update(self.object_points, points), update(self.keypoints, keypoints)
@@ -161,12 +197,12 @@ class Perception:
     def snapshot(self) -> tuple[dict[str, torch.Tensor], dict[str, object]]:
         """The per-episode caches (`CACHES`) and the noise generator's state: what a
         perception built from the same encoder and config continues from."""
-        arrays = {name: getattr(self, name) for name in CACHES}
+        arrays = {name: getattr(self, name) for name in self.caches}
         return {**arrays, "generator": self.generator.get_state()}, {}
 
     def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, object]) -> None:
         """Continue from `snapshot`'s arrays (copied into torch-allocated tensors)."""
-        for name in CACHES:
+        for name in self.caches:
             setattr(self, name, torch.tensor(arrays[name], device=self.device))
         self.generator.set_state(torch.tensor(arrays["generator"]))
 
@@ -181,11 +217,26 @@ class Perception:
         keypoints = pose_points(self.keypoints[rows], pose)  # (B, 64, 3)
         local = local_cloud(self.scene_pool[rows], keypoints, config.num_points)  # (B, P, 3)
         local = corrupt(local, config.noise_std, config.dropout, self.generator)
+        if self.camera_view is None:
+            points, object_tokens = self.object_points[rows], self.object_tokens[rows]
+        else:
+            points = self._seen_object(rows, pose)
+            object_tokens = self.encoder(points)
         return Percepts(
-            object_cloud=pose_points(self.object_points[rows], pose),
+            object_cloud=pose_points(points, pose),
             environment_cloud=self.environment_cloud[rows],
             local_cloud=local,
-            object_tokens=self.object_tokens[rows],
+            object_tokens=object_tokens,
             local_tokens=self.encoder(local),
             global_tokens=self.global_tokens[rows],
         )
+
+    def _seen_object(self, rows: slice | torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        """(B, P, 3) the object cloud as the cameras see it at `pose` (B, 7): its visible
+        points, resampled to P and corrupted, in the object's frame."""
+        config, points = self.config, self.object_points[rows]
+        rotation = quaternion_matrix(pose[:, 3:])  # (B, 3, 3)
+        normals = torch.einsum("bij,bpj->bpi", rotation, self.object_normals[rows])  # (B, P, 3)
+        seen = self.camera_view.object(pose_points(points, pose), normals, self.cameras[rows])
+        points = gather(points, keep(seen, config.num_points, self.generator))
+        return corrupt(points, config.noise_std, config.dropout, self.generator)
