@@ -9,7 +9,9 @@ what the learner needs: the policy inputs, action, log-probability, value per re
 reward terms and episode ends, and for a truncated episode V(its final state), which the
 learner adds, discounted, to that step's (scaled) reward as the authors bootstrap timeouts
 (`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike. The discount
-is the learner's alone: a worker needs no PPO setting.
+is the learner's alone: a worker needs no PPO setting. A student (a policy without
+privileged inputs) reads the sim's true object pose only through the pose estimator's
+error model (`PoseNoiseConfig`), as the policy service does: the sim is no estimator.
 Shapes: T steps, B environments, A action, R reward terms.
 """
 
@@ -26,6 +28,7 @@ from torch import Tensor
 from hamnet.perception.core import EpisodeScenes, Perception, Percepts
 from hamnet.policy import inputs as builder
 from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.policy import Action, Policy
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
@@ -118,6 +121,9 @@ class RolloutWorker:
         self._perceive(every)
         self.carry: builder.Carry | None = None
         self.generator = torch.Generator().manual_seed(seed)
+        """Of the action noise and of a student's pose-estimate error."""
+        self.pose_noise = PoseNoiseConfig()
+        """The estimator's error on a student's object pose (a teacher reads the true one)."""
 
     @torch.no_grad()
     def collect(
@@ -215,7 +221,10 @@ class RolloutWorker:
             self.carry, torch.as_tensor(obs.episode_ids), torch.as_tensor(obs.episode_step)
         )
         robot = builder.robot_observation(obs)
-        return builder.policy_inputs(policy.config, self.carry, robot, _tokens(self.percepts))
+        return builder.policy_inputs(
+            policy.config, self.carry, robot, _tokens(self.percepts),
+            pose_noise=self.pose_noise, generator=self.generator,
+        )  # fmt: skip
 
     def _final_values(self, policy: Policy, final: Observation, env_ids: np.ndarray) -> Tensor:
         """(K, R) values of the final states of the episodes in `env_ids` (K,), before their
@@ -226,8 +235,9 @@ class RolloutWorker:
             None if self.perception is None else self.perception.step(robot.object_pose, rows)
         )
         inputs = builder.policy_inputs(
-            policy.config, take_rows(self.carry, rows), robot, _tokens(percepts)
-        )
+            policy.config, take_rows(self.carry, rows), robot, _tokens(percepts),
+            pose_noise=self.pose_noise, generator=self.generator,
+        )  # fmt: skip
         return policy.act(inputs, deterministic=True).values
 
     def _start(self, reset_ids: np.ndarray, observation: Observation) -> None:
