@@ -2,7 +2,8 @@
 (`EncoderConfig` as JSON) and the weights' version.
 
 Version 0 means random weights (never trained): `--random-init` stamps it, and so does a
-file written by `write_random_checkpoint`. Pre-training writes versions from 1 up.
+file written by `write_random_checkpoint`. Pre-training writes versions from 1 up; the
+package ships one such file (`SHIPPED_ENCODER`).
 Loading checks the architecture and every tensor's shape and fails with a message that says
 what differs: a service never runs silently on weights it was not given.
 """
@@ -22,6 +23,9 @@ CONFIG_KEY = "hamnet.encoder.config"
 VERSION_KEY = "hamnet.encoder.version"
 RANDOM_VERSION = 0
 """The version of random (untrained) weights."""
+SHIPPED_ENCODER = Path(__file__).resolve().parent / "weights" / "unicorn.safetensors"
+"""The pre-trained encoder that ships with the package (`scripts/unicorn_pretrain.py` made it;
+`unicorn.json` next to it says how): what perception and the trainer load by default."""
 
 
 class CheckpointError(ValueError):
@@ -64,17 +68,27 @@ def load_checkpoint(path: Path, expected: EncoderConfig | None = None) -> tuple[
             metadata = handle.metadata() or {}
             tensors = {name: handle.get_tensor(name) for name in handle.keys()}
     except Exception as error:  # safetensors raises its own types for corrupt files
-        raise CheckpointError(f"encoder checkpoint {path} is not a readable safetensors file: {error}") from None
+        raise CheckpointError(
+            f"encoder checkpoint {path} is not a readable safetensors file: {error}"
+        ) from None
     if CONFIG_KEY not in metadata or VERSION_KEY not in metadata:
-        raise CheckpointError(f"{path} lacks {CONFIG_KEY!r}/{VERSION_KEY!r} metadata: not an encoder checkpoint")
+        raise CheckpointError(
+            f"{path} lacks {CONFIG_KEY!r}/{VERSION_KEY!r} metadata: not an encoder checkpoint"
+        )
     try:
         config = EncoderConfig.from_json(metadata[CONFIG_KEY])
         version = int(metadata[VERSION_KEY])
     except (TypeError, ValueError) as error:
         raise CheckpointError(f"{path} has invalid encoder metadata: {error}") from None
     if expected is not None and config != expected:
-        diff = {k: (v, getattr(expected, k)) for k, v in vars(config).items() if getattr(expected, k) != v}
-        raise CheckpointError(f"{path} is for another encoder architecture (file, expected): {diff}")
+        diff = {
+            k: (v, getattr(expected, k))
+            for k, v in vars(config).items()
+            if getattr(expected, k) != v
+        }
+        raise CheckpointError(
+            f"{path} is for another encoder architecture (file, expected): {diff}"
+        )
     encoder = UniCORN(config)
     _check_shapes(path, encoder, tensors)
     encoder.load_state_dict(tensors)
@@ -85,7 +99,9 @@ def _check_shapes(path: Path, encoder: UniCORN, tensors: dict[str, torch.Tensor]
     wanted = {name: tuple(t.shape) for name, t in encoder.state_dict().items()}
     found = {name: tuple(t.shape) for name, t in tensors.items()}
     missing, extra = sorted(wanted.keys() - found.keys()), sorted(found.keys() - wanted.keys())
-    wrong = {n: (found[n], wanted[n]) for n in wanted.keys() & found.keys() if found[n] != wanted[n]}
+    wrong = {
+        n: (found[n], wanted[n]) for n in wanted.keys() & found.keys() if found[n] != wanted[n]
+    }
     if missing or extra or wrong:
         raise CheckpointError(
             f"{path} does not fit the encoder: missing {missing}, unexpected {extra}, "

@@ -1,5 +1,5 @@
 """One training batch of contact pairs: augmentation of both clouds together, patch labels,
-and the resampling of patches to a target share of positives (paper appendix "Details on
+and the weights that balance positive and negative patches to a target share (paper appendix "Details on
 pretraining pipeline", Table tab:pretrain-params).
 
 Patch label rule: a patch is in contact when any of its k points lies inside the other
@@ -51,17 +51,23 @@ def patch_labels(points: torch.Tensor, labels: torch.Tensor, config: EncoderConf
     return labels.gather(1, members.flatten(1)).view(members.shape).any(-1)
 
 
-def resample(labels: torch.Tensor, fraction: float, generator: torch.Generator) -> torch.Tensor:
-    """Indices (M,) of M = len(labels) patches drawn with replacement, a positive with
-    probability f / P and a negative with (1 - f) / N (P positives, N negatives among the
-    flat labels (M,) bool), so about a share f of the draws is positive. With no positive
-    (or no negative) in the batch, all draws are of the other kind."""
+def balance_weights(labels: torch.Tensor, fraction: float) -> torch.Tensor:
+    """Loss weights (M,) of the flat patch labels (M,) bool, summing to 1: f / P on each of
+    the P positives and (1 - f) / N on each of the N negatives (all weight on one kind when
+    the batch lacks the other).
+
+    This is the paper's resampling (a positive drawn with probability f / P, a negative with
+    (1 - f) / N) in expectation, without its draws: drawn with replacement, the few positives
+    of a batch appear many times over in the decoder's input, and its batch norm learns to
+    find them from the batch statistics (resampled batches scored AUROC 0.92 with batch
+    statistics and 0.75 with the running ones, in evaluation). Every patch goes through the
+    decoder once instead.
+    """
     positives = labels.float()
     count = positives.sum()
-    weights = torch.where(
-        labels, fraction / count.clamp(min=1), (1 - fraction) / (len(labels) - count).clamp(min=1)
-    )
-    return torch.multinomial(weights, len(labels), replacement=True, generator=generator)
+    if count == 0 or count == len(labels):
+        return torch.full_like(positives, 1.0 / len(labels))
+    return torch.where(labels, fraction / count, (1 - fraction) / (len(labels) - count))
 
 
 def cross_pairs(
@@ -85,7 +91,7 @@ def cross_pairs(
 
 
 def step_generator(seed: int, step: int) -> torch.Generator:
-    """The generator of one step's batch, augmentation and resampling: a function of (seed,
+    """The generator of one step's batch and augmentation: a function of (seed,
     step) alone, so a resumed run draws what the uninterrupted one would have."""
     return torch.Generator().manual_seed(seed * 1_000_003 + step)
 

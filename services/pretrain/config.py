@@ -170,7 +170,8 @@ class TrainConfig:
     max_pairs: int = 0
     """Use only the first pairs of the dataset; 0: all."""
     positive_fraction: float = 0.5
-    """Target share of positive patches after resampling (table: 0.5)."""
+    """Share of the loss on positive patches (table: "positive patch fraction" 0.5;
+    `batch.balance_weights`)."""
     seed: int = 0
     """Seed of initialisation, batches and augmentation."""
     resume: bool = False

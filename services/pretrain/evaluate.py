@@ -1,5 +1,5 @@
 """Held-out evaluation of pre-training runs: every patch of every held-out pair, both roles,
-no augmentation or resampling; accuracy, precision, recall and AUROC of contact per run, a
+no augmentation or balancing; accuracy, precision, recall and AUROC of contact per run, a
 JSON summary and a PNG of the training loss curves and ROC curves.
 
 The JSON's top-level `heldout_auroc` and `heldout_accuracy` are the first run's (the
@@ -87,7 +87,7 @@ def plot(curves: dict, results: dict, out: Path) -> Path:
         if rows:
             loss_axis.plot([r["step"] for r in rows], [r["loss"] for r in rows], label=name)
         roc_axis.plot(fpr, tpr, label=f"{name}: AUROC {results[run]['auroc']:.3f}")
-    loss_axis.set(xlabel="step", ylabel="BCE (resampled patches)", title="training loss")
+    loss_axis.set(xlabel="step", ylabel="BCE (balanced patches)", title="training loss")
     roc_axis.plot([0, 1], [0, 1], color="grey", linestyle=":")
     roc_axis.set(
         xlabel="false positive rate",

@@ -42,7 +42,7 @@ def roc_curve(
 
 def classification(scores: np.ndarray, labels: np.ndarray, threshold: float) -> dict[str, float]:
     """accuracy, balanced accuracy (mean of the two classes' recalls: the decoder is trained
-    on a balanced resample, while held-out patches are mostly negative), precision, recall
+    on balanced patches, while held-out patches are mostly negative), precision, recall
     (NaN when undefined) at `threshold`, AUROC, positive share."""
     labels = np.asarray(labels, dtype=bool)
     predicted = np.asarray(scores) >= threshold

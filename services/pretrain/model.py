@@ -1,5 +1,5 @@
 """The contact model of pre-training: a Siamese encoder (both clouds through the same
-weights) and the contact decoder, with its loss (binary cross-entropy per resampled patch,
+weights) and the contact decoder, with its loss (binary cross-entropy per patch, balanced,
 both roles of each pair).
 
 Consumes clouds (B, P, 3) and point labels (B, P); produces patch logits and the loss.
@@ -61,11 +61,12 @@ class LossTerms:
     """What one batch's loss reports."""
 
     loss: torch.Tensor
-    """Mean binary cross-entropy over the resampled patches (a scalar with its graph)."""
+    """Binary cross-entropy over every patch, balanced by `batch.balance_weights` (a scalar
+    with its graph)."""
     accuracy: float
-    """Share of resampled patches classified right at probability 0.5."""
+    """Balanced share of patches classified right at probability 0.5 (the same weights)."""
     positive_share: float
-    """Share of positive patches before resampling."""
+    """Share of positive patches in the batch."""
 
 
 def contact_loss(
@@ -73,19 +74,19 @@ def contact_loss(
     points_a: torch.Tensor,
     points_b: torch.Tensor,
     labels: torch.Tensor,
-    index: torch.Tensor,
+    weights: torch.Tensor,
 ) -> LossTerms:
-    """BCE of the decoder on the resampled patches `index`.
+    """Weighted BCE of the decoder on every patch of both roles, each patch once.
 
     Args:
         points_a, points_b: (B, P, 3) augmented clouds, m.
         labels: (2 B K,) bool patch labels (`ContactModel.labels` of the same clouds).
-        index: (M,) patches drawn by `batch.resample` (drawn once per step, so both passes
-            of a SAM step see the same patches).
+        weights: (2 B K,) `batch.balance_weights` of `labels`, summing to 1.
     """
-    patch, condition = model.patches(points_a, points_b)  # (2BK, D) each
-    target = labels[index].float()
-    logits = model.decoder(patch[index], condition[index])
-    loss = nn.functional.binary_cross_entropy_with_logits(logits, target)
-    accuracy = float(((logits > 0).float() == target).float().mean())
-    return LossTerms(loss, accuracy, float(labels.float().mean()))
+    target = labels.float()
+    logits = model(points_a, points_b)  # (2BK,)
+    per_patch = nn.functional.binary_cross_entropy_with_logits(logits, target, reduction="none")
+    right = ((logits > 0).float() == target).float()
+    return LossTerms(
+        (weights * per_patch).sum(), float((weights * right).sum()), float(target.mean())
+    )

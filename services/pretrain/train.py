@@ -1,4 +1,4 @@
-"""The pre-training loop: batches of contact pairs, augmented, patch-labelled and resampled,
+"""The pre-training loop: batches of contact pairs, augmented, patch-labelled and balanced,
 one SAM step each on a cosine learning-rate schedule (Table tab:pretrain-params), with a
 progress line, `metrics.jsonl`, periodic checkpoints, a time budget and resumption.
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-from hamnet.pretrain.batch import augment, batch_index, resample, step_generator
+from hamnet.pretrain.batch import augment, balance_weights, batch_index, step_generator
 from hamnet.pretrain.config import TrainConfig
 from hamnet.pretrain.dataset import PairArrays, load_pairs
 from hamnet.pretrain.model import ContactModel, LossTerms, contact_loss
@@ -52,14 +52,14 @@ def train_step(
     index = batch_index(step, config.batch_size, len(data), config.seed)  # (B,)
     a, b = augment(data.points_a[index], data.points_b[index], config.augment, generator)
     labels = model.labels(a, b, data.labels_a[index], data.labels_b[index])  # (2BK,)
-    draw = resample(labels, config.positive_fraction, generator)
+    weights = balance_weights(labels, config.positive_fraction)
     lr = cosine_lr(step, config.steps, config.optim.lr, config.optim.min_lr)
     for group in optimizer.param_groups:
         group["lr"] = lr
     first: list[LossTerms] = []
 
     def closure() -> torch.Tensor:
-        terms = contact_loss(model, a, b, labels, draw)
+        terms = contact_loss(model, a, b, labels, weights)
         first.append(terms)
         return terms.loss
 

@@ -12,7 +12,7 @@ import torch
 
 from hamnet.cli import main
 from hamnet.perception.checkpoint import load_checkpoint
-from hamnet.pretrain.batch import resample
+from hamnet.pretrain.batch import balance_weights
 from hamnet.pretrain.config import AugmentConfig, GenerateConfig, OptimConfig, TrainConfig
 from hamnet.pretrain.dataset import generate, load_pairs
 from hamnet.pretrain.model import ContactModel, contact_loss
@@ -30,13 +30,38 @@ def data(tmp_path_factory) -> Path:
 
 
 def fixed_loss(model: ContactModel, data: PairTensors) -> float:
-    """The loss on the first 64 pairs with one fixed resample, no augmentation."""
+    """The balanced loss on the first 64 pairs, no augmentation."""
     model.train()
     a, b = data.points_a[:64], data.points_b[:64]
     labels = model.labels(a, b, data.labels_a[:64], data.labels_b[:64])
-    index = resample(labels, 0.5, torch.Generator().manual_seed(0))
     with torch.no_grad():
-        return float(contact_loss(model, a, b, labels, index).loss)
+        return float(contact_loss(model, a, b, labels, balance_weights(labels, 0.5)).loss)
+
+
+def test_balance_weights_put_the_target_share_on_positives() -> None:
+    labels = torch.tensor([True, False, False, False, True, False])
+    weights = balance_weights(labels, 0.5)
+    assert torch.isclose(weights.sum(), torch.tensor(1.0))
+    assert torch.isclose(weights[labels].sum(), torch.tensor(0.5))
+    assert torch.allclose(weights[labels], weights[labels][0])  # equal within a kind
+    none = balance_weights(torch.zeros(4, dtype=torch.bool), 0.5)
+    assert torch.allclose(none, torch.full((4,), 0.25))
+
+
+def test_the_decoder_sees_every_patch_once(data) -> None:
+    """Duplicated patches in the decoder's batch let its batch norm find the positives from the
+    batch statistics (the paper's resampling drawn literally did that): each patch of both
+    roles goes through once."""
+    pairs = PairTensors(load_pairs(data))
+    model = ContactModel("unicorn", TrainConfig().architecture, TrainConfig().decoder).train()
+    a, b = pairs.points_a[:8], pairs.points_b[:8]
+    labels = model.labels(a, b, pairs.labels_a[:8], pairs.labels_b[:8])
+    seen = []
+    model.decoder.register_forward_hook(lambda module, inputs, output: seen.append(inputs[0]))
+    contact_loss(model, a, b, labels, balance_weights(labels, 0.5))
+    (rows,) = seen
+    assert len(rows) == len(labels) == 2 * 8 * model.architecture.num_patches
+    assert len(torch.unique(rows, dim=0)) == len(rows)
 
 
 def test_a_tiny_run_lowers_the_loss(data, tmp_path) -> None:
