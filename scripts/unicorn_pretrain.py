@@ -1,4 +1,4 @@
-"""The shipped UniCORN encoder and its report (issue 14): contact data, three encoders trained
+"""The UniCORN encoder to ship and its report (issue 14): contact data, three encoders trained
 on the same data for the same steps, held-out evaluation, and the encoder perception loads.
 
     python scripts/unicorn_pretrain.py                 # about an hour on 2 cores
@@ -13,7 +13,8 @@ Steps (each a `hamnet pretrain` command, logged under `--runs`):
 3. `eval` all three on the held-out pairs: `docs/results/unicorn-pretrain.json` and `.png`,
    with the command, seed and commit added;
 4. copy the UniCORN encoder to `hamnet/perception/weights/` (`SHIPPED_ENCODER`), with a JSON
-   of where it came from next to it.
+   of where it came from next to it, but only when its held-out AUROC beats the random
+   frozen encoder's: pre-training that does not beat random weights ships nothing.
 """
 
 from __future__ import annotations
@@ -83,15 +84,16 @@ def main() -> int:
     parser.add_argument("--batch-size", type=int, default=32, help="pairs per step")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--runs", type=Path, default=ROOT / "runs" / "pretrain", help="data and run folders"
+        "--runs", type=Path, default=Path("runs/pretrain"), help="data and run folders"
     )
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "unicorn-pretrain",
+    parser.add_argument("--out", type=Path, default=Path("docs/results/unicorn-pretrain"),
                         help="result path without suffix (.json and .png are written)")  # fmt: skip
     parser.add_argument(
         "--from-runs", action="store_true", help="no training: report the runs in --runs"
     )
     parser.add_argument("--no-ship", action="store_true", help="leave the shipped encoder as it is")
     args = parser.parse_args()
+    os.chdir(ROOT)  # relative paths (and those in the report) are the repository's
     code = commit()
     if not args.from_runs:
         train(args)
@@ -106,7 +108,13 @@ def main() -> int:
         "steps": trained["step"], "batch_size": trained["batch_size"],
     }  # fmt: skip
     summary = {**json.loads(report.read_text()), **provenance}
-    if not args.no_ship:
+    auroc = {name: summary["runs"][str(args.runs / name)]["auroc"] for name in ENCODERS[:2]}
+    if auroc["unicorn"] <= auroc["random-frozen"]:
+        summary["shipped"] = None
+        summary["not_shipped"] = (f"UniCORN's held-out AUROC {auroc['unicorn']:.3f} does not beat "
+                                  f"the random frozen encoder's {auroc['random-frozen']:.3f}")  # fmt: skip
+        print(summary["not_shipped"], file=sys.stderr)
+    elif not args.no_ship:
         summary["shipped"] = str(ship(args.runs / "unicorn", provenance).relative_to(ROOT))
     report.write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps({key: summary[key] for key in ("heldout_auroc", "heldout_accuracy", "steps")}))

@@ -2,8 +2,8 @@
 (`EncoderConfig` as JSON) and the weights' version.
 
 Version 0 means random weights (never trained): `--random-init` stamps it, and so does a
-file written by `write_random_checkpoint`. Pre-training writes versions from 1 up; the
-package ships one such file (`SHIPPED_ENCODER`).
+file written by `write_random_checkpoint`. Pre-training writes versions from 1 up
+(`SHIPPED_ENCODER`: where a shipped one goes).
 Loading checks the architecture and every tensor's shape and fails with a message that says
 what differs: a service never runs silently on weights it was not given.
 """
@@ -24,8 +24,9 @@ VERSION_KEY = "hamnet.encoder.version"
 RANDOM_VERSION = 0
 """The version of random (untrained) weights."""
 SHIPPED_ENCODER = Path(__file__).resolve().parent / "weights" / "unicorn.safetensors"
-"""The pre-trained encoder that ships with the package (`scripts/unicorn_pretrain.py` made it;
-`unicorn.json` next to it says how): what perception and the trainer load by default."""
+"""Where `scripts/unicorn_pretrain.py` ships a pre-trained encoder, with `unicorn.json` saying
+how it was made. It ships one only when it beats a random encoder on held-out contact pairs;
+none has yet (docs/pretrain.md), so perception and the trainer still need their flags."""
 
 
 class CheckpointError(ValueError):
