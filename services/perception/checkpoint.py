@@ -50,6 +50,21 @@ def write_random_checkpoint(path: Path, config: EncoderConfig | None = None, see
     save_checkpoint(path, UniCORN(config), RANDOM_VERSION)
 
 
+def read_tensors(path: Path, what: str = "") -> tuple[dict[str, torch.Tensor], dict[str, str]]:
+    """Every tensor and the metadata of the safetensors file `path`.
+
+    Raises:
+        CheckpointError: the file is unreadable (`what` prefixes its name in the message).
+    """
+    try:
+        with safe_open(str(path), framework="pt") as handle:
+            metadata = handle.metadata() or {}
+            tensors = {name: handle.get_tensor(name) for name in handle.keys()}  # noqa: SIM118
+    except Exception as error:  # noqa: BLE001 (safetensors raises its own types for corrupt files)
+        raise CheckpointError(f"{what}{path} is not a readable safetensors file: {error}") from None
+    return tensors, metadata
+
+
 def load_checkpoint(path: Path, expected: EncoderConfig | None = None) -> tuple[UniCORN, int]:
     """The encoder stored at `path` and its version.
 
@@ -64,14 +79,7 @@ def load_checkpoint(path: Path, expected: EncoderConfig | None = None) -> tuple[
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"encoder checkpoint {path} does not exist")
-    try:
-        with safe_open(str(path), framework="pt") as handle:
-            metadata = handle.metadata() or {}
-            tensors = {name: handle.get_tensor(name) for name in handle.keys()}
-    except Exception as error:  # safetensors raises its own types for corrupt files
-        raise CheckpointError(
-            f"encoder checkpoint {path} is not a readable safetensors file: {error}"
-        ) from None
+    tensors, metadata = read_tensors(path, "encoder checkpoint ")
     if CONFIG_KEY not in metadata or VERSION_KEY not in metadata:
         raise CheckpointError(
             f"{path} lacks {CONFIG_KEY!r}/{VERSION_KEY!r} metadata: not an encoder checkpoint"

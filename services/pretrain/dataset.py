@@ -79,13 +79,12 @@ def _identity(config: GenerateConfig) -> dict:
             "pair": json.loads(json.dumps(asdict(config.pair)))}  # fmt: skip
 
 
-def _job(args: tuple[PairConfig, int, int, int, str]) -> tuple[int, int, int, int]:
-    """Draw and write one chunk; returns (index, pairs, colliding pairs, positive points)."""
+def _job(args: tuple[PairConfig, int, int, int, str]) -> int:
+    """Draw and write one chunk; returns its pairs (`summarise` reads the balance once all
+    chunks, also those of an earlier run, are there)."""
     pair, seed, index, length, path = args
-    arrays = draw_chunk(pair, seed, index, length)
-    write_chunk(Path(path), arrays)
-    positives = int(arrays["labels_a"].sum() + arrays["labels_b"].sum())
-    return index, length, int(arrays["colliding"].sum()), positives
+    write_chunk(Path(path), draw_chunk(pair, seed, index, length))
+    return length
 
 
 def generate(config: GenerateConfig) -> dict:
@@ -122,11 +121,11 @@ def generate(config: GenerateConfig) -> dict:
     progress = Progress("generate", config.pairs, "pairs", config.report_period_s, done)
     if config.workers == 1:
         for job in jobs:
-            progress.advance(_job(job)[1])
+            progress.advance(_job(job))
     else:
         with multiprocessing.get_context("spawn").Pool(config.workers) as pool:
-            for result in pool.imap_unordered(_job, jobs):
-                progress.advance(result[1])
+            for pairs in pool.imap_unordered(_job, jobs):
+                progress.advance(pairs)
     manifest = {**identity, "pairs": config.pairs, "complete": True, **summarise(folder)}
     manifest_path.write_text(json.dumps(manifest, indent=1))
     return manifest

@@ -25,6 +25,7 @@ from hamnet.pretrain.metrics import classification, roc_curve
 from hamnet.pretrain.model import ContactModel
 from hamnet.pretrain.state import load_run
 from hamnet.pretrain.train import METRICS, PairTensors
+from hamnet.trainer.plot import read_metrics
 
 
 @torch.no_grad()
@@ -42,16 +43,6 @@ def predict(
     return np.concatenate(scores), np.concatenate(labels)
 
 
-def read_curve(run: Path) -> list[dict[str, float]]:
-    """The run's metrics.jsonl rows (empty when it has none)."""
-    path = Path(run) / METRICS
-    return (
-        [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-        if path.is_file()
-        else []
-    )
-
-
 def evaluate(config: EvalConfig) -> dict:
     """Evaluate every run of `config` on the held-out pairs; writes the JSON and PNG."""
     data = PairTensors(load_pairs(config.data, config.max_pairs))
@@ -61,7 +52,8 @@ def evaluate(config: EvalConfig) -> dict:
         scores, labels = predict(model, data, config.batch_size)
         results[str(run)] = {"encoder": state["encoder"], "step": state["step"],
                              "train_s": state["train_s"], **classification(scores, labels, config.threshold)}  # fmt: skip
-        curves[str(run)] = (read_curve(run), roc_curve(scores, labels))
+        rows = read_metrics(Path(run)) if (Path(run) / METRICS).is_file() else []
+        curves[str(run)] = (rows, roc_curve(scores, labels))
     first = results[str(config.runs[0])]
     summary = {"heldout_auroc": first["auroc"], "heldout_accuracy": first["accuracy"],
                "data": str(config.data), "pairs": len(data), "threshold": config.threshold, "runs": results}  # fmt: skip

@@ -21,10 +21,14 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from safetensors import safe_open
 from safetensors.torch import save_file
 
-from hamnet.perception.checkpoint import RANDOM_VERSION, save_checkpoint
+from hamnet.perception.checkpoint import (
+    RANDOM_VERSION,
+    CheckpointError,
+    read_tensors,
+    save_checkpoint,
+)
 from hamnet.perception.config import EncoderConfig
 from hamnet.pretrain.config import DecoderConfig
 from hamnet.pretrain.model import ContactModel
@@ -122,11 +126,10 @@ def load_run(
     if differs:
         raise RunError(f"{folder} was trained with another model (checkpoint, asked): {differs}")
     try:
-        with safe_open(str(folder / MODEL), framework="pt") as handle:
-            step = (handle.metadata() or {}).get(STEP_KEY)
-            tensors = {name: handle.get_tensor(name) for name in handle.keys()}  # noqa: SIM118
-    except Exception as error:  # noqa: BLE001 (safetensors raises its own types for corrupt files)
-        raise RunError(f"{folder / MODEL} is not a readable safetensors file: {error}") from None
+        tensors, metadata = read_tensors(folder / MODEL)
+    except CheckpointError as error:
+        raise RunError(str(error)) from None
+    step = metadata.get(STEP_KEY)
     if step != str(state["step"]):
         raise RunError(
             f"{folder}: {MODEL} is of step {step}, {STATE} of step {state['step']} (a save cut short)"
