@@ -169,6 +169,13 @@ class TrainConfig:
     """Stop (with a checkpoint) after this much training time; 0: no limit."""
     max_pairs: int = 0
     """Use only the first pairs of the dataset; 0: all."""
+    encoder_warmup: int = 0
+    """Steps at the start with the encoder frozen, only the decoder learning (then both):
+    the decoder first learns to read the random encoder's tokens (a frozen random UniCORN
+    gets there, docs/pretrain.md), and the encoder is tuned from there rather than from a
+    decoder that ignores it. Not in the paper; 0: train both from the first step."""
+    encoder_lr_scale: float = 1.0
+    """The encoder's learning rate as a share of the decoder's (the same cosine schedule)."""
     positive_fraction: float = 0.5
     """Share of the loss on positive patches (table: "positive patch fraction" 0.5;
     `batch.balance_weights`)."""
@@ -192,6 +199,10 @@ class TrainConfig:
             self.max_minutes >= 0 and self.max_pairs >= 0, "max_minutes and max_pairs must be >= 0"
         )
         _check(0.0 < self.positive_fraction < 1.0, "positive_fraction must be in (0, 1)")
+        _check(
+            self.encoder_warmup >= 0 and self.encoder_lr_scale > 0,
+            "encoder_warmup must be >= 0 and encoder_lr_scale > 0",
+        )
         _check(
             self.log_every >= 1 and self.checkpoint_every >= 1,
             "log_every and checkpoint_every must be >= 1",

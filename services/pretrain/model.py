@@ -37,6 +37,10 @@ class ContactModel(nn.Module):
             self.encoder.eval()
         return self
 
+    def freeze_encoder(self, frozen: bool) -> None:
+        """Stop (or resume) the encoder's learning; a random-frozen encoder never learns."""
+        self.encoder.requires_grad_(not frozen and self.kind != "random-frozen")
+
     def patches(
         self, points_a: torch.Tensor, points_b: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:

@@ -38,7 +38,7 @@ MODEL = "model.safetensors"
 STATE = "state.json"
 ENCODER = "encoder.safetensors"
 STEP_KEY = "hamnet.pretrain.step"
-MOMENTS = ("exp_avg", "exp_avg_sq")
+ADAM_STATE = ("step", "exp_avg", "exp_avg_sq")
 
 
 class RunError(ConfigError):
@@ -66,17 +66,15 @@ def save_run(
         version = RANDOM_VERSION if model.kind == "random-frozen" else counters["version"]
         save_checkpoint(folder / ENCODER, model.encoder, version)
     tensors = {f"model.{k}": v.detach().contiguous() for k, v in model.state_dict().items()}
-    adam_step = 0
     for name, param in model.named_parameters():
         state = optimizer.state.get(param, {})
-        for moment in MOMENTS:
+        for moment in ADAM_STATE:
             if moment in state:
                 tensors[f"optim.{name}.{moment}"] = state[moment].contiguous()
-        adam_step = int(state.get("step", adam_step))
     partial = folder / f"{MODEL}.partial"
     save_file(tensors, str(partial), metadata={STEP_KEY: str(counters["step"])})
     os.replace(partial, folder / MODEL)
-    state = {**identity(model), **counters, "adam_step": adam_step}
+    state = {**identity(model), **counters}
     (folder / f"{STATE}.partial").write_text(json.dumps(state, indent=1))
     os.replace(folder / f"{STATE}.partial", folder / STATE)
 
@@ -143,11 +141,10 @@ def load_run(
     if optimizer is not None:
         for name, param in model.named_parameters():
             moments = {
-                m: tensors[f"optim.{name}.{m}"] for m in MOMENTS if f"optim.{name}.{m}" in tensors
+                m: tensors[f"optim.{name}.{m}"]
+                for m in ADAM_STATE
+                if f"optim.{name}.{m}" in tensors
             }
             if moments:
-                optimizer.state[param] = {
-                    "step": torch.tensor(float(state["adam_step"])),
-                    **moments,
-                }
+                optimizer.state[param] = moments
     return model, state

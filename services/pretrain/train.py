@@ -53,9 +53,10 @@ def train_step(
     a, b = augment(data.points_a[index], data.points_b[index], config.augment, generator)
     labels = model.labels(a, b, data.labels_a[index], data.labels_b[index])  # (2BK,)
     weights = balance_weights(labels, config.positive_fraction)
+    model.freeze_encoder(step < config.encoder_warmup)
     lr = cosine_lr(step, config.steps, config.optim.lr, config.optim.min_lr)
     for group in optimizer.param_groups:
-        group["lr"] = lr
+        group["lr"] = lr * group["lr_scale"]
     first: list[LossTerms] = []
 
     def closure() -> torch.Tensor:
@@ -63,7 +64,7 @@ def train_step(
         first.append(terms)
         return terms.loss
 
-    params = [p for p in model.parameters() if p.requires_grad]
+    params = [p for group in optimizer.param_groups for p in group["params"]]
     loss, grad_norm = sam_step(
         params, optimizer, closure, config.optim.sam_rho, config.optim.max_grad_norm
     )
@@ -72,9 +73,14 @@ def train_step(
 
 
 def new_optimizer(model: ContactModel, config: TrainConfig) -> torch.optim.Optimizer:
-    """AdamW over the trainable parameters (SAM's base optimiser)."""
-    params = [p for p in model.parameters() if p.requires_grad]
-    return torch.optim.AdamW(params, lr=config.optim.lr, weight_decay=config.optim.weight_decay)
+    """AdamW (SAM's base optimiser) over the decoder and, unless frozen for good, the encoder,
+    each group with the share of the scheduled rate it takes (`lr_scale`)."""
+    groups = [{"params": list(model.decoder.parameters()), "lr_scale": 1.0}]
+    if config.encoder != "random-frozen":
+        groups.append(
+            {"params": list(model.encoder.parameters()), "lr_scale": config.encoder_lr_scale}
+        )
+    return torch.optim.AdamW(groups, lr=config.optim.lr, weight_decay=config.optim.weight_decay)
 
 
 def _mean(rows: list[dict[str, float]]) -> dict[str, float]:

@@ -16,8 +16,8 @@ from hamnet.pretrain.batch import balance_weights
 from hamnet.pretrain.config import AugmentConfig, GenerateConfig, OptimConfig, TrainConfig
 from hamnet.pretrain.dataset import generate, load_pairs
 from hamnet.pretrain.model import ContactModel, contact_loss
-from hamnet.pretrain.state import ENCODER, MODEL, STATE, RunError, load_run
-from hamnet.pretrain.train import METRICS, PairTensors, train
+from hamnet.pretrain.state import ENCODER, MODEL, STATE, RunError, load_run, save_run
+from hamnet.pretrain.train import METRICS, PairTensors, new_optimizer, train, train_step
 
 STILL = AugmentConfig(rotation=0.0, translation=0.0, log_scale=0.0, noise=0.0)
 
@@ -87,6 +87,40 @@ def test_the_encoder_checkpoint_loads_into_perception_and_resume_continues(data,
     assert state["step"] == 3 and load_checkpoint(config.out / ENCODER)[1] == 3
     with pytest.raises(RunError, match="already holds a run"):
         train(config)
+
+
+def test_the_encoder_waits_for_the_decoder_and_a_resume_is_exact(data, tmp_path) -> None:
+    """With `encoder_warmup` 2 only the decoder learns for two steps, then both (the encoder
+    at a quarter of the rate); a run saved after three steps and resumed takes the fourth
+    exactly as the uninterrupted one (each parameter keeps its own Adam step count)."""
+    config = TrainConfig(data=data, steps=4, batch_size=8, encoder_warmup=2, encoder_lr_scale=0.25)
+    pairs = PairTensors(load_pairs(data))
+
+    def fresh() -> tuple[ContactModel, torch.optim.Optimizer]:
+        torch.manual_seed(config.seed)
+        model = ContactModel("unicorn", config.architecture, config.decoder).train()
+        return model, new_optimizer(model, config)
+
+    def snapshot(module: torch.nn.Module) -> list[torch.Tensor]:
+        return [p.detach().clone() for p in module.parameters()]
+
+    model, optimizer = fresh()
+    encoder, decoder = snapshot(model.encoder), snapshot(model.decoder)
+    rows = [train_step(model, optimizer, pairs, step, config) for step in range(2)]
+    assert all(torch.equal(p, q) for p, q in zip(encoder, model.encoder.parameters()))
+    assert not all(torch.equal(p, q) for p, q in zip(decoder, model.decoder.parameters()))
+    train_step(model, optimizer, pairs, 2, config)
+    assert not all(torch.equal(p, q) for p, q in zip(encoder, model.encoder.parameters()))
+    assert [g["lr_scale"] for g in optimizer.param_groups] == [1.0, 0.25]
+    save_run(tmp_path / "run", model, optimizer, {"step": 3, "version": 1})
+    train_step(model, optimizer, pairs, 3, config)
+
+    resumed, resumed_optimizer = fresh()
+    load_run(tmp_path / "run", resumed, resumed_optimizer)
+    train_step(resumed, resumed_optimizer, pairs, 3, config)
+    for (name, p), q in zip(model.named_parameters(), resumed.parameters()):
+        assert torch.equal(p, q), name
+    assert rows[0]["lr"] == config.optim.lr
 
 
 @pytest.mark.parametrize("kind", ["random-frozen", "pointnet"])
