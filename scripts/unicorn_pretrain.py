@@ -80,7 +80,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--pairs", type=int, default=60_000, help="training pairs")
     parser.add_argument("--heldout-pairs", type=int, default=2_000, help="held-out pairs")
-    parser.add_argument("--steps", type=int, default=4_000, help="training steps of each encoder")
+    parser.add_argument("--steps", type=int, default=10_000, help="training steps of each encoder")
     parser.add_argument("--batch-size", type=int, default=32, help="pairs per step")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
