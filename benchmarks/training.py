@@ -152,7 +152,7 @@ def chain_rate(sim: SimConfig, iterations: int, run_dir: Path, deadline_s: float
     horizon = str(RunConfig().steps_per_rollout)
     commands = [
         ["sim", "--stage", "easy", "--num-envs", str(sim.num_envs)],
-        ["perception", "--random-init"],
+        ["perception"],
         ["policy", "--random-init", "hamnet", "--rollout-horizon", horizon],
         ["safety", "--profile", "training"],
     ]

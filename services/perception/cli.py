@@ -1,8 +1,10 @@
 """`hamnet perception`: point clouds and UniCORN tokens for every sim (or bridge) state.
 
-Needs the encoder weights: `--checkpoint PATH` (a safetensors file written by pre-training,
-or by `--write-random-checkpoint PATH`). `--random-init` runs on random weights instead, for
-tests and smoke runs; every message then carries encoder_version 0. Cloud sampling is
+Encodes with the pre-trained UniCORN shipped in the package (`SHIPPED_ENCODER`, made by
+`scripts/unicorn_pretrain.py`; docs/pretrain.md) unless `--checkpoint PATH` names another
+(a safetensors file of `hamnet pretrain train`, or of `--write-random-checkpoint PATH`).
+`--random-init` runs on random weights instead, for tests and ablations; every message then
+carries encoder_version 0. Cloud sampling is
 configured under `--clouds.<field>` (e.g. `--clouds.noise-std 0.005`), the architecture the
 checkpoint must match under `--encoder.<field>`.
 """
@@ -17,7 +19,13 @@ from typing import Annotated
 
 import torch
 
-from hamnet.perception.checkpoint import RANDOM_VERSION, CheckpointError, load_checkpoint, write_random_checkpoint
+from hamnet.perception.checkpoint import (
+    RANDOM_VERSION,
+    SHIPPED_ENCODER,
+    CheckpointError,
+    load_checkpoint,
+    write_random_checkpoint,
+)
 from hamnet.perception.config import CloudConfig, EncoderConfig
 from hamnet.perception.shell import PerceptionShell, ShellConfig
 from hamnet.perception.unicorn import UniCORN
@@ -30,10 +38,12 @@ class PerceptionServiceConfig:
     """One perception worker: encoder weights, cloud sampling and the loop."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
-    checkpoint: Path | None = None
-    """Encoder checkpoint (safetensors with architecture and version metadata)."""
+    checkpoint: Path = SHIPPED_ENCODER
+    """Encoder checkpoint (safetensors with architecture and version metadata); default: the
+    pre-trained encoder shipped in the package."""
     random_init: bool = False
-    """Run on randomly initialised weights (tests only); messages say encoder_version 0."""
+    """Run on randomly initialised weights instead (tests, ablations); messages say
+    encoder_version 0."""
     write_random_checkpoint: Path | None = None
     """Write a random-weights checkpoint (version 0) for `--encoder` to this path and exit."""
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
@@ -43,8 +53,8 @@ class PerceptionServiceConfig:
     loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
 
     def __post_init__(self) -> None:
-        if self.write_random_checkpoint is None and self.random_init == (self.checkpoint is not None):
-            raise ValueError("give exactly one of --checkpoint PATH and --random-init (tests only)")
+        if self.random_init and self.checkpoint != SHIPPED_ENCODER:
+            raise ValueError("give either --checkpoint PATH or --random-init, not both")
 
 
 CONFIG = PerceptionServiceConfig
@@ -52,7 +62,8 @@ CONFIG = PerceptionServiceConfig
 
 
 def encoder_from(config: PerceptionServiceConfig) -> tuple[UniCORN, int]:
-    """The encoder and its version, from the checkpoint or random (`--random-init`).
+    """The encoder and its version: the checkpoint's (the shipped one by default), or random
+    (`--random-init`).
 
     Raises:
         CheckpointError: the checkpoint is unusable.

@@ -9,8 +9,10 @@ profile in this one process, no Zenoh unless `--publish`).
     hamnet trainer --stage full --sim.task.timeout 200          # any sim field, on top of a stage
     hamnet trainer --inprocess --resume runs/train              # continue a run from its snapshot
 
-Rollout workers take the same `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`
-and `--encoder-checkpoint` flags (their `--sim.num-envs` environments each; the trainer learns
+The policy reads UniCORN tokens of the pre-trained encoder shipped in the package, frozen
+(the paper's); `--encoder-checkpoint PATH` names another, `--random-encoder` freezes a random
+one instead (the ablation). Rollout workers take the same `--stage`, `--sim.*`,
+`--architecture`, `--steps-per-rollout` and encoder flags (their `--sim.num-envs` environments each; the trainer learns
 from `--workers` of them side by side). The trainer announces its weights before every
 rollout (`trainer/weights`, with the schedule counter), publishes the counter and every
 iteration's metrics (`trainer/schedule`, `trainer/metrics`; watch with `hamnet monitor`),

@@ -6,9 +6,9 @@ rollout back as a RolloutChunk (`hamnet.trainer.rollout_service`).
     hamnet trainer --workers 2 & hamnet rollout --worker 0 & hamnet rollout --worker 1
     hamnet up compose/train-easy.yaml                  # trainer and workers from a stack file
 
-Give it the trainer's `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`,
-`--encoder-checkpoint` and `--max-policy-lag` (the other run flags are the trainer's and are
-ignored here). `--worker K` (a number) names the worker and seeds its environments apart.
+Give it the trainer's `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`, encoder
+flags (`--encoder-checkpoint`, `--random-encoder`) and `--max-policy-lag` (the other run
+flags are the trainer's and are ignored here). `--worker K` (a number) names the worker and seeds its environments apart.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.perception.checkpoint import load_checkpoint
+from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.config import LogStdConfig
@@ -88,8 +88,12 @@ class RunConfig:
     """Stop after this much wall-clock time, s."""
     run_dir: Path = Path("runs/train")
     """Where metrics.jsonl and checkpoints go."""
-    encoder_checkpoint: Path | None = None
-    """Pre-trained UniCORN weights (frozen); None: random weights, frozen (version 0)."""
+    encoder_checkpoint: Path = SHIPPED_ENCODER
+    """UniCORN weights, frozen while the policy learns (the paper's); default: the
+    pre-trained encoder shipped in the package."""
+    random_encoder: bool = False
+    """Freeze a randomly initialised encoder (version 0) instead: the ablation without
+    pre-training."""
     overlap: bool | None = None
     """Split the environments into two groups and step one group's physics while the other's
     perception, policy and safety run (`rollout.collect_overlapped`), so both cores stay
@@ -208,11 +212,11 @@ def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], 
     size = config.num_envs // groups
     encoder, version = None, 0
     if architecture(config.architecture).config.clouds:
-        if config.encoder_checkpoint is not None:
-            encoder, version = load_checkpoint(config.encoder_checkpoint)
-        else:
+        if config.random_encoder:
             torch.manual_seed(config.seed)
             encoder = UniCORN()
+        else:
+            encoder, version = load_checkpoint(config.encoder_checkpoint)
         encoder.requires_grad_(False)
     threads = 1 if groups > 1 else config.sim.nthread  # the other core runs the networks
     workers = []

@@ -46,7 +46,7 @@ def write_summary(config: RunConfig, held_out: HeldOut | None, code: str) -> Pat
             "curriculum": dataclasses.asdict(sim.curriculum),
         },
         "architecture": config.architecture,
-        "encoder_checkpoint": config.encoder_checkpoint,
+        "encoder_checkpoint": None if config.random_encoder else str(config.encoder_checkpoint),
         "num_envs": config.num_envs,
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,

@@ -17,6 +17,7 @@ from mcap.reader import make_reader
 
 from hamnet.cli import COMMANDS
 from hamnet.launcher.stack import Stack, load
+from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.proto.health_pb2 import Health, ServiceState
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.recorder.headers import header_of
@@ -111,6 +112,12 @@ def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(demo: De
     with demo.output(".mcap").open("rb") as stream:
         channels = make_reader(stream).get_summary().channels.values()
     assert {demo.key(path) for path in LOOP} <= {channel.topic for channel in channels}
+
+    # Perception encoded with the pre-trained encoder shipped in the package, not random weights.
+    tokens = demo.key("perception/<w>/tokens")
+    versions = {PerceptionTokens.FromString(m.payload).encoder_version
+                for m in read_recording([demo.output(".mcap")]) if m.key == tokens}  # fmt: skip
+    assert versions == {load_checkpoint(SHIPPED_ENCODER)[1]} and 0 not in versions
 
 
 def test_the_recording_replays_into_a_monitor_and_a_perception_service(demo: DemoRun, spawn, tmp_path):
