@@ -17,9 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.perception.config import CloudConfig
 from hamnet.policy.policy import Policy
+from hamnet.policy.registry import architecture
 from hamnet.sim.rewards import REWARD_NAMES
-from hamnet.trainer.runner import RunConfig, build_workers
+from hamnet.trainer.runner import RunConfig, build_workers, frozen_encoder
 
 HELD_OUT_SEED_OFFSET = 1_000_003
 """Added to the training seed for evaluation environments (a prime, far from any run seed)."""
@@ -39,20 +41,30 @@ def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitio
     return evaluate(policy, config, episodes, env_transitions).success_rate
 
 
-def evaluate(policy: Policy, config: RunConfig, episodes: int, env_transitions: int) -> HeldOut:
+def evaluate(
+    policy: Policy,
+    config: RunConfig,
+    episodes: int,
+    env_transitions: int,
+    clouds: CloudConfig | None = None,
+) -> HeldOut:
     """Success rate and goal return of `episodes` held-out episodes, one per environment.
 
     Args:
         policy: acts deterministically (the mean of its Gaussian).
-        config: the run whose stage to use; its seed is offset (held out).
+        config: the run whose stage to use; its seed is offset (held out), its encoder is
+            the run's (a random one drawn from the run's own seed).
         episodes: how many episodes, one per environment.
         env_transitions: the schedule counter of the policy (safety's xi annealing).
+        clouds: how perception samples clouds (default: every surface; a DAgger student
+            sees them as the cameras do).
     """
     sim = dataclasses.replace(
         config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes
     )
-    held_out = dataclasses.replace(config, sim=sim)
-    (worker,), _ = build_workers(held_out, groups=1)
+    held_out = dataclasses.replace(config, sim=sim, architecture=policy.architecture)
+    encoder = frozen_encoder(config) if architecture(policy.architecture).config.clouds else None
+    (worker,), _ = build_workers(held_out, groups=1, clouds=clouds, encoder=encoder)
     policy.eval()
     ended = np.zeros(episodes, dtype=bool)
     succeeded = np.zeros(episodes, dtype=bool)

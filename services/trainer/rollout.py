@@ -63,7 +63,7 @@ def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
                                      s.cuboid_half_extent, s.cuboid_active, s.object_points)  # fmt: skip
 
 
-def _tokens(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
+def tokens_of(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
     """Object, local and global tokens; None for a policy without clouds."""
     if percepts is None:
         return None, None, None
@@ -222,7 +222,7 @@ class RolloutWorker:
         )
         robot = builder.robot_observation(obs)
         return builder.policy_inputs(
-            policy.config, self.carry, robot, _tokens(self.percepts),
+            policy.config, self.carry, robot, tokens_of(self.percepts),
             pose_noise=self.pose_noise, generator=self.generator,
         )  # fmt: skip
 
@@ -235,7 +235,7 @@ class RolloutWorker:
             None if self.perception is None else self.perception.step(robot.object_pose, rows)
         )
         inputs = builder.policy_inputs(
-            policy.config, take_rows(self.carry, rows), robot, _tokens(percepts),
+            policy.config, take_rows(self.carry, rows), robot, tokens_of(percepts),
             pose_noise=self.pose_noise, generator=self.generator,
         )  # fmt: skip
         return policy.act(inputs, deterministic=True).values

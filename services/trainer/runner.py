@@ -32,6 +32,7 @@ import torch
 
 from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
+from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.config import LogStdConfig
@@ -205,25 +206,39 @@ class EpisodeTracker:
         return out
 
 
-def build_workers(config: RunConfig, groups: int) -> tuple[list[RolloutWorker], int]:
+def frozen_encoder(config: RunConfig) -> tuple[UniCORN, int]:
+    """The run's frozen UniCORN and its version: `encoder_checkpoint`'s, or (version 0) a
+    random one drawn from the run's seed, so every encoder a run builds (its workers', the
+    held-out evaluation's) is the same."""
+    if config.random_encoder:
+        torch.manual_seed(config.seed)
+        encoder, version = UniCORN(), 0
+    else:
+        encoder, version = load_checkpoint(config.encoder_checkpoint)
+    return encoder.requires_grad_(False), version
+
+
+def build_workers(
+    config: RunConfig,
+    groups: int,
+    clouds: CloudConfig | None = None,
+    encoder: tuple[UniCORN, int] | None = None,
+) -> tuple[list[RolloutWorker], int]:
     """The in-process cores of the run, in `groups` groups of environments (each its own
     sim, perception caches and filter), and the encoder's version (0: random weights; no
-    perception at all for a policy without clouds). The groups share one frozen encoder."""
+    perception at all for a policy without clouds). The groups share one frozen encoder:
+    `encoder` when given, else `frozen_encoder(config)`; perception samples `clouds`
+    (default: every surface, noise-free)."""
     size = config.num_envs // groups
-    encoder, version = None, 0
+    frozen, version = None, 0
     if architecture(config.architecture).config.clouds:
-        if config.random_encoder:
-            torch.manual_seed(config.seed)
-            encoder = UniCORN()
-        else:
-            encoder, version = load_checkpoint(config.encoder_checkpoint)
-        encoder.requires_grad_(False)
+        frozen, version = frozen_encoder(config) if encoder is None else encoder
     threads = 1 if groups > 1 else config.sim.nthread  # the other core runs the networks
     workers = []
     for group in range(groups):
         seed = config.seed + group
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
-        perception = None if encoder is None else Perception(encoder, size, seed=seed)
+        perception = None if frozen is None else Perception(frozen, size, clouds, seed=seed)
         safety = SafetyFilter(np.zeros((size, NUM_JOINTS)), with_profile("training"))
         workers.append(RolloutWorker(env, perception, safety, seed))
     return workers, version
@@ -391,6 +406,10 @@ class Runner:
             energy=self.energy,
         )
 
+    def progress(self, row: dict[str, float]) -> str:
+        """The progress line of an iteration's metrics."""
+        return progress_line(row)
+
     @property
     def checkpoints(self) -> Path:
         """Where the run's checkpoint and snapshot go."""
@@ -473,7 +492,7 @@ class Runner:
                     on_iteration(row)
                 now = time.monotonic()
                 if now - last_log >= config.log_period_s:
-                    log.info(progress_line(row))
+                    log.info(self.progress(row))
                     last_log = now
                 if now - last_checkpoint >= config.checkpoint_period_s:
                     self.checkpoint()
