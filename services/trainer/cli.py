@@ -23,10 +23,17 @@ at the end, `<run-dir>/summary.json` (success rate of the final policy's mean on
 `--eval-episodes` held-out episodes, the curve, command, seed and commit), and prints a
 progress line every `--log-period-s`. `hamnet trainer plot RUN_DIR` draws a run's learning
 curves as PNG.
+
+    hamnet trainer --algo dagger --inprocess --teacher runs/train-easy/checkpoints/latest.safetensors
+
+distils a PPO teacher into the recurrent student on deployable inputs by DAgger (issue 15,
+docs/trainer.md "DAgger"): the same checkpoints, `--resume`, metrics, progress line and
+summary (with the teacher's and the student's held-out success rates), `--dagger.*` flags.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import logging
 import math
@@ -34,13 +41,14 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.stages import stage_in
+from hamnet.trainer.dagger import DaggerConfig
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
@@ -73,6 +81,14 @@ class TrainerConfig:
     the newest weights with `hamnet policy`. Streaming runs always publish."""
     weights_period_s: float = 10.0
     """With --inprocess --publish: seconds between two weight announcements (and one at the end)."""
+    algo: Literal["ppo", "dagger"] = "ppo"
+    """ppo: learn by PPO. dagger: distil `--teacher` into the run's `--architecture` (default
+    `student` then) by DAgger, in-process (`--inprocess`)."""
+    teacher: Path | None = None
+    """With --algo dagger: the teacher, a policy checkpoint `hamnet trainer` wrote (its
+    `checkpoints/latest.safetensors`). Give the run the teacher's --stage and encoder flags."""
+    dagger: DaggerConfig = field(default_factory=DaggerConfig)
+    """DAgger's beta schedule and student update (`--dagger.*`), with --algo dagger."""
     resume: Path | None = None
     """Continue the run in this folder from its latest snapshot (`checkpoints/`), appending to
     its metrics.jsonl (it replaces --run-dir). Its architecture, --sim.* and
@@ -92,9 +108,14 @@ CONFIG = TrainerConfig
 
 def stage_default(argv: Sequence[str]) -> RunConfig:
     """The run on the stage `--stage` names in `argv` (easy when absent), so every `--sim.*`
-    flag changes that stage's value."""
+    flag changes that stage's value; with `--algo dagger` the student learns."""
     stage = stage_in(argv, "easy")
-    return RunConfig(stage=stage, sim=stage_sim(stage))
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--algo", default="ppo")
+    student = parser.parse_known_args(list(argv))[0].algo == "dagger"
+    return RunConfig(
+        stage=stage, sim=stage_sim(stage), architecture="student" if student else "hamnet"
+    )
 
 
 def main(argv: Sequence[str]) -> int:
@@ -106,6 +127,10 @@ def main(argv: Sequence[str]) -> int:
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
     run, code = config.resumed_run, commit()  # the commit of the code that trains
+    if config.algo == "dagger":
+        from hamnet.trainer.dagger_cli import distil
+
+        return distil(config, identity, code)
     try:
         if config.inprocess and not config.publish:
             runner = Runner(run, resume=config.resume is not None)
@@ -129,12 +154,16 @@ def train_with(service: Service, config: TrainerConfig) -> Runner:
     """Train while publishing on `service`: in-process, or from streamed rollouts."""
     run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
-        runner = Runner(run, resume=resume)
-        publisher = TrainerPublisher(service, config.weights_period_s)
-    else:
-        runner = Runner(run, lambda policy: Streamed(
-            service, policy, config.workers, run.num_envs, config.max_policy_lag), resume)  # fmt: skip
-        publisher = TrainerPublisher(service, math.inf)  # the source announces every version
+        return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
+    runner = Runner(run, lambda policy: Streamed(
+        service, policy, config.workers, run.num_envs, config.max_policy_lag), resume)  # fmt: skip
+    return publish_while(service, runner, math.inf)  # the source announces every version
+
+
+def publish_while(service: Service, runner: Runner, weights_period_s: float) -> Runner:
+    """Run `runner` while `service` runs, publishing its weights (every `weights_period_s`
+    and at the end), counter and metrics."""
+    publisher = TrainerPublisher(service, weights_period_s)
     runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
     if runner.last_row:
         publisher.publish(runner.policy, runner.last_row, final=True)

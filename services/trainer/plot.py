@@ -2,7 +2,8 @@
 
 Reads `<run_dir>/metrics.jsonl` (one line per iteration) and draws, against env_transitions
 (the paper's x-axis), the success rate, the episode return per reward term, the episode
-length, and PPO's KL and learning rate: what a person checks to see whether a run learns.
+length, and PPO's KL and learning rate (a DAgger run: its imitation loss, beta and the share
+of steps the student acted): what a person checks to see whether a run learns.
 """
 
 from __future__ import annotations
@@ -25,7 +26,9 @@ def read_metrics(run_dir: Path) -> list[dict[str, float]]:
     """Every iteration's metrics of a run, in order."""
     path = run_dir / "metrics.jsonl"
     if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist: is {run_dir} a run folder of hamnet trainer?")
+        raise FileNotFoundError(
+            f"{path} does not exist: is {run_dir} a run folder of hamnet trainer?"
+        )
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
@@ -39,15 +42,22 @@ def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
         (axes[0, 1], "episode return per reward term",
          [(f"return/{name}", name) for name in REWARD_NAMES] + [("return/total", "total")]),
         (axes[1, 0], "episode length (policy steps)", [("episode_length", "length")]),
-        (axes[1, 1], "PPO", [("approx_kl", "KL"), ("learning_rate", "learning rate"), ("clip_fraction", "clip fraction")]),
     ]  # fmt: skip
+    dagger = any("imitation_loss" in row for row in rows)
+    if dagger:
+        panels.append((axes[1, 1], "DAgger", [("imitation_loss", "imitation loss (MSE)"),
+                       ("beta", "beta (teacher acts)"), ("student_share", "student-acted share")]))  # fmt: skip
+    else:
+        panels.append((axes[1, 1], "PPO", [("approx_kl", "KL"), ("learning_rate", "learning rate"),
+                       ("clip_fraction", "clip fraction")]))  # fmt: skip
     for axis, name, keys in panels:
         for key, label in keys:
             axis.plot(x, series(key), label=label, linewidth=1.2)
         axis.set_title(name)
         axis.grid(alpha=0.3)
         axis.legend(fontsize=8)
-    axes[1, 1].set_yscale("log")
+    if not dagger:
+        axes[1, 1].set_yscale("log")
     for axis in axes[1]:
         axis.set_xlabel("env transitions (millions)")
     figure.suptitle(title)
@@ -60,9 +70,13 @@ def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
 
 def main(argv: Sequence[str]) -> int:
     """`hamnet trainer plot RUN_DIR [--out FILE]`; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="hamnet trainer plot", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="hamnet trainer plot", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("run_dir", type=Path, help="a folder hamnet trainer wrote (its --run-dir)")
-    parser.add_argument("--out", type=Path, default=None, help="PNG to write (default RUN_DIR/curves.png)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="PNG to write (default RUN_DIR/curves.png)"
+    )
     args = parser.parse_args(list(argv))
     try:
         rows = read_metrics(args.run_dir)

@@ -27,12 +27,20 @@ def commit() -> str:
     return result.stdout.strip()
 
 
-def write_summary(config: RunConfig, held_out: HeldOut | None, code: str) -> Path:
+DAGGER_KEYS = ("beta", "student_share", "imitation_loss")
+"""Curve keys of a DAgger run, kept where its rows have them."""
+
+
+def write_summary(
+    config: RunConfig, held_out: HeldOut | None, code: str, extra: dict[str, object] | None = None
+) -> Path:
     """Write `<run_dir>/summary.json` from the run's metrics, trained by the code of commit
-    `code` (taken when the run started: the checkout may move while it runs)."""
+    `code` (taken when the run started: the checkout may move while it runs); `extra` adds
+    fields (a DAgger run's teacher and both held-out success rates)."""
     rows = read_metrics(config.run_dir)
     stride = max(1, len(rows) // CURVE_POINTS)
     keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
+    keys += tuple(key for key in DAGGER_KEYS if rows and key in rows[-1])
     sim = config.sim
     summary = {
         "final_success_rate": None if held_out is None else held_out.success_rate,
@@ -56,6 +64,7 @@ def write_summary(config: RunConfig, held_out: HeldOut | None, code: str) -> Pat
         else " ".join(sys.argv),
         "seed": config.seed,
         "commit": code,
+        **(extra or {}),
     }
     path = config.run_dir / "summary.json"
     path.write_text(json.dumps(summary, indent=1, default=str) + "\n")

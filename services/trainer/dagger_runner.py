@@ -1,0 +1,162 @@
+"""DAgger's training loop: the PPO `Runner`'s loop, checkpoints, snapshots and metrics
+file, with DAgger's rollouts (`dagger_worker.DaggerWorker`, in-process) and the student's
+imitation update (`dagger.update_student`) in place of PPO's.
+
+The teacher is a policy checkpoint the PPO trainer wrote; it is frozen, and a snapshot
+records its SHA-256 so a run resumes only with the teacher it was distilled from. The
+student's checkpoint (`checkpoints/latest.safetensors`) is a policy checkpoint like PPO's,
+served by `hamnet policy --checkpoint`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hamnet.policy.policy import Policy
+from hamnet.policy.registry import architecture
+from hamnet.policy.weights import WeightsError, from_bytes, policy_from, sha256
+from hamnet.trainer.dagger import DaggerConfig, Demonstrations, beta_at, update_student
+from hamnet.trainer.dagger_worker import DaggerWorker, build_dagger_worker
+from hamnet.trainer.resume import Arrays, ResumeError, Snapshot
+from hamnet.trainer.runner import RunConfig, Runner
+
+
+class DaggerError(ValueError):
+    """A teacher or student DAgger cannot use (one line, for the command line)."""
+
+
+@dataclass(frozen=True)
+class Teacher:
+    """The frozen teacher of a run."""
+
+    policy: Policy
+    path: Path
+    sha256: str
+    """Of the checkpoint file's bytes."""
+
+
+def load_teacher(path: Path) -> Teacher:
+    """The teacher in the policy checkpoint `path`.
+
+    Raises:
+        DaggerError: no such file, not a policy checkpoint, or a student's (no privileged
+            inputs, or recurrent): a student cannot label for another.
+    """
+    try:
+        data = Path(path).read_bytes()
+    except OSError as error:
+        raise DaggerError(f"cannot read teacher {path}: {error.strerror}") from None
+    try:
+        policy = policy_from(from_bytes(data))
+    except WeightsError as error:
+        raise DaggerError(f"teacher {path} is not a policy checkpoint: {error}") from None
+    if not policy.config.privileged or policy.config.recurrent:
+        raise DaggerError(f"teacher {path} is a {policy.architecture!r} policy, a student's "
+                          "architecture: the teacher must be a privileged feed-forward policy "
+                          "trained by PPO (hamnet trainer)")  # fmt: skip
+    return Teacher(policy.requires_grad_(False), Path(path), sha256(data))
+
+
+def check_student(name: str) -> None:
+    """DaggerError unless `name` is a student architecture: no privileged input, and memory
+    for `evaluate_sequence` to unroll."""
+    config = architecture(name).config
+    if config.privileged or not config.recurrent:
+        raise DaggerError(f"--architecture {name} is not a student (no privileged inputs, "
+                          "recurrent): DAgger distils into one, e.g. 'student'")  # fmt: skip
+
+
+class InProcessDagger:
+    """DAgger's rollouts from one `DaggerWorker` in this process."""
+
+    def __init__(self, config: RunConfig, teacher: Policy, student: Policy) -> None:
+        self.worker: DaggerWorker = build_dagger_worker(config, teacher, student)
+
+    @property
+    def num_envs(self) -> int:
+        return self.worker.num_envs
+
+    def snapshot(self) -> Snapshot:
+        return self.worker.snapshot()
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        self.worker.restore(arrays, meta)
+
+
+class DaggerRunner(Runner):
+    """A DAgger run: the teacher labels, the student (the run's policy) learns."""
+
+    def __init__(
+        self, config: RunConfig, dagger: DaggerConfig, teacher: Teacher, resume: bool = False
+    ) -> None:
+        """The student is `config.architecture`; rollouts come in one group of environments
+        (no overlap: two perceptions share the step). ResumeError as `Runner`'s, and when the
+        snapshot is not of a DAgger run or of another teacher."""
+        check_student(config.architecture)
+        self.dagger, self.teacher = dagger, teacher
+        config = dataclasses.replace(config, overlap=False)
+        super().__init__(
+            config, lambda student: InProcessDagger(config, teacher.policy, student), resume
+        )
+
+    def iterate(self) -> dict[str, float]:
+        """One rollout of teacher and student and one imitation update; the metrics."""
+        started = time.perf_counter()
+        config, student = self.config, self.policy
+        student.eval()
+        demos: Demonstrations = self.source.worker.collect(
+            self.teacher.policy, student, config.steps_per_rollout, self.env_transitions,
+            self.dagger,
+        )  # fmt: skip
+        collect_done = time.perf_counter()
+        self.tracker.add(demos)
+        stats = update_student(student, self.optimizer, demos, self.dagger)
+        student.normalizer.update(demos.inputs.observation)  # after: act and learn agreed
+        beta = beta_at(self.env_transitions, self.dagger)
+        transitions = demos.labels.shape[0] * demos.labels.shape[1]
+        self.env_transitions += transitions
+        self.iteration += 1
+        done = time.perf_counter()
+        return {
+            "iteration": self.iteration,
+            "env_transitions": self.env_transitions,
+            "env_steps_per_s": transitions / (done - started),
+            "collect_s": collect_done - started,
+            "learn_s": done - collect_done,
+            "beta": beta,
+            "student_share": 1.0 - float(demos.teacher_acted.float().mean()),
+            **dataclasses.asdict(stats),
+            "learning_rate": self.dagger.lr,
+            **self.tracker.summary(),
+        }
+
+    def progress(self, row: dict[str, float]) -> str:
+        return (
+            f"it {row['iteration']} | {row['env_transitions'] / 1e6:.2f}M transitions | "
+            f"{row['env_steps_per_s']:.0f} env steps/s | beta {row['beta']:.2f} | student acts "
+            f"{row['student_share']:.2f} | imitation {row['imitation_loss']:.4f} | success "
+            f"{row['success_rate']:.2f} over {row['episodes']} episodes | return "
+            f"{row.get('return/total', math.nan):.3f}"
+        )
+
+    def snapshot(self) -> Snapshot:
+        """`Runner`'s snapshot with the teacher's identity."""
+        arrays, meta = super().snapshot()
+        return arrays, {**meta, "teacher": {"path": str(self.teacher.path),
+                                            "sha256": self.teacher.sha256}}  # fmt: skip
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """`Runner`'s restore, once the snapshot is of a DAgger run of this teacher."""
+        saved = meta.get("teacher")
+        if saved is None:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: it is not a DAgger run")
+        if saved["sha256"] != self.teacher.sha256:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: it distils the teacher "
+                              f"{saved['path']} (sha256 {saved['sha256'][:12]}), not "
+                              f"{self.teacher.path} ({self.teacher.sha256[:12]})")  # fmt: skip
+        super().restore(arrays, meta)

@@ -1,0 +1,184 @@
+"""DAgger (issue 15) at tiny sizes on the real cores: beta's schedule, the teacher's labels,
+the student's imitation update, exact resume, and `hamnet trainer --algo dagger` with its
+refusals. The teacher is a freshly initialised HAMnet: what is checked is the machinery,
+not a distillation result (that is the proof run, docs/trainer.md "DAgger")."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from hamnet.policy.registry import build
+from hamnet.policy.weights import policy_from, read_checkpoint, save_checkpoint
+from hamnet.sim.stages import stage_config
+from hamnet.trainer.cli import main
+from hamnet.trainer.dagger import DaggerConfig, beta_at, imitation_loss, update_student
+from hamnet.trainer.dagger_runner import DaggerRunner, load_teacher
+from hamnet.trainer.dagger_worker import build_dagger_worker
+from hamnet.trainer.resume import ResumeError
+from hamnet.trainer.runner import RunConfig, build_workers
+from hamnet.trainer.sequence import episode_starts, evaluate_sequence
+
+B = 4
+STEPS = 4
+
+
+def tiny_run(run_dir: Path, iterations: int = 1, timeout: int = 300, seed: int = 0) -> RunConfig:
+    """B environments of the easy stage, two objects, one physics thread, the student."""
+    sim = stage_config("easy", num_envs=B, num_objects=2, nthread=1, seed=seed)
+    sim = dataclasses.replace(sim, task=dataclasses.replace(sim.task, timeout=timeout))
+    return RunConfig(architecture="student", sim=sim, steps_per_rollout=STEPS, run_dir=run_dir,
+                     max_env_transitions=iterations * B * STEPS, eval_episodes=0)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def teacher_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("teacher") / "teacher.safetensors"
+    save_checkpoint(path, build("hamnet", seed=1), 7)
+    return path
+
+
+def test_beta_falls_linearly_then_stays() -> None:
+    config = DaggerConfig(beta_initial=1.0, beta_final=0.2, beta_decay_transitions=100)
+    assert [beta_at(n, config) for n in (0, 50, 100, 1000)] == pytest.approx([1.0, 0.6, 0.2, 0.2])
+    assert beta_at(5, DaggerConfig(beta_decay_transitions=0)) == 0.0
+    with pytest.raises(ValueError, match="beta_initial"):
+        DaggerConfig(beta_initial=1.5)
+
+
+def test_labels_are_the_teachers_mean_where_it_acts_and_where_the_student_does(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    """Beta 1: the teacher acts every step, so the states are those a plain rollout worker
+    visits acting with the teacher's mean (same seed, same encoder), and the labels are that
+    worker's actions. Beta 0: the student acts everything, and the labels are still what the
+    teacher says (not the student's actions)."""
+    teacher, student = load_teacher(teacher_file).policy, build("student", seed=0).eval()
+    config = tiny_run(tmp_path)
+    always = DaggerConfig(beta_initial=1.0, beta_final=1.0)
+    demos = build_dagger_worker(config, teacher, student).collect(
+        teacher, student, STEPS, 0, always
+    )
+    (plain,), _ = build_workers(dataclasses.replace(config, architecture="hamnet"), groups=1)
+    reference = plain.collect(teacher, STEPS, 0, deterministic=True)
+    assert demos.teacher_acted.all()
+    torch.testing.assert_close(demos.labels, reference.actions, rtol=1e-5, atol=1e-5)
+    never = DaggerConfig(beta_initial=0.0, beta_final=0.0)
+    demos = build_dagger_worker(config, teacher, student).collect(teacher, student, STEPS, 0, never)
+    assert not demos.teacher_acted.any()
+    with torch.no_grad():
+        own = evaluate_sequence(
+            student, demos.inputs, demos.labels, episode_starts(demos.dones, demos.first)
+        ).mean
+    assert not torch.allclose(own, demos.labels, atol=1e-3)
+
+
+def test_the_imitation_loss_falls_on_a_fixed_batch_and_on_held_states(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    """Steps on one batch lower its loss; a short training on the teacher's labels brings
+    the student's means nearer the teacher's on states of other episodes (another seed)."""
+    teacher, student = load_teacher(teacher_file).policy, build("student", seed=0)
+    mixed = DaggerConfig(beta_initial=0.5, beta_final=0.5, epochs=10)
+    train = build_dagger_worker(tiny_run(tmp_path), teacher, student)
+    held = build_dagger_worker(tiny_run(tmp_path, seed=5), teacher, student).collect(
+        teacher, student.eval(), STEPS, 0, mixed
+    )
+
+    def held_loss() -> float:
+        with torch.no_grad():
+            starts = episode_starts(held.dones, held.first)
+            return imitation_loss(
+                evaluate_sequence(student, held.inputs, held.labels, starts).mean, held.labels
+            ).item()
+
+    before = held_loss()
+    optimizer = torch.optim.Adam(student.parameters())
+    batch = train.collect(teacher, student.eval(), STEPS, 0, mixed)
+    stats = update_student(student, optimizer, batch, mixed)
+    assert stats.imitation_loss_after < 0.5 * stats.imitation_loss
+    for _ in range(2):
+        update_student(
+            student, optimizer, train.collect(teacher, student.eval(), STEPS, 0, mixed), mixed
+        )
+    assert held_loss() < 0.5 * before
+
+
+def rows(run_dir: Path) -> list[dict[str, float]]:
+    return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+
+
+def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    """4 iterations in one go vs 2, a snapshot, 2 more in a new runner: equal metrics and
+    student weights. A 3-step timeout and a beta that falls within the run make episodes end
+    and who acts them be drawn on both sides of the snapshot. Another teacher is refused."""
+    dagger = DaggerConfig(beta_decay_transitions=3 * B * STEPS)
+    teacher = load_teacher(teacher_file)
+    whole = DaggerRunner(tiny_run(tmp_path / "whole", 4, timeout=3), dagger, teacher)
+    whole.run()
+    DaggerRunner(tiny_run(tmp_path / "split", 2, timeout=3), dagger, teacher).run()
+    resumed = DaggerRunner(tiny_run(tmp_path / "split", 4, timeout=3), dagger, teacher, resume=True)
+    assert resumed.iteration == 2
+    resumed.run()
+    expected, got = rows(tmp_path / "whole"), rows(tmp_path / "split")
+    assert [row["iteration"] for row in got] == [1, 2, 3, 4]
+    assert 0 < got[-1]["student_share"] and got[-1]["episodes"] > 0
+    for want, have in zip(expected, got, strict=True):
+        for key in ("env_transitions", "beta", "student_share", "imitation_loss",
+                    "imitation_loss_after", "episodes", "success_rate", "return/total"):  # fmt: skip
+            assert have[key] == want[key], key
+    for name, tensor in whole.policy.state_dict().items():
+        assert torch.equal(resumed.policy.state_dict()[name], tensor), name
+    other = tmp_path / "other.safetensors"
+    save_checkpoint(other, build("hamnet", seed=2), 7)
+    with pytest.raises(ResumeError, match="distils the teacher"):
+        DaggerRunner(tiny_run(tmp_path / "split", 4, timeout=3), dagger, load_teacher(other), True)
+
+
+TINY = ["--algo", "dagger", "--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",
+        "--steps-per-rollout", "2"]  # fmt: skip
+
+
+def test_hamnet_trainer_algo_dagger_writes_a_student_checkpoint_and_both_success_rates(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    run = tmp_path / "run"
+    args = [*TINY, "--inprocess", "--teacher", str(teacher_file), "--max-env-transitions", "8",
+            "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
+    assert main(args) == 0
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["algo"] == "dagger" and summary["architecture"] == "student"
+    assert summary["teacher_success_rate"] in (0.0, 0.5, 1.0)
+    assert summary["student_success_rate"] == summary["final_success_rate"]
+    assert [point["beta"] for point in summary["curve"]] == [1.0, 1.0 - 4 / 200_000]
+    student = policy_from(read_checkpoint(run / "checkpoints" / "latest.safetensors"))
+    assert student.architecture == "student"
+    assert main(["plot", str(run)]) == 0
+
+
+def test_bad_teachers_and_settings_are_one_line_and_status_2(
+    tmp_path: Path, teacher_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    garbage = tmp_path / "garbage.safetensors"
+    garbage.write_bytes(b"not a checkpoint at all")
+    student = tmp_path / "student.safetensors"
+    save_checkpoint(student, build("student", seed=0), 1)
+    cases = {
+        "cannot read teacher": ["--inprocess", "--teacher", str(tmp_path / "missing")],
+        "not a policy checkpoint": ["--inprocess", "--teacher", str(garbage)],
+        "a student's architecture": ["--inprocess", "--teacher", str(student)],
+        "needs --teacher": ["--inprocess"],
+        "add --inprocess": ["--teacher", str(teacher_file)],
+        "is not a student": ["--inprocess", "--teacher", str(teacher_file), "--architecture", "hamnet"],
+    }  # fmt: skip
+    for message, args in cases.items():
+        capsys.readouterr()
+        assert main([*TINY, *args, "--run-dir", str(tmp_path / "run")]) == 2, message
+        error = capsys.readouterr().err
+        assert error.count("\n") == 1 and message in error, error
