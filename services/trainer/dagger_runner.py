@@ -13,9 +13,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
@@ -99,6 +102,8 @@ class DaggerRunner(Runner):
         snapshot is not of a DAgger run or of another teacher."""
         check_student(config.architecture)
         self.dagger, self.teacher = dagger, teacher
+        self.student_episodes: deque[bool] = deque(maxlen=200)
+        """Outcomes of the last episodes the student acted (the tracker's window)."""
         config = dataclasses.replace(config, overlap=False)
         super().__init__(
             config, lambda student: InProcessDagger(config, teacher.policy, student), resume
@@ -115,6 +120,8 @@ class DaggerRunner(Runner):
         )  # fmt: skip
         collect_done = time.perf_counter()
         self.tracker.add(demos)
+        ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
+        self.student_episodes.extend(demos.success[ended].tolist())
         stats = update_student(student, self.optimizer, demos, self.dagger)
         student.normalizer.update(demos.inputs.observation)  # after: act and learn agreed
         beta = beta_at(self.env_transitions, self.dagger)
@@ -133,6 +140,10 @@ class DaggerRunner(Runner):
             **dataclasses.asdict(stats),
             "learning_rate": self.dagger.lr,
             **self.tracker.summary(),
+            "student_episodes": len(self.student_episodes),
+            "student_episode_success": (
+                float(np.mean(self.student_episodes)) if self.student_episodes else math.nan
+            ),
         }
 
     def progress(self, row: dict[str, float]) -> str:
@@ -147,6 +158,7 @@ class DaggerRunner(Runner):
     def snapshot(self) -> Snapshot:
         """`Runner`'s snapshot with the teacher's identity."""
         arrays, meta = super().snapshot()
+        arrays = {**arrays, "student_episodes": np.array(self.student_episodes, dtype=bool)}
         return arrays, {**meta, "teacher": {"path": str(self.teacher.path),
                                             "sha256": self.teacher.sha256}}  # fmt: skip
 
@@ -160,3 +172,5 @@ class DaggerRunner(Runner):
                               f"{saved['path']} (sha256 {saved['sha256'][:12]}), not "
                               f"{self.teacher.path} ({self.teacher.sha256[:12]})")  # fmt: skip
         super().restore(arrays, meta)
+        self.student_episodes.clear()
+        self.student_episodes.extend(arrays["student_episodes"].tolist())

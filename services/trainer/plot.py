@@ -45,6 +45,7 @@ def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
     ]  # fmt: skip
     dagger = any("imitation_loss" in row for row in rows)
     if dagger:
+        panels[0][2].append(("student_episode_success", "student-acted episodes"))
         panels.append((axes[1, 1], "DAgger", [("imitation_loss", "imitation loss (MSE)"),
                        ("beta", "beta (teacher acts)"), ("student_share", "student-acted share")]))  # fmt: skip
     else:

@@ -27,7 +27,7 @@ def commit() -> str:
     return result.stdout.strip()
 
 
-DAGGER_KEYS = ("beta", "student_share", "imitation_loss")
+DAGGER_KEYS = ("beta", "student_share", "imitation_loss", "student_episode_success")
 """Curve keys of a DAgger run, kept where its rows have them."""
 
 

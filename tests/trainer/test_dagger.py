@@ -128,10 +128,11 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
     resumed.run()
     expected, got = rows(tmp_path / "whole"), rows(tmp_path / "split")
     assert [row["iteration"] for row in got] == [1, 2, 3, 4]
-    assert 0 < got[-1]["student_share"] and got[-1]["episodes"] > 0
+    assert 0 < got[-1]["student_share"] and got[-1]["student_episodes"] > 0
     for want, have in zip(expected, got, strict=True):
         for key in ("env_transitions", "beta", "student_share", "imitation_loss",
-                    "imitation_loss_after", "episodes", "success_rate", "return/total"):  # fmt: skip
+                    "imitation_loss_after", "episodes", "success_rate", "return/total",
+                    "student_episodes"):  # fmt: skip
             assert have[key] == want[key], key
     for name, tensor in whole.policy.state_dict().items():
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
