@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.registry import build
@@ -84,6 +85,22 @@ def test_runner_iterates_logs_and_checkpoints(tmp_path: Path) -> None:
     weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
     assert weights.architecture == "hamnet" and weights.version == 3
     torch.testing.assert_close(weights.tensors["log_std"], runner.policy.log_std)
+
+
+def test_the_policy_reads_the_shipped_encoder_unless_asked_for_a_random_one() -> None:
+    """HAMnet learns on the pre-trained UniCORN shipped in the package (frozen, the paper's);
+    `random_encoder` freezes a random one (version 0), the same for every worker of a run."""
+    shipped, version = load_checkpoint(SHIPPED_ENCODER)
+    runner = Runner(RunConfig(sim=tiny_sim(), overlap=True))
+    assert runner.source.encoder_version == version >= 1
+    for worker in runner.source.workers:
+        encoder = worker.perception.encoder
+        assert not any(p.requires_grad for p in encoder.parameters())
+        assert all(torch.equal(p, q) for p, q in zip(encoder.parameters(), shipped.parameters()))
+    random = Runner(RunConfig(sim=tiny_sim(), overlap=True, random_encoder=True))
+    first, second = (worker.perception.encoder for worker in random.source.workers)
+    assert random.source.encoder_version == 0 and first is second
+    assert not torch.equal(first.emb, shipped.emb)
 
 
 def test_evaluation_plays_one_held_out_episode_per_environment() -> None:
