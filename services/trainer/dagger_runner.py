@@ -126,15 +126,8 @@ class DaggerRunner(Runner):
         student.normalizer.update(demos.inputs.observation)  # after: act and learn agreed
         beta = beta_at(self.env_transitions, self.dagger)
         transitions = demos.labels.shape[0] * demos.labels.shape[1]
-        self.env_transitions += transitions
-        self.iteration += 1
-        done = time.perf_counter()
         return {
-            "iteration": self.iteration,
-            "env_transitions": self.env_transitions,
-            "env_steps_per_s": transitions / (done - started),
-            "collect_s": collect_done - started,
-            "learn_s": done - collect_done,
+            **self.advance(transitions, started, collect_done),
             "beta": beta,
             "student_share": 1.0 - float(demos.teacher_acted.float().mean()),
             **dataclasses.asdict(stats),

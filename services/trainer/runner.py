@@ -357,6 +357,19 @@ class Runner:
         stats = self.learn(rollout)
         policy.normalizer.update(rollout.inputs.observation)  # after: act and evaluate agreed
         transitions = rollout.actions.shape[0] * rollout.actions.shape[1]
+        return {
+            **self.advance(transitions, started, collect_done),
+            "log_std": float(policy.log_std.mean()),
+            **dataclasses.asdict(stats),
+            "policy_lag": collected.policy_lag,
+            "dropped_rollouts": collected.dropped,
+            **self.tracker.summary(),
+        }
+
+    def advance(self, transitions: int, started: float, collected: float) -> dict[str, float]:
+        """Count an iteration of `transitions` env transitions; returns its counters and
+        timing (`started`, `collected`: `time.perf_counter()` at its start and once its
+        rollout was in)."""
         self.env_transitions += transitions
         self.iteration += 1
         done = time.perf_counter()
@@ -364,13 +377,8 @@ class Runner:
             "iteration": self.iteration,
             "env_transitions": self.env_transitions,
             "env_steps_per_s": transitions / (done - started),
-            "collect_s": collect_done - started,
-            "learn_s": done - collect_done,
-            "log_std": float(policy.log_std.mean()),
-            **dataclasses.asdict(stats),
-            "policy_lag": collected.policy_lag,
-            "dropped_rollouts": collected.dropped,
-            **self.tracker.summary(),
+            "collect_s": collected - started,
+            "learn_s": done - collected,
         }
 
     def learn(self, rollout: Rollout) -> UpdateStats:
