@@ -51,6 +51,14 @@ class PairConfig:
     frame marks contact."""
     shapes: ShapeConfig = field(default_factory=ShapeConfig)
     """Procedural object kinds and sizes (the sim's object library)."""
+    meshes: Path | None = None
+    """Folder of mesh files (OBJ, STL, PLY, OFF, GLB, e.g. DexGraspNet's, the paper's source)
+    imported into the object library as the sim imports them (`ObjectSet.from_folder`:
+    scaled into `shapes.extent`, CoACD convex parts, cached): library objects are drawn from
+    them too. None: the procedural kinds only. Nothing is downloaded: the folder must be on
+    disk."""
+    mesh_share: float = 0.5
+    """Chance that a library object is one of the imported meshes (with `meshes`)."""
     scene: SceneConfig = field(default_factory=SceneConfig)
     """Scene distributions the cuboids are drawn from (the sim's scenes)."""
 
@@ -68,6 +76,9 @@ class PairConfig:
             "perturbations must be >= 0",
         )
         _check(self.position_range >= 0, "position_range must be >= 0")
+        _check(
+            0.0 <= self.mesh_share <= 1.0, f"mesh_share must be in [0, 1], got {self.mesh_share}"
+        )
 
 
 @dataclass(frozen=True)

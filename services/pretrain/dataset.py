@@ -76,7 +76,7 @@ def _complete(path: Path, length: int) -> bool:
 def _identity(config: GenerateConfig) -> dict:
     """What a resumed run must share with the one that started the folder."""
     return {"format": FORMAT, "seed": config.seed, "chunk_size": config.chunk_size,
-            "pair": json.loads(json.dumps(asdict(config.pair)))}  # fmt: skip
+            "pair": json.loads(json.dumps(asdict(config.pair), default=str))}  # fmt: skip
 
 
 def _job(args: tuple[PairConfig, int, int, int, str]) -> int:

@@ -10,12 +10,17 @@ one shared frame.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from hamnet.pretrain.config import PairConfig
 from hamnet.pretrain.convex import ConvexPart, convex_part, inside, overlap, touch_distance
+from hamnet.runtime.errors import ConfigError
 from hamnet.sim import quaternion
+from hamnet.sim.objects.config import ObjectLibraryConfig, ShapeConfig
+from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.objects.mesh import Mesh, box_mesh, sample_surface
 from hamnet.sim.objects.shapes import generate
 from hamnet.sim.scene import sample_scenes
@@ -54,13 +59,34 @@ class ContactPair:
     kind_b: str
 
 
+@lru_cache(maxsize=2)
+def imported(folder: Path, shapes: ShapeConfig) -> ObjectSet:
+    """The meshes of `folder` as library objects, once per process (the import is cached on
+    disk too).
+
+    Raises:
+        ConfigError: the folder holds no mesh that imports.
+    """
+    objects = ObjectSet.from_folder(folder, ObjectLibraryConfig(shapes=shapes))
+    if not len(objects):
+        raise ConfigError(f"--pair.meshes {folder}: no mesh file there imports")
+    return objects
+
+
 def library_solid(rng: np.random.Generator, config: PairConfig) -> Solid:
-    """A procedural object of a random kind at a log-uniform scale."""
-    kind = str(rng.choice(config.shapes.kinds))
-    shape = generate(kind, rng, config.shapes)
+    """A library object at a log-uniform scale: an imported mesh with chance `mesh_share`
+    when `meshes` is given, else a procedural object of a random kind."""
+    if config.meshes is not None and rng.random() < config.mesh_share:
+        objects = imported(Path(config.meshes), config.shapes)
+        asset = objects[int(rng.integers(len(objects)))]
+        mesh, pieces, kind = asset.mesh, asset.parts, f"mesh:{asset.name}"
+    else:
+        kind = str(rng.choice(config.shapes.kinds))
+        shape = generate(kind, rng, config.shapes)
+        mesh, pieces = shape.mesh, shape.parts
     scale = float(np.exp(rng.uniform(*np.log(config.scale))))
-    parts = tuple(convex_part(p.scaled(scale)) for p in shape.parts)
-    return Solid(shape.mesh.scaled(scale), parts, kind)
+    parts = tuple(convex_part(p.scaled(scale)) for p in pieces)
+    return Solid(mesh.scaled(scale), parts, kind)
 
 
 def cuboid_solid(rng: np.random.Generator, config: PairConfig) -> Solid:

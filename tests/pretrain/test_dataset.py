@@ -6,11 +6,14 @@ import dataclasses
 
 import numpy as np
 import pytest
+import trimesh
 
 from hamnet.pretrain.config import GenerateConfig, PairConfig
 from hamnet.pretrain.dataset import chunk_path, draw_chunk, generate, load_pairs, read_chunk
 from hamnet.pretrain.pairs import sample_pair
 from hamnet.runtime.errors import ConfigError
+from hamnet.sim.objects.config import ShapeConfig
+from hamnet.sim.objects.shapes import generate as generate_shape
 
 
 def test_about_half_of_the_pairs_interpenetrate() -> None:
@@ -76,3 +79,26 @@ def test_a_folder_of_another_seed_or_an_unfinished_one_is_refused(tmp_path) -> N
         load_pairs(tmp_path)
     with pytest.raises(ConfigError, match="not a contact dataset"):
         load_pairs(tmp_path / "nothing")
+
+
+def test_imported_meshes_join_the_library_objects(tmp_path) -> None:
+    """`--pair.meshes FOLDER`: mesh files imported as the sim imports them are drawn as library
+    objects (an L and a box written as files), labelled against their convex parts; a folder
+    without a usable mesh is refused."""
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    generate_shape("l_shape", np.random.default_rng(1), ShapeConfig()).mesh.to_trimesh().export(
+        folder / "ell.obj"
+    )
+    trimesh.creation.box([0.08, 0.05, 0.03]).export(folder / "box.stl")
+    config = PairConfig(meshes=folder, mesh_share=1.0, cuboid_share=0.0)
+    rng = np.random.default_rng(0)
+    pairs = [sample_pair(rng, config) for _ in range(12)]
+    kinds = {p.kind_a for p in pairs} | {p.kind_b for p in pairs}
+    assert kinds == {"mesh:ell", "mesh:box"}
+    assert any(p.colliding for p in pairs) and not all(p.colliding for p in pairs)
+    assert any(p.labels_a.any() or p.labels_b.any() for p in pairs if p.colliding)
+    assert not any(p.labels_a.any() or p.labels_b.any() for p in pairs if not p.colliding)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ConfigError, match="no mesh file there imports"):
+        sample_pair(rng, dataclasses.replace(config, meshes=tmp_path / "empty"))
