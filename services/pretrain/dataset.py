@@ -74,9 +74,13 @@ def _complete(path: Path, length: int) -> bool:
 
 
 def _identity(config: GenerateConfig) -> dict:
-    """What a resumed run must share with the one that started the folder."""
-    return {"format": FORMAT, "seed": config.seed, "chunk_size": config.chunk_size,
-            "pair": json.loads(json.dumps(asdict(config.pair), default=str))}  # fmt: skip
+    """What a resumed run must share with the one that started the folder: what draws the
+    pairs (without imported meshes, their share draws nothing, and folders made before the
+    option existed stay valid)."""
+    pair = json.loads(json.dumps(asdict(config.pair), default=str))
+    if config.pair.meshes is None:
+        del pair["meshes"], pair["mesh_share"]
+    return {"format": FORMAT, "seed": config.seed, "chunk_size": config.chunk_size, "pair": pair}
 
 
 def _job(args: tuple[PairConfig, int, int, int, str]) -> int:
