@@ -115,7 +115,10 @@ def main() -> int:
                                   f"the random frozen encoder's {auroc['random-frozen']:.3f}")  # fmt: skip
         print(summary["not_shipped"], file=sys.stderr)
     elif not args.no_ship:
-        summary["shipped"] = str(ship(args.runs / "unicorn", provenance).relative_to(ROOT))
+        scores = {"heldout_auroc": auroc["unicorn"], "heldout_pairs": summary["pairs"]}
+        summary["shipped"] = str(
+            ship(args.runs / "unicorn", {**provenance, **scores}).relative_to(ROOT)
+        )
     report.write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps({key: summary[key] for key in ("heldout_auroc", "heldout_accuracy", "steps")}))
     return 0
