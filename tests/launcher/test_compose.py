@@ -20,6 +20,7 @@ from packaging.specifiers import SpecifierSet
 from hamnet.launcher.argv import service_argv
 from hamnet.launcher.cli import main
 from hamnet.launcher.stack import load
+from hamnet.perception.config import student_clouds
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE = ROOT / "compose"
@@ -46,6 +47,21 @@ def test_real_differs_from_eval_only_in_the_robot_command() -> None:
     assert changed == ["-    command: sim", "+    command: bridge"]
     eval_stack, real_stack = load(COMPOSE / "eval.yaml"), load(COMPOSE / "real.yaml")
     assert eval_stack.namespace != real_stack.namespace  # their outputs do not overwrite each other
+
+
+@pytest.mark.parametrize("name", ["eval.yaml", "real.yaml"])
+def test_evaluation_stacks_serve_the_student_on_the_clouds_it_was_distilled_on(name: str) -> None:
+    """The deployable student is the default (issue 15): its DAgger run's checkpoint, by its
+    mean, reading clouds as `student_clouds()` makes them (cameras' view, noise, dropout)."""
+    services = load(COMPOSE / name).services
+    assert services["policy"].args["weights"] == "runs/dagger-easy/checkpoints/latest.safetensors"
+    assert services["policy"].args["deterministic"] is True
+    clouds = student_clouds()
+    assert dict(services["perception"].args) == {
+        "clouds.visibility": clouds.visibility,
+        "clouds.noise-std": clouds.noise_std,
+        "clouds.dropout": clouds.dropout,
+    }
 
 
 def docker_name(service: str, worker: str, workers: tuple[str, ...]) -> str:
