@@ -29,6 +29,10 @@ from hamnet.runtime.keys import check_segment
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7448"
 """Loopback endpoint where local peers meet (7447 is left to Zenoh routers)."""
 
+DEFAULT_ROUTER_LISTEN = "tcp/127.0.0.1:7447"
+"""Where a router listens unless told otherwise: loopback, so that starting one exposes
+nothing; other machines are let in by naming an interface with `--listen`."""
+
 LOCATOR = re.compile(r"[A-Za-z][A-Za-z0-9_-]*/[^\s?#]+(\?[^\s#]*)?(#\S*)?")
 """A Zenoh endpoint: `<protocol>/<address>[?<metadata>][#<config>]`, e.g. tcp/127.0.0.1:7447."""
 
@@ -100,7 +104,7 @@ def _zenoh_config(transport: TransportConfig) -> zenoh.Config:
         listen += [transport.rendezvous, "tcp/127.0.0.1:0"]
         connect.append(transport.rendezvous)
     if transport.mode == "router" and not listen:
-        listen.append("tcp/0.0.0.0:7447")
+        listen.append(DEFAULT_ROUTER_LISTEN)
     settings: dict[str, object] = {
         "mode": transport.mode,
         "scouting/multicast/enabled": False,

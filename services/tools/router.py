@@ -1,7 +1,9 @@
 """`hamnet router`: a Zenoh router for deployments across machines.
 
-Services on other machines reach the stack with `--connect tcp/<router-host>:7447`
-(in peer or client mode). Runs until SIGINT/SIGTERM.
+It listens on loopback (tcp/127.0.0.1:7447) unless `--listen` names other endpoints, so
+starting one exposes nothing; give it `--listen tcp/<interface address>:7447` (or a tls/
+endpoint, see docs/security.md) and services on other machines reach the stack with
+`--connect tcp/<router-host>:7447` (in peer or client mode). Runs until SIGINT/SIGTERM.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class RouterConfig:
-    """Run a Zenoh router (listens on tcp/0.0.0.0:7447 unless --listen says otherwise)."""
+    """Run a Zenoh router (listens on tcp/127.0.0.1:7447 unless --listen says otherwise)."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
 

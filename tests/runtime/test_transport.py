@@ -27,9 +27,13 @@ def test_default_is_a_loopback_peer_without_multicast() -> None:
     assert endpoints and all(e.startswith("tcp/127.0.0.1:") for e in endpoints)
 
 
-def test_router_mode_listens_on_the_zenoh_port() -> None:
+def test_router_listens_on_loopback_unless_told_otherwise() -> None:
+    """A router used to listen on tcp/0.0.0.0:7447, open to every network the host is on:
+    its default endpoint must be the Zenoh port on 127.0.0.1, and --listen replaces it."""
     values = settings(zenoh_config(TransportConfig(mode="router")))
-    assert values["mode"] == "router" and values["listen/endpoints"] == ["tcp/0.0.0.0:7447"]
+    assert values["mode"] == "router" and values["listen/endpoints"] == ["tcp/127.0.0.1:7447"]
+    told = TransportConfig(mode="router", listen=("tcp/192.168.1.2:7447",))
+    assert settings(zenoh_config(told))["listen/endpoints"] == ["tcp/192.168.1.2:7447"]
 
 
 def test_flags_add_endpoints_to_a_config_file(tmp_path: Path) -> None:
