@@ -43,6 +43,7 @@ COMMANDS: tuple[Command, ...] = (
     Command("replay", "replay an MCAP recording onto Zenoh", "hamnet.recorder.replay_cli", 7),
     Command("up", "run a stack file: start, supervise and stop its services", "hamnet.launcher.cli"),
     Command("router", "Zenoh router for multi-machine deployments", "hamnet.tools.router"),
+    Command("certs", "local CA and one TLS certificate per service identity", "hamnet.security.certs_cli"),
     Command("topics", "list every key expression with its message type and publisher", "hamnet.tools.topics"),
     Command("echo", "print, count or reflect what is published on the stack", "hamnet.tools.echo"),
 )

@@ -1,0 +1,1 @@
+"""Closing the stack to strangers: certificates, mutual TLS and Zenoh access control."""
