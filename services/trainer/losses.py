@@ -7,6 +7,8 @@ Where a choice is the authors' rather than textbook PPO, the docstring cites it
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import torch
 from torch import Tensor
 
@@ -15,14 +17,24 @@ from hamnet.safety.config import ActionMagnitudeConfig
 from hamnet.safety.stages import affine_range
 
 
-def normalize_advantages(advantages: Tensor, eps: float = 1e-6) -> Tensor:
+def row_moments(x: Tensor) -> tuple[Tensor, Tensor]:
+    """Mean and biased variance of `x` over its rows (dim 0)."""
+    return x.mean(dim=0), x.var(dim=0, unbiased=False)
+
+
+def normalize_advantages(
+    advantages: Tensor,
+    eps: float = 1e-6,
+    moments: Callable[[Tensor], tuple[Tensor, Tensor]] = row_moments,
+) -> Tensor:
     """(N, R) advantages centred per term and divided by the standard deviation of their
     sum (assuming independent terms: the root of the summed variances), so the actor's
     summed advantage has unit scale and the terms keep their relative weights
-    (`ppo_util.py`, `_ppo_loss_and_logs` with SUM_REW)."""
-    centred = advantages - advantages.mean(dim=0)  # (N, R)
-    scale = advantages.var(dim=0, unbiased=False).sum().sqrt()
-    return centred / (scale + eps)
+    (`ppo_util.py`, `_ppo_loss_and_logs` with SUM_REW). `moments` gives the per-term mean
+    and variance: of these rows, or of every learner rank's (`Ranks.moments`)."""
+    mean, var = moments(advantages)
+    centred = advantages - mean  # (N, R)
+    return centred / (var.sum().sqrt() + eps)
 
 
 def policy_loss(log_prob: Tensor, old_log_prob: Tensor, advantages: Tensor, clip: float) -> Tensor:

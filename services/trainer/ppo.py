@@ -27,6 +27,7 @@ from hamnet.trainer.losses import (
     policy_loss,
     value_loss,
 )
+from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.trees import take_rows
 
 
@@ -90,6 +91,7 @@ def update(
     config: PPOConfig,
     generator: torch.Generator | None = None,
     energy: Callable[[Tensor, Tensor], Tensor] | None = None,
+    ranks: Ranks = ONE,
 ) -> UpdateStats:
     """Run up to `config.epochs` epochs of `config.minibatches` gradient steps on `batch`.
 
@@ -110,10 +112,15 @@ def update(
         generator: shuffles the minibatches.
         energy: (action mean, joint velocity) -> energy loss, weighted by
             `config.energy_coef` when that is above 0 (`losses.energy_loss`).
+        ranks: the learner's processes, `batch` being this one's shard: the advantages'
+            statistics, every minibatch's diagnostics (so the KL's decisions) and the
+            gradients are those of all shards together (`hamnet.trainer.ranks`).
     """
     parameters = list(parameters)
     advantages = (
-        normalize_advantages(batch.advantages) if config.normalize_advantages else batch.advantages
+        normalize_advantages(batch.advantages, moments=ranks.moments)
+        if config.normalize_advantages
+        else batch.advantages
     )
     low, high = (bound * config.bound_scale for bound in action_bounds)
     n = batch.actions.shape[0]
@@ -133,9 +140,11 @@ def update(
             }
             if config.energy_coef > 0 and energy is not None and batch.joint_velocity is not None:
                 terms["energy"] = energy(out.mean, batch.joint_velocity[rows])
-            kl = approx_kl(out.log_prob.detach(), old).item()
-            last = {**{k: v.item() for k, v in terms.items()}, "kl": kl,
-                    "clip": clip_fraction(out.log_prob.detach(), old, config.clip).item()}  # fmt: skip
+            diagnostics = {**terms, "kl": approx_kl(out.log_prob.detach(), old),
+                           "clip": clip_fraction(out.log_prob.detach(), old, config.clip)}  # fmt: skip
+            means = ranks.mean_of(torch.stack(list(diagnostics.values())).detach(), len(rows))
+            last = dict(zip(diagnostics, means.tolist(), strict=True))
+            kl = last["kl"]
             if steps and kl > config.early_stop_factor * config.kl_target:
                 lr = _adapt(optimizer, lr, kl, config)
                 stopped = True
@@ -145,6 +154,7 @@ def update(
                     + config.energy_coef * terms.get("energy", 0.0))  # fmt: skip
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
+            ranks.average_gradients(parameters, len(rows))
             torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
             optimizer.step()
             if steps:
