@@ -37,18 +37,22 @@ def _text(value: object) -> str:
     return "None" if value is None else str(value)
 
 
+OWN = ("namespace", "identity")
+"""Transport options each process has its own value of (the worker is not a transport one)."""
+
+
 def forwarded(common: CommonConfig) -> dict[str, ArgValue]:
     """Transport and logging options of `common` that differ from the defaults, by flag name.
 
-    The namespace and worker are left out: every process gets the stack's namespace and
-    its own worker id.
+    The namespace, worker and TLS identity are left out: every process gets the stack's
+    namespace, its own worker id and presents its own certificate.
     """
     options: dict[str, ArgValue] = {}
     for config in (common.transport, common.logging):
         default = type(config)()
         for field in dataclasses.fields(config):
             value = getattr(config, field.name)
-            if field.name != "namespace" and value != getattr(default, field.name):
+            if field.name not in OWN and value != getattr(default, field.name):
                 options[_flag(field.name)] = str(value) if isinstance(value, Path) else value
     return options
 

@@ -111,10 +111,18 @@ def parse_service(
 ) -> tuple[S, ServiceIdentity]:
     """Parse a service's command line (from `default`, if given) and set up its logging.
 
+    With `--tls-dir` and no `--identity`, the identity is the service's name.
+
     Returns:
         The config and who the service is on the network (`service/worker`).
     """
     config = parse(config_type, argv, f"hamnet {service}", description, default)
+    transport = config.common.transport
+    if transport.tls_dir is not None and not transport.identity:
+        # A service presents the certificate named after it unless told otherwise.
+        own = dataclasses.replace(transport, identity=service)
+        common = dataclasses.replace(config.common, transport=own)
+        config = dataclasses.replace(config, common=common)  # type: ignore[type-var]
     logging = config.common.logging
     identity = ServiceIdentity(service, config.common.worker)
     configure_logging(identity.source, logging.log_level, logging.log_format)

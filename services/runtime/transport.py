@@ -25,6 +25,7 @@ import zenoh
 
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.keys import check_segment
+from hamnet.security.files import Identity, ca_files, identity_files
 
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7448"
 """Loopback endpoint where local peers meet (7447 is left to Zenoh routers)."""
@@ -35,6 +36,9 @@ nothing; other machines are let in by naming an interface with `--listen`."""
 
 LOCATOR = re.compile(r"[A-Za-z][A-Za-z0-9_-]*/[^\s?#]+(\?[^\s#]*)?(#\S*)?")
 """A Zenoh endpoint: `<protocol>/<address>[?<metadata>][#<config>]`, e.g. tcp/127.0.0.1:7447."""
+
+SECURE_PROTOCOLS = ("tls", "quic")
+"""Link protocols allowed with --tls-dir: both authenticate with the certificates."""
 
 SOURCE_LOCATION = re.compile(r" at /\S+\.rs:\d+\.?")
 """Where in Zenoh's Rust sources an error was raised: noise on a command line."""
@@ -62,6 +66,13 @@ class TransportConfig:
     """Size of this process's shared-memory pool, MiB."""
     shm_threshold: int = 3072
     """Payload size in bytes from which shared memory is used."""
+    tls_dir: Path | None = None
+    """Join over mutual TLS with the certificates in this folder (ca.pem, <identity>.pem,
+    <identity>.key; `hamnet certs`): links are tls/ only, the rendezvous and a router's
+    default port too, and every --connect/--listen endpoint must be tls/ or quic/."""
+    identity: str = ""
+    """Identity whose certificate this process presents with --tls-dir ('' means the
+    command's name: safety, trainer...); access rules name it (docs/security.md)."""
 
     def __post_init__(self) -> None:
         try:
@@ -79,6 +90,28 @@ class TransportConfig:
             raise ConfigError(f"Zenoh config file not found: {self.zenoh_config}")
         if self.shm_pool_mb <= 0 or self.shm_threshold < 0:
             raise ConfigError("shm_pool_mb must be > 0 and shm_threshold >= 0")
+        if self.tls_dir is not None:
+            for name in ("connect", "listen"):
+                for endpoint in getattr(self, name):
+                    if endpoint.split("/", 1)[0] not in SECURE_PROTOCOLS:
+                        raise ConfigError(f"with --tls-dir, {name} endpoint {endpoint!r} must "
+                                          "be tls/ or quic/")  # fmt: skip
+            if self.identity:
+                tls_files(self.tls_dir, self.identity)
+
+
+def tls_files(directory: Path, identity: str) -> tuple[Path, Identity]:
+    """The CA certificate and `identity`'s files in `directory`.
+
+    Raises:
+        ConfigError: a bad identity or a missing file, named with how to make it.
+    """
+    ca, own = ca_files(directory).certificate, identity_files(directory, identity)
+    for path in (ca, own.certificate, own.key):
+        if not path.is_file():
+            raise ConfigError(f"TLS file not found: {path} (`hamnet certs` makes it; "
+                              "docs/security.md)")  # fmt: skip
+    return ca, own
 
 
 def zenoh_config(transport: TransportConfig) -> zenoh.Config:
@@ -100,11 +133,12 @@ def _zenoh_config(transport: TransportConfig) -> zenoh.Config:
         config = zenoh.Config()
     listen = list(transport.listen)
     connect = list(transport.connect)
+    secure = _over_tls if transport.tls_dir is not None else str
     if transport.mode == "peer" and transport.rendezvous:
-        listen += [transport.rendezvous, "tcp/127.0.0.1:0"]
-        connect.append(transport.rendezvous)
+        listen += [secure(transport.rendezvous), secure("tcp/127.0.0.1:0")]
+        connect.append(secure(transport.rendezvous))
     if transport.mode == "router" and not listen:
-        listen.append(DEFAULT_ROUTER_LISTEN)
+        listen.append(secure(DEFAULT_ROUTER_LISTEN))
     settings: dict[str, object] = {
         "mode": transport.mode,
         "scouting/multicast/enabled": False,
@@ -130,9 +164,38 @@ def _zenoh_config(transport: TransportConfig) -> zenoh.Config:
         settings["listen/endpoints"] = listen
     if connect or transport.zenoh_config is None:
         settings["connect/endpoints"] = connect
+    if transport.tls_dir is not None:
+        settings.update(_tls_settings(transport.tls_dir, transport.identity))
     for key, value in settings.items():
         config.insert_json5(key, json.dumps(value))
     return config
+
+
+def _over_tls(endpoint: str) -> str:
+    """A loopback default endpoint on TLS instead of TCP (same address and port)."""
+    protocol, address = endpoint.split("/", 1)
+    return f"tls/{address}" if protocol == "tcp" else endpoint
+
+
+def _tls_settings(directory: Path, identity: str) -> dict[str, object]:
+    """Mutual TLS with `identity`'s certificate: both sides of every link present a
+    certificate signed by the CA, and nothing else is accepted (Zenoh's `transport/link`).
+    """
+    if not identity:
+        raise ConfigError("--tls-dir needs --identity NAME (the certificate to present)")
+    ca, own = tls_files(directory, identity)
+    tls = {
+        "root_ca_certificate": str(ca),
+        "listen_certificate": str(own.certificate),
+        "listen_private_key": str(own.key),
+        "connect_certificate": str(own.certificate),
+        "connect_private_key": str(own.key),
+        "enable_mtls": True,
+    }
+    # Only TLS and QUIC links: a tcp/ endpoint would bypass the certificates.
+    return {"transport/link/protocols": list(SECURE_PROTOCOLS)} | {
+        f"transport/link/tls/{key}": value for key, value in tls.items()
+    }
 
 
 def open_session(transport: TransportConfig) -> zenoh.Session:

@@ -13,7 +13,6 @@ import datetime
 import ipaddress
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 from cryptography import x509
@@ -22,42 +21,10 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from hamnet.runtime.errors import ConfigError
-
-CA_NAME = "ca"
-"""File stem of the CA's certificate and key (not usable as an identity)."""
-
-IDENTITY = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
-"""An identity: a file stem and a common name (at most 64 characters, as X.509 allows)."""
+from hamnet.security.files import Identity, ca_files, identity_files
 
 DEFAULT_HOSTS = ("localhost", "127.0.0.1")
 """Subject alternative names every certificate gets, so loopback endpoints verify."""
-
-
-@dataclass(frozen=True)
-class Identity:
-    """Where one identity's files are."""
-
-    certificate: Path
-    """PEM certificate, signed by the CA."""
-    key: Path
-    """PEM private key (PKCS#8), readable by its owner only."""
-
-
-def ca_files(directory: Path) -> Identity:
-    """The CA's certificate and key in `directory`."""
-    return Identity(directory / f"{CA_NAME}.pem", directory / f"{CA_NAME}.key")
-
-
-def identity_files(directory: Path, name: str) -> Identity:
-    """The certificate and key of identity `name` in `directory`.
-
-    Raises:
-        ConfigError: `name` is not a usable identity.
-    """
-    if not IDENTITY.fullmatch(name) or name == CA_NAME:
-        raise ConfigError(f"identity {name!r} must be 1-64 letters, digits, '.', '_' or '-', "
-                          f"start with a letter or digit, and not be {CA_NAME!r}")  # fmt: skip
-    return Identity(directory / f"{name}.pem", directory / f"{name}.key")
 
 
 def init_ca(directory: Path, days: int, force: bool = False) -> Identity:
