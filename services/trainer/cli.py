@@ -37,6 +37,7 @@ import argparse
 import dataclasses
 import logging
 import math
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,10 +47,12 @@ from typing import Annotated, Literal
 import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
-from hamnet.runtime.service import Service
+from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.stages import stage_in
 from hamnet.trainer.dagger import DaggerConfig
 from hamnet.trainer.evaluate import evaluate
+from hamnet.trainer.launch_ranks import start_other_ranks, wait_for
+from hamnet.trainer.ranks import ONE, Ranks, from_environment
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
@@ -89,10 +92,23 @@ class TrainerConfig:
     `checkpoints/latest.safetensors`). Give the run the teacher's --stage and encoder flags."""
     dagger: DaggerConfig = field(default_factory=DaggerConfig)
     """DAgger's beta schedule and student update (`--dagger.*`), with --algo dagger."""
+    ranks: int = 1
+    """Learner processes on this machine (torch.distributed, gloo on loopback): this one is
+    rank 0 and starts the others; rank r learns from the rollout workers whose id modulo
+    `ranks` is r, and only rank 0 announces weights, publishes, logs and checkpoints.
+    `--workers` must be a multiple. Under torchrun (`WORLD_SIZE` set) leave it at 1."""
     resume: Path | None = None
     """Continue the run in this folder from its latest snapshot (`checkpoints/`), appending to
     its metrics.jsonl (it replaces --run-dir). Its architecture, --sim.* and
     --steps-per-rollout must be the snapshot's; budgets count the earlier iterations too."""
+
+    def __post_init__(self) -> None:
+        if self.ranks < 1:
+            raise ValueError(f"--ranks must be >= 1, got {self.ranks}")
+        if self.ranks > 1 and (self.inprocess or self.algo != "ppo"):
+            raise ValueError("--ranks shards rollout workers: it needs PPO without --inprocess")
+        if self.workers % self.ranks:
+            raise ValueError(f"--workers {self.workers} must be a multiple of --ranks {self.ranks}")
 
     @property
     def resumed_run(self) -> RunConfig:
@@ -126,21 +142,41 @@ def main(argv: Sequence[str]) -> int:
         return plot_main(argv[1:])
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
-    run, code = config.resumed_run, commit()  # the commit of the code that trains
+    code = commit()  # the commit of the code that trains
     if config.algo == "dagger":
         from hamnet.trainer.dagger_cli import distil
 
         return distil(config, identity, code)
+    spawn = config.ranks > 1 and "WORLD_SIZE" not in os.environ  # else torchrun's, or one
+    children = start_other_ranks(argv, config.ranks) if spawn else []
+    try:
+        status = learn(config, identity, code, from_environment())
+    finally:
+        failed = wait_for(children)
+    return status or failed
+
+
+def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ranks) -> int:
+    """Train as this learner rank; the main one then evaluates and writes the summary."""
+    run = config.resumed_run
+    if config.workers % ranks.size or (ranks.size > 1 and config.inprocess):
+        print(f"hamnet trainer: {ranks.size} learner ranks need --workers a multiple of them "
+              "and no --inprocess", file=sys.stderr)  # fmt: skip
+        return 2
+    if not ranks.main:  # its own identity on the network
+        identity = ServiceIdentity(identity.service, f"{identity.worker}-rank{ranks.rank}")
     try:
         if config.inprocess and not config.publish:
             runner = Runner(run, resume=config.resume is not None)
             runner.run()
         else:
             with Service(identity, config.common.transport) as service:
-                runner = train_with(service, config)
+                runner = train_with(service, config, ranks)
     except ResumeError as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
+    if not ranks.main:
+        return 0
     held_out = None
     if run.eval_episodes:
         held_out = evaluate(runner.policy, run, run.eval_episodes, runner.env_transitions)
@@ -150,13 +186,17 @@ def main(argv: Sequence[str]) -> int:
     return 0
 
 
-def train_with(service: Service, config: TrainerConfig) -> Runner:
-    """Train while publishing on `service`: in-process, or from streamed rollouts."""
+def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> Runner:
+    """Train while publishing on `service` (the main rank): in-process, or from streamed
+    rollouts (this rank's workers')."""
     run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
         return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
-    runner = Runner(run, lambda policy: Streamed(
-        service, policy, config.workers, run.num_envs, config.max_policy_lag), resume)  # fmt: skip
+    runner = Runner(run, lambda policy: Streamed(service, policy, config.workers, run.num_envs,
+                    config.max_policy_lag, ranks=ranks), resume, ranks)  # fmt: skip
+    if not ranks.main:
+        runner.run(running=lambda: service.running)
+        return runner
     return publish_while(service, runner, math.inf)  # the source announces every version
 
 

@@ -15,6 +15,7 @@ log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
@@ -51,6 +52,7 @@ from hamnet.trainer.gae import gae
 from hamnet.trainer.losses import energy_loss
 from hamnet.trainer.normalization import ReturnScaler
 from hamnet.trainer.ppo import Batch, UpdateStats, update
+from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
 from hamnet.trainer.trajectory import Rollout
@@ -304,11 +306,14 @@ class Runner:
         config: RunConfig,
         source: Callable[[Policy], RolloutSource] | None = None,
         resume: bool = False,
+        ranks: Ranks = ONE,
     ) -> None:
         """`source(policy)` makes the rollout source for the run's policy (default `InProcess`).
         With `resume`, continue from the snapshot in `config.run_dir` (`hamnet.trainer.resume`);
-        ResumeError when there is none or it is of another run, before anything is built."""
-        self.config = config
+        ResumeError when there is none or it is of another run, before anything is built.
+        With several `ranks` this process learns from its source's environments, the others
+        from theirs (`hamnet.trainer.ranks`); only the main rank writes metrics and checkpoints."""
+        self.config, self.ranks = config, ranks
         saved = read_snapshot(config) if resume else None
         torch.set_num_threads(1)
         self.policy = build(
@@ -316,12 +321,14 @@ class Runner:
             with_changes(config.architecture, log_std=config.log_std),
             config.seed,
         )
+        ranks.broadcast(self.policy)
         self.source = InProcess(config) if source is None else source(self.policy)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
         self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         """The energy loss of an action mean, read as the workers' safety profile reads it."""
-        self.scaler = ReturnScaler(self.source.num_envs, config.ppo.gamma)
-        self.tracker = EpisodeTracker(self.source.num_envs, len(REWARD_NAMES))
+        envs = self.source.num_envs * ranks.size  # every rank's: they see them all
+        self.scaler = ReturnScaler(envs, config.ppo.gamma)
+        self.tracker = EpisodeTracker(envs, len(REWARD_NAMES))
         self.env_transitions = 0
         self.iteration = 0
         self.wall_clock_s = 0.0
@@ -353,10 +360,11 @@ class Runner:
         )
         rollout = collected.rollout
         collect_done = time.perf_counter()
-        self.tracker.add(rollout)
-        stats = self.learn(rollout)
-        policy.normalizer.update(rollout.inputs.observation)  # after: act and evaluate agreed
-        transitions = rollout.actions.shape[0] * rollout.actions.shape[1]
+        whole = self.ranks.environments(rollout)
+        self.tracker.add(whole)
+        stats = self.learn(rollout, whole)
+        policy.normalizer.update(whole.inputs.observation)  # after: act and evaluate agreed
+        transitions = whole.actions.shape[0] * whole.actions.shape[1]
         return {
             **self.advance(transitions, started, collect_done),
             "log_std": float(policy.log_std.mean()),
@@ -381,12 +389,15 @@ class Runner:
             "learn_s": done - collected,
         }
 
-    def learn(self, rollout: Rollout) -> UpdateStats:
-        """Scale rewards, bootstrap, GAE per term, one PPO update."""
-        steps = len(rollout.rewards)
+    def learn(self, rollout: Rollout, whole: Rollout | None = None) -> UpdateStats:
+        """Scale rewards, bootstrap, GAE per term, one PPO update of this rank's `rollout`;
+        `whole` (default `rollout`): every rank's environments, which the scaler sees."""
+        whole = rollout if whole is None else whole
         scaled = torch.stack(
-            [self.scaler.scale(rollout.rewards[t], rollout.dones[t]) for t in range(steps)]
+            [self.scaler.scale(whole.rewards[t], whole.dones[t]) for t in range(len(whole.rewards))]
         )
+        envs = rollout.rewards.shape[1]
+        scaled = scaled[:, self.ranks.rank * envs : (self.ranks.rank + 1) * envs]  # this rank's
         rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
         ppo = self.config.ppo
         advantages, returns = gae(rewards, rollout.values, rollout.next_values, rollout.dones,
@@ -412,6 +423,7 @@ class Runner:
             self.action_bounds,
             ppo,
             energy=self.energy,
+            ranks=self.ranks,
         )
 
     def progress(self, row: dict[str, float]) -> str:
@@ -473,31 +485,37 @@ class Runner:
         torch.set_rng_state(torch.tensor(arrays["torch.rng"]))
         self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
         self.wall_clock_s = counters["wall_clock_s"]
-        resume.trim_metrics(self.metrics_path, self.iteration)
+        if self.ranks.main:
+            resume.trim_metrics(self.metrics_path, self.iteration)
 
     def run(
         self,
         on_iteration: Callable[[dict[str, float]], None] | None = None,
         running: Callable[[], bool] = lambda: True,
     ) -> Path:
-        """Iterate until a budget is spent or `running()` turns False; returns the metrics
-        file. `on_iteration` sees every iteration's metrics (a publisher, a test)."""
-        config = self.config
+        """Iterate until a budget is spent or `running()` turns False (on any rank: all stop
+        together); returns the metrics file. `on_iteration` sees every iteration's metrics (a
+        publisher, a test). Only the main rank writes metrics, logs and checkpoints."""
+        config, main = self.config, self.ranks.main
         started = last_log = last_checkpoint = time.monotonic()
         before = self.wall_clock_s  # a resumed run's budget counts its earlier time too
-        with self.metrics_path.open("a") as metrics:
-            while (running() and self.env_transitions < config.max_env_transitions
-                   and before + time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
+        with contextlib.ExitStack() as stack:
+            metrics = stack.enter_context(self.metrics_path.open("a")) if main else None
+            while self.ranks.all(running() and self.env_transitions < config.max_env_transitions
+                                 and before + time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
                 try:
                     row = self.iterate()
                 except InterruptedError:  # a streaming source was stopped while it waited
                     break
                 self.wall_clock_s = before + time.monotonic() - started
                 row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}
-                metrics.write(json.dumps(row) + "\n")
-                metrics.flush()
+                if metrics is not None:
+                    metrics.write(json.dumps(row) + "\n")
+                    metrics.flush()
                 if on_iteration is not None:
                     on_iteration(row)
+                if not main:
+                    continue
                 now = time.monotonic()
                 if now - last_log >= config.log_period_s:
                     log.info(self.progress(row))
@@ -505,7 +523,8 @@ class Runner:
                 if now - last_checkpoint >= config.checkpoint_period_s:
                     self.checkpoint()
                     last_checkpoint = now
-        self.checkpoint()
+        if main:
+            self.checkpoint()
         return self.metrics_path
 
 

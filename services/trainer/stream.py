@@ -27,6 +27,7 @@ from hamnet.runtime import contract
 from hamnet.runtime.keys import check_segment
 from hamnet.runtime.service import Service
 from hamnet.trainer.chunks import chunk_decoder
+from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.runner import Collected
 from hamnet.trainer.shell import WEIGHTS, encode_weights
 from hamnet.trainer.trajectory import Rollout, merge_environments
@@ -53,15 +54,27 @@ class Streamed:
         envs_per_worker: int,
         max_policy_lag: int = 0,
         report_period_s: float = 10.0,
+        ranks: Ranks = ONE,
     ) -> None:
-        if workers < 1 or max_policy_lag < 0:
-            raise ValueError("workers must be >= 1 and max_policy_lag >= 0")
-        self.service, self.workers, self.envs_per_worker = service, workers, envs_per_worker
+        """With several learner `ranks`, this one learns from the workers numbered 0 to
+        `workers` - 1 that it owns (`Ranks.own`: id modulo the ranks) and only the main
+        rank announces the weights and answers queries for them."""
+        if workers < 1 or max_policy_lag < 0 or workers % ranks.size:
+            raise ValueError("workers must be >= 1, a multiple of the learner ranks, "
+                             "and max_policy_lag >= 0")  # fmt: skip
+        self.service, self.envs_per_worker = service, envs_per_worker
+        self.workers = workers // ranks.size
         self.max_policy_lag, self.report_period_s = max_policy_lag, report_period_s
-        self.weights = service.publisher(WEIGHTS.key(service.namespace))
-        service.inbox.subscribe("rollout", ROLLOUT.pattern_in(service.namespace),
-                                decoder=chunk_decoder(policy))  # fmt: skip
-        service.inbox.serve("weights_query", WEIGHTS.key(service.namespace))
+        ns, decoder = service.namespace, chunk_decoder(policy)
+        if ranks.size == 1:  # any worker ids
+            keys = [ROLLOUT.pattern_in(ns)]
+        else:
+            keys = [ROLLOUT.key(ns, w=str(w)) for w in range(workers) if ranks.own(str(w))]
+        for key in keys:
+            service.inbox.subscribe("rollout", key, decoder=decoder)
+        self.weights = service.publisher(WEIGHTS.key(ns)) if ranks.main else None
+        if ranks.main:
+            service.inbox.serve("weights_query", WEIGHTS.key(ns))
         self.queues: dict[str, deque[tuple[int, Rollout]]] = defaultdict(deque)
         self.dropped = 0
 
@@ -72,7 +85,8 @@ class Streamed:
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         """Announce `policy` as `version`, then wait for a fitting chunk from `workers` workers."""
         announcement = encode_weights(policy, version, env_transitions)
-        self.weights.put(announcement)
+        if self.weights is not None:
+            self.weights.put(announcement)
         waiting_since = time.monotonic()
         while self.service.running:
             self._drop_stale(version)
@@ -89,7 +103,7 @@ class Streamed:
             received = self.service.receive(timeout=0.1)
             if received is None:
                 continue
-            if received.name == "weights_query":
+            if received.name == "weights_query" and self.weights is not None:
                 self.weights.answer(received.value, announcement)
             else:
                 self._take(received.key, *received.value, steps=steps)
