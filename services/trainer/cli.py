@@ -8,6 +8,7 @@ profile in this one process, no Zenoh unless `--publish`).
     hamnet trainer --inprocess --architecture state-mlp          # the plain state-based baseline
     hamnet trainer --stage full --sim.task.timeout 200          # any sim field, on top of a stage
     hamnet trainer --inprocess --resume runs/train              # continue a run from its snapshot
+    hamnet trainer --workers 4 --ranks 2                        # two learner processes (or torchrun)
 
 The policy reads UniCORN tokens of the pre-trained encoder shipped in the package, frozen
 (the paper's); `--encoder-checkpoint PATH` names another, `--random-encoder` freezes a random
@@ -47,6 +48,7 @@ from typing import Annotated, Literal
 import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.stages import stage_in
 from hamnet.trainer.dagger import DaggerConfig
@@ -104,11 +106,13 @@ class TrainerConfig:
 
     def __post_init__(self) -> None:
         if self.ranks < 1:
-            raise ValueError(f"--ranks must be >= 1, got {self.ranks}")
+            raise ConfigError(f"--ranks must be >= 1, got {self.ranks}")
         if self.ranks > 1 and (self.inprocess or self.algo != "ppo"):
-            raise ValueError("--ranks shards rollout workers: it needs PPO without --inprocess")
+            raise ConfigError("--ranks shards rollout workers: it needs PPO without --inprocess")
         if self.workers % self.ranks:
-            raise ValueError(f"--workers {self.workers} must be a multiple of --ranks {self.ranks}")
+            raise ConfigError(
+                f"--workers {self.workers} must be a multiple of --ranks {self.ranks}"
+            )
 
     @property
     def resumed_run(self) -> RunConfig:

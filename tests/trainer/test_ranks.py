@@ -14,6 +14,7 @@ import torch.multiprocessing as mp
 
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import Observation
+from hamnet.trainer import cli
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.ppo import Batch, UpdateStats, update
 from hamnet.trainer.ranks import ONE, Ranks
@@ -137,3 +138,20 @@ def test_one_rank_is_the_plain_update() -> None:
     parameters, ranked = learn(batch, ONE)
     assert all(torch.equal(a, b) for a, b in zip(model.parameters(), parameters, strict=True))
     assert stats == ranked and not math.isnan(stats.approx_kl)
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--ranks", "2", "--inprocess"], "needs PPO without --inprocess"),
+        (["--ranks", "2", "--workers", "3"], "must be a multiple of --ranks 2"),
+        (["--ranks", "0"], "--ranks must be >= 1"),
+    ],
+)
+def test_ranks_that_cannot_shard_the_workers_are_one_line(
+    args: list[str], says: str, capsys
+) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        cli.main(args)
+    err = capsys.readouterr().err
+    assert stopped.value.code == 2 and says in err and len(err.strip().splitlines()) == 1
