@@ -13,6 +13,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Annotated
 
+import zenoh
+
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 
@@ -23,6 +25,10 @@ log = logging.getLogger(__name__)
 class RouterConfig:
     """Run a Zenoh router (listens on tcp/127.0.0.1:7447 unless --listen says otherwise)."""
 
+    zenoh_log: str = "warn"
+    """Zenoh's own log level on stderr, or a RUST_LOG filter (the environment's RUST_LOG
+    wins): TLS handshakes it refuses show at warn, messages access control denies at debug
+    (`zenoh::net::routing::interceptor=debug`)."""
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
 
 
@@ -33,6 +39,8 @@ CONFIG = RouterConfig
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet router` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "router", __doc__)
+    # Zenoh's own log is where refused links and denied messages show (RUST_LOG refines it).
+    zenoh.init_log_from_env_or(config.zenoh_log)
     common = config.common
     transport = replace(common.transport, mode="router")
     with Service(identity, transport) as service:

@@ -11,7 +11,9 @@ import pytest
 
 from hamnet.security.certs import init_ca, issue
 
-IDENTITIES = ("alice", "bob", "router", "safety", "trainer", "operator", "sim", "intruder")
+IDENTITIES = (
+    "alice", "bob", "router", "safety", "trainer", "operator", "sim", "policy", "intruder",
+)  # fmt: skip
 """Identities the stack's CA issues in these tests; `intruder` holds no role."""
 
 

@@ -1,0 +1,37 @@
+"""The access rules built from the contract, and the router config committed from them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import zenoh
+
+from hamnet.launcher.check import check
+from hamnet.launcher.stack import load
+from hamnet.security.acl import OWNERS, router_config_text, stack_acl
+
+SECURE = Path(__file__).resolve().parents[2] / "compose" / "secure"
+
+
+def test_committed_router_config_is_the_generated_one() -> None:
+    """compose/secure/router.json5 is generated from the contract: a topic added or an
+    owner changed without regenerating it would leave the router on stale rules."""
+    assert (SECURE / "router.json5").read_text() == router_config_text()
+
+
+def test_zenoh_accepts_the_rules_and_every_owned_topic_has_one_publisher() -> None:
+    config = zenoh.Config.from_file(str(SECURE / "router.json5"))
+    acl = json.loads(config.get_json("access_control"))
+    assert acl["enabled"] is True and acl["default_permission"] == "deny"
+    grants = {p["subjects"][0]: p["rules"] for p in stack_acl()["policies"]}
+    for path, owner in OWNERS.items():
+        holders = [who for who, rules in grants.items() if f"publish {path}" in rules]
+        assert holders == [owner]
+    open_rule = next(r for r in acl["rules"] if r["id"] == "publish open topics")
+    assert not any("command" in k or "weights" in k or "estop" in k for k in open_rule["key_exprs"])
+
+
+def test_secure_stack_file_is_valid() -> None:
+    stack = load(SECURE / "stack.yaml")
+    assert {verdict.status for verdict in check(stack, {})} == {"ok"}
