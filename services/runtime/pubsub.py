@@ -8,7 +8,8 @@ dropped; when the inbox is full the oldest payload is dropped and counted as `ov
 Queries take the same road: `serve` queues incoming Zenoh queries for the service thread
 to answer, and `catch_up` asks the publishers' queryables for their current value, whose
 replies arrive as if they had been published (a service that starts late gets the scenes
-published before it subscribed).
+published before it subscribed). Liveliness tokens too: `watch` queues their coming and
+going, in order with the messages.
 """
 
 from __future__ import annotations
@@ -89,6 +90,8 @@ class _Subscription:
     received: int = 0
     queries: bool = False
     """Items are Zenoh queries handed over as they are, not payloads to decode."""
+    tokens: bool = False
+    """Items are liveliness changes: True when a token appeared, False when it went away."""
 
 
 class Inbox:
@@ -97,7 +100,9 @@ class Inbox:
     def __init__(self, session: zenoh.Session, drops: DropCounter, capacity: int = 1024) -> None:
         self._session = session
         self._drops = drops
-        self._queue: deque[tuple[_Subscription, str, zenoh.ZBytes | zenoh.Query, int]] = deque()
+        self._queue: deque[tuple[_Subscription, str, zenoh.ZBytes | zenoh.Query | bool, int]] = (
+            deque()
+        )
         self._capacity = capacity
         self._ready = threading.Condition()
         self._subscriptions: list[_Subscription] = []
@@ -140,13 +145,24 @@ class Inbox:
         )
         self._subscriptions.append(subscription)
 
+    def watch(self, name: str, key_expr: str) -> None:
+        """Queue the liveliness tokens on `key_expr` under the local `name`: `get` returns
+        value True for a token that is there (every one present now, then each new one) and
+        False for one that went away, in order with the messages, so the service thread sees
+        a peer leave after the last message it sent."""
+        subscription = _Subscription(name, lambda key, alive: alive, tokens=True)
+        subscription.handle = self._session.liveliness().declare_subscriber(
+            key_expr, lambda sample: self._push(subscription, sample), history=True
+        )
+        self._subscriptions.append(subscription)
+
     def catch_up(self, name: str, key_expr: str, timeout_s: float = CATCH_UP_PERIOD_S) -> None:
         """Ask the queryables on `key_expr` for their current value; each reply is delivered
         to the subscription `name` as if it had been published on the reply's key. Asked
         again before `CATCH_UP_PERIOD_S` has passed, it does nothing: callers ask whenever
         something is missing, and the answer is already on its way."""
         subscription = next((s for s in self._subscriptions if s.name == name), None)
-        if subscription is None or subscription.queries:
+        if subscription is None or subscription.queries or subscription.tokens:
             raise ValueError(f"catch_up needs a subscription named {name!r}")
         now = time.monotonic()
         if now - self._asked.get((name, key_expr), -math.inf) < CATCH_UP_PERIOD_S:
@@ -163,7 +179,12 @@ class Inbox:
                           consolidation=zenoh.ConsolidationMode.NONE)  # fmt: skip
 
     def _push(self, subscription: _Subscription, sample: zenoh.Sample | zenoh.Query) -> None:
-        payload = sample if subscription.queries else sample.payload
+        if subscription.queries:
+            payload = sample
+        elif subscription.tokens:
+            payload = sample.kind == zenoh.SampleKind.PUT
+        else:
+            payload = sample.payload
         item = (subscription, str(sample.key_expr), payload, time.monotonic_ns())
         with self._ready:
             subscription.received += 1
@@ -184,7 +205,7 @@ class Inbox:
                         return None
                     self._ready.wait(remaining)
                 subscription, key, payload, stamp = self._queue.popleft()
-            data = payload if subscription.queries else payload.to_bytes()
+            data = payload.to_bytes() if isinstance(payload, zenoh.ZBytes) else payload
             try:
                 value = subscription.decode(key, data)
             except PayloadError as error:

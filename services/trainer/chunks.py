@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import typing
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -158,11 +159,26 @@ def decode_rollout(chunk: RolloutChunk, policy: Policy) -> Rollout:
     return rollout
 
 
-def chunk_decoder(policy: Policy) -> Callable[[str, bytes], tuple[int, Rollout]]:
-    """An inbox decoder (key, payload) -> (acting version, Rollout) for `policy`."""
+@dataclass(frozen=True)
+class Arrived:
+    """A decoded chunk as the trainer queues it."""
 
-    def decode_chunk(key: str, payload: bytes) -> tuple[int, Rollout]:
+    version: int
+    """Version of the weights that acted in it (`header.policy_version`)."""
+    rollout: Rollout
+    source: str
+    """The service that sent it, `service/worker` (`header.source`): whose liveliness token
+    tells whether it is still there."""
+    arrived_s: float = 0.0
+    """When Zenoh delivered it, monotonic s (set by the trainer)."""
+
+
+def chunk_decoder(policy: Policy) -> Callable[[str, bytes], Arrived]:
+    """An inbox decoder (key, payload) -> `Arrived` (version, Rollout, source) for `policy`."""
+
+    def decode_chunk(key: str, payload: bytes) -> Arrived:
         chunk = decode(RolloutChunk, payload, finite=False)  # decode_rollout checks each tensor
-        return chunk.header.policy_version, decode_rollout(chunk, policy)
+        header = chunk.header
+        return Arrived(header.policy_version, decode_rollout(chunk, policy), header.source)
 
     return decode_chunk

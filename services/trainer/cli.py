@@ -80,6 +80,10 @@ class TrainerConfig:
     max_policy_lag: int = 0
     """Learn from chunks acted up to this many versions ago (rollout workers must say the
     same); 0: synchronous, on-policy."""
+    worker_timeout_s: float = math.inf
+    """A rollout worker that sends nothing for this long after an iteration begins drops out
+    of it, as one whose liveliness token goes away does at once (a hung worker keeps its
+    token); inf: only the token counts. With one learner rank."""
     publish: bool = False
     """With --inprocess: publish the weights, the schedule counter and every iteration's
     metrics on Zenoh (`--namespace`), to watch with `hamnet monitor --namespace NS` and serve
@@ -113,6 +117,8 @@ class TrainerConfig:
             raise ConfigError(
                 f"--workers {self.workers} must be a multiple of --ranks {self.ranks}"
             )
+        if not self.worker_timeout_s > 0:
+            raise ConfigError(f"--worker-timeout-s must be > 0, got {self.worker_timeout_s}")
 
     @property
     def resumed_run(self) -> RunConfig:
@@ -197,7 +203,8 @@ def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> R
     if config.inprocess:
         return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
     runner = Runner(run, lambda policy: Streamed(service, policy, config.workers, run.num_envs,
-                    config.max_policy_lag, ranks=ranks), resume, ranks)  # fmt: skip
+                    config.max_policy_lag, ranks=ranks, worker_timeout_s=config.worker_timeout_s),
+                    resume, ranks)  # fmt: skip
     if not ranks.main:
         runner.run(running=lambda: service.running)
         return runner

@@ -72,13 +72,19 @@ class ReturnScaler:
         self.returns = torch.tensor(arrays["returns"])
         self.stats.load({name: torch.tensor(a) for name, a in arrays.items()}, "stats")
 
-    def scale(self, rewards: Tensor, dones: Tensor) -> Tensor:
-        """Scaled (B, R) rewards of one step; `dones` (B,) ends the episodes after it.
+    def scale(self, rewards: Tensor, dones: Tensor, envs: Tensor | None = None) -> Tensor:
+        """Scaled (B, R) rewards of one step of the environments `envs` (B,) (None: all, in
+        order); `dones` (B,) ends the episodes after it.
 
         The statistics see the return including this step, then episodes that ended
         restart from zero (the authors' order, `normalize_env.py` `step`).
         """
-        self.returns = self.returns * self.gamma + rewards.sum(dim=1).to(torch.float64)
-        self.stats.update(self.returns)
-        self.returns = torch.where(dones.bool(), torch.zeros_like(self.returns), self.returns)
+        returns = self.returns if envs is None else self.returns[envs]  # (B,)
+        returns = returns * self.gamma + rewards.sum(dim=1).to(torch.float64)
+        self.stats.update(returns)
+        returns = torch.where(dones.bool(), torch.zeros_like(returns), returns)
+        if envs is None:
+            self.returns = returns
+        else:
+            self.returns[envs] = returns
         return rewards / (self.stats.var.sqrt().to(rewards.dtype) + self.eps)

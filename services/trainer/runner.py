@@ -56,6 +56,7 @@ from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
 from hamnet.trainer.trajectory import Rollout
+from hamnet.trainer.workers import progress as workers_progress
 
 log = logging.getLogger(__name__)
 
@@ -160,19 +161,22 @@ class EpisodeTracker:
         self.finished: deque[tuple[np.ndarray, int, bool]] = deque(maxlen=window)
         """The last `window` episodes: (returns (R,), length, success)."""
 
-    def add(self, rollout: Rollout) -> None:
-        """Fold in T steps of sim rewards and ends."""
+    def add(self, rollout: Rollout, envs: torch.Tensor | None = None) -> None:
+        """Fold in T steps of sim rewards and ends of the environments `envs` (B,) (None:
+        all, in order)."""
         rewards, dones, success = (
             rollout.rewards.numpy(),
             rollout.dones.numpy(),
             rollout.success.numpy(),
         )
+        rows = np.arange(len(self.lengths)) if envs is None else envs.numpy()  # (B,)
         for t in range(len(rewards)):
-            self.returns += rewards[t]
-            self.lengths += 1
-            for env in np.flatnonzero(dones[t]):
+            self.returns[rows] += rewards[t]
+            self.lengths[rows] += 1
+            for i in np.flatnonzero(dones[t]):
+                env = rows[i]
                 self.finished.append(
-                    (self.returns[env].copy(), int(self.lengths[env]), bool(success[t, env]))
+                    (self.returns[env].copy(), int(self.lengths[env]), bool(success[t, i]))
                 )
                 self.returns[env], self.lengths[env] = 0.0, 0
 
@@ -255,6 +259,11 @@ class Collected:
     """Mean number of updates between the weights that acted and the learner's."""
     dropped: int = 0
     """Rollouts dropped so far as too stale or unfit."""
+    envs: torch.Tensor | None = None
+    """(B,) which of the source's environments the rollout holds, in its order (some rollout
+    workers dropped out); None: all of them."""
+    figures: dict[str, float] = field(default_factory=dict)
+    """The source's own metrics of the iteration (per rollout worker)."""
 
 
 class RolloutSource(Protocol):
@@ -361,8 +370,8 @@ class Runner:
         rollout = collected.rollout
         collect_done = time.perf_counter()
         whole = self.ranks.environments(rollout)
-        self.tracker.add(whole)
-        stats = self.learn(rollout, whole)
+        self.tracker.add(whole, collected.envs)
+        stats = self.learn(rollout, whole, collected.envs)
         policy.normalizer.update(whole.inputs.observation)  # after: act and evaluate agreed
         transitions = whole.actions.shape[0] * whole.actions.shape[1]
         return {
@@ -371,6 +380,7 @@ class Runner:
             **dataclasses.asdict(stats),
             "policy_lag": collected.policy_lag,
             "dropped_rollouts": collected.dropped,
+            **collected.figures,
             **self.tracker.summary(),
         }
 
@@ -389,13 +399,15 @@ class Runner:
             "learn_s": done - collected,
         }
 
-    def learn(self, rollout: Rollout, whole: Rollout | None = None) -> UpdateStats:
+    def learn(
+        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+    ) -> UpdateStats:
         """Scale rewards, bootstrap, GAE per term, one PPO update of this rank's `rollout`;
-        `whole` (default `rollout`): every rank's environments, which the scaler sees."""
+        `whole` (default `rollout`): every rank's environments, which the scaler sees; `envs`:
+        which environments they are (None: all)."""
         whole = rollout if whole is None else whole
-        scaled = torch.stack(
-            [self.scaler.scale(whole.rewards[t], whole.dones[t]) for t in range(len(whole.rewards))]
-        )
+        scaled = torch.stack([self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
+                              for t in range(len(whole.rewards))])  # fmt: skip
         envs = rollout.rewards.shape[1]
         scaled = scaled[:, self.ranks.rank * envs : (self.ranks.rank + 1) * envs]  # this rank's
         rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
@@ -542,4 +554,5 @@ def progress_line(row: dict[str, float]) -> str:
         f"{row['env_steps_per_s']:.0f} env steps/s | success {row['success_rate']:.2f} over "
         f"{row['episodes']} episodes | return {row.get('return/total', math.nan):.3f} | "
         f"kl {row['approx_kl']:.4f} | lr {row['learning_rate']:.1e} | log std {row['log_std']:.2f}"
+        f"{workers_progress(row)}"
     )

@@ -13,24 +13,29 @@ With a lag L > 0 workers keep acting while the learner updates and chunks up to 
 old are learned from; older ones are dropped and counted (`dropped`). The learner's
 environments are the workers' in the order of their worker ids, one chunk of each per
 update, taken in the order each worker sent them, so the reward scaler sees every
-environment's steps in sequence.
+environment's steps in sequence. Which workers an iteration waits for, and what happens when
+one drops out, is `hamnet.trainer.workers.Roster`'s: the trainer follows the workers'
+liveliness tokens (`alive/<service>/<w>`) on the service thread, with the chunks.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
 import time
 from collections import defaultdict, deque
 
 from hamnet.policy.policy import Policy
 from hamnet.runtime import contract
-from hamnet.runtime.keys import check_segment
-from hamnet.runtime.service import Service
-from hamnet.trainer.chunks import chunk_decoder
+from hamnet.runtime.keys import check_segment, parse_alive_key
+from hamnet.runtime.service import ALIVE, Service
+from hamnet.trainer.chunks import Arrived, chunk_decoder
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.runner import Collected
 from hamnet.trainer.shell import WEIGHTS, encode_weights
-from hamnet.trainer.trajectory import Rollout, merge_environments
+from hamnet.trainer.trajectory import merge_environments
+from hamnet.trainer.workers import Roster
 
 log = logging.getLogger(__name__)
 
@@ -55,10 +60,13 @@ class Streamed:
         max_policy_lag: int = 0,
         report_period_s: float = 10.0,
         ranks: Ranks = ONE,
+        worker_timeout_s: float = math.inf,
     ) -> None:
         """With several learner `ranks`, this one learns from the workers numbered 0 to
-        `workers` - 1 that it owns (`Ranks.own`: id modulo the ranks) and only the main
-        rank announces the weights and answers queries for them."""
+        `workers` - 1 that it owns (`Ranks.own`: id modulo the ranks), every one in every
+        iteration, and only the main rank announces the weights and answers queries for them.
+        With one rank a worker whose token goes away, or that sends nothing for
+        `worker_timeout_s` after an iteration begins, drops out of it (`Roster`)."""
         if workers < 1 or max_policy_lag < 0 or workers % ranks.size:
             raise ValueError("workers must be >= 1, a multiple of the learner ranks, "
                              "and max_policy_lag >= 0")  # fmt: skip
@@ -66,6 +74,8 @@ class Streamed:
         self.workers = workers // ranks.size
         self.max_policy_lag, self.report_period_s = max_policy_lag, report_period_s
         ns, decoder = service.namespace, chunk_decoder(policy)
+        self.roster = Roster(self.workers, envs_per_worker, ranks.size == 1, worker_timeout_s)
+        service.inbox.watch("alive", ALIVE.pattern_in(ns))  # before the chunks: tokens first
         if ranks.size == 1:  # any worker ids
             keys = [ROLLOUT.pattern_in(ns)]
         else:
@@ -75,54 +85,77 @@ class Streamed:
         self.weights = service.publisher(WEIGHTS.key(ns)) if ranks.main else None
         if ranks.main:
             service.inbox.serve("weights_query", WEIGHTS.key(ns))
-        self.queues: dict[str, deque[tuple[int, Rollout]]] = defaultdict(deque)
+        self.queues: dict[str, deque[Arrived]] = defaultdict(deque)
+        """Fitting chunks per worker id, oldest first, each with its arrival (monotonic s)."""
         self.dropped = 0
+        self.last_arrival: dict[str, float] = {}
+        """When each worker's latest chunk learned from arrived (monotonic s)."""
 
     @property
     def num_envs(self) -> int:
         return self.workers * self.envs_per_worker
 
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
-        """Announce `policy` as `version`, then wait for a fitting chunk from `workers` workers."""
+        """Announce `policy` as `version`, then wait for a fitting chunk from each worker the
+        iteration waits for (`Roster`), and learn from those queued."""
         announcement = encode_weights(policy, version, env_transitions)
         if self.weights is not None:
             self.weights.put(announcement)
-        waiting_since = time.monotonic()
+        announced = waiting_since = time.monotonic()
+        self.roster.begin(announced)
         while self.service.running:
             self._drop_stale(version)
-            ready = sorted(worker for worker, queue in self.queues.items() if queue)
-            if len(ready) >= self.workers:
-                taken = [self.queues[worker].popleft() for worker in ready[: self.workers]]
-                lag = sum(version - acted for acted, _ in taken) / len(taken)
-                return Collected(merge_environments([r for _, r in taken]), lag, self.dropped)
+            ready = {worker for worker, queue in self.queues.items() if queue}
+            taken = self.roster.takes(ready, time.monotonic())
+            if taken is not None:
+                return self._collected(taken, version, announced)
             if time.monotonic() - waiting_since >= self.report_period_s:
-                log.info("waiting for rollouts of version %d from %d workers (have %s): start "
-                         "`hamnet rollout` workers with this run's flags", version, self.workers,
-                         ready or "none")  # fmt: skip
+                log.info("waiting for rollouts of version %d from %s: start `hamnet rollout` "
+                         "workers with this run's flags", version,
+                         sorted(self.roster.waiting) or f"{self.workers} workers")  # fmt: skip
                 waiting_since = time.monotonic()
             received = self.service.receive(timeout=0.1)
             if received is None:
                 continue
             if received.name == "weights_query" and self.weights is not None:
                 self.weights.answer(received.value, announcement)
+            elif received.name == "alive":
+                _, service, worker = parse_alive_key(received.key)
+                self.roster.token(f"{service}/{worker}", received.value)
             else:
-                self._take(received.key, *received.value, steps=steps)
+                self._take(received.key, received.value, received.received_ns / 1e9, steps)
         raise InterruptedError("the trainer was stopped while waiting for rollouts")
 
-    def _take(self, key: str, acted: int, rollout: Rollout, steps: int) -> None:
-        """Queue a decoded chunk from the worker of `key`, unless it cannot join an update."""
-        shape = tuple(rollout.actions.shape[:2])
+    def _collected(self, taken: list[str], version: int, announced: float) -> Collected:
+        """One queued chunk of each `taken` worker, side by side, with its figures."""
+        arrived = [self.queues[worker].popleft() for worker in taken]
+        transitions = self.envs_per_worker * len(arrived[0].rollout.actions)
+        for worker, chunk in zip(taken, arrived, strict=True):
+            since = max(announced, self.last_arrival.get(worker, announced))
+            rate = transitions / max(chunk.arrived_s - since, 1e-9)
+            self.roster.took(worker, version - chunk.version, rate)
+            self.last_arrival[worker] = chunk.arrived_s
+        lag = sum(version - chunk.version for chunk in arrived) / len(arrived)
+        return Collected(merge_environments([chunk.rollout for chunk in arrived]), lag,
+                         self.dropped, self.roster.rows(taken), self.roster.metrics())  # fmt: skip
+
+    def _take(self, key: str, chunk: Arrived, arrived_s: float, steps: int) -> None:
+        """Queue a decoded chunk from the worker of `key` (arrived at `arrived_s`, monotonic
+        s), unless it cannot join an update."""
+        shape = tuple(chunk.rollout.actions.shape[:2])
         if shape != (steps, self.envs_per_worker):
             self.dropped += 1
             log.warning("dropped a rollout from %s: %d steps of %d environments, the trainer "
                         "learns from %d of %d", key, *shape, steps, self.envs_per_worker)  # fmt: skip
             return
-        self.queues[worker_of(key)].append((acted, rollout))
+        worker = worker_of(key)
+        self.roster.arrived(worker, chunk.source)
+        self.queues[worker].append(dataclasses.replace(chunk, arrived_s=arrived_s))
 
     def _drop_stale(self, version: int) -> None:
         """Drop chunks acted more than `max_policy_lag` versions ago (or by future versions
         of an earlier run)."""
         for queue in self.queues.values():
-            while queue and not 0 <= version - queue[0][0] <= self.max_policy_lag:
+            while queue and not 0 <= version - queue[0].version <= self.max_policy_lag:
                 queue.popleft()
                 self.dropped += 1

@@ -154,3 +154,26 @@ def test_catching_up_again_within_the_period_asks_nothing(sessions, transport) -
     for _ in range(5):
         late.catch_up("state", key)
     assert served.get(timeout=0.3) is None
+
+
+def test_watched_tokens_come_and_go_in_order_with_the_messages(sessions, transport) -> None:
+    """The trainer learns that a rollout worker left from `watch`: a token present before
+    the watch starts is reported, and its withdrawal follows the owner's last message."""
+    owner, watcher = sessions
+    alive = contract.topic("alive/<service>/<w>")
+    key = alive.key(transport.namespace, service="rollout", w="3")
+    state = STATE.key(transport.namespace, w="3")
+    token = owner.liveliness().declare_token(key)
+    inbox = Inbox(watcher, DropCounter())
+    inbox.subscribe("state", state, sim_pb2.RobotState)
+    inbox.watch("alive", alive.pattern_in(transport.namespace))
+    first = inbox.get(timeout=10)
+    assert first is not None and (first.name, first.key, first.value) == ("alive", key, True)
+    wait_connected(owner, inbox, state)
+    Publisher(owner, state, "rollout/3").put(state_message())
+    token.undeclare()
+    names = [(r.name, r.value if r.name == "alive" else None)
+             for r in iter(lambda: inbox.get(timeout=5), None)][:2]  # fmt: skip
+    assert names == [("state", None), ("alive", False)]
+    with pytest.raises(ValueError, match="catch_up"):
+        inbox.catch_up("alive", key)

@@ -81,4 +81,4 @@ def test_unfit_chunks_are_refused_with_a_reason(collected) -> None:
     index = np.full(T * rollout.actions.shape[1], 99, np.int32)
     to_tensor(index, pointing.tensors["inputs.object_tokens" + INDEX])
     refused(pointing, policy, "shape")
-    assert chunk_decoder(policy)("key", encode(good))[0] == 1
+    assert chunk_decoder(policy)("key", encode(good)).version == 1
