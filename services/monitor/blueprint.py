@@ -6,8 +6,8 @@ with the legend of its colours under it. Right, top to bottom: the learning curv
 trainer's return per reward term and success rate beside the monitor's own, with the
 trainer's status line, or the note saying why there are none yet); the module activations
 (layer x module heat map with its colour scale, each module's mean weight over time); tabs
-for the rest (rewards of the env in focus, values, PPO statistics, throughput, safety,
-episodes). The viewer opens on the `step` timeline.
+for the rest (rewards of the env in focus, values, PPO statistics, DAgger statistics,
+throughput, safety, episodes). The viewer opens on the `step` timeline.
 """
 
 from __future__ import annotations
@@ -35,6 +35,16 @@ PPO_METRICS = (
     "value_loss",
 )
 """Trainer metrics of the PPO update, one plot each (their scales differ by decades)."""
+DAGGER_METRICS = (
+    "imitation_loss",
+    "imitation_loss_after",
+    "beta",
+    "student_share",
+    "student_episode_success",
+)
+"""Trainer metrics of a DAgger run (`hamnet trainer --algo dagger --publish`), one plot each:
+the loss on windows before and after they are fitted, who acts, and the student's own
+success."""
 THROUGHPUT_METRICS = ("env_steps_per_s", "policy_lag", "episode_length")
 """Trainer metrics of the run's pace, one plot each."""
 
@@ -83,6 +93,7 @@ def details() -> rrb.Container:
         _plot("/episodes/return", "episode return (env in focus)"),
         _plot("/policy/values", "values per reward term"),
         rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in PPO_METRICS), name="PPO update"),
+        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in DAGGER_METRICS), name="DAgger"),
         rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in THROUGHPUT_METRICS), name="throughput"),
         _plot("/safety/clip_rate", "safety: clipped share per stage"),
         rrb.TextLogView(origin="/safety/events", name="safety events"),

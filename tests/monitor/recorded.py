@@ -112,6 +112,34 @@ def metrics(iteration: int, rng: np.random.Generator) -> Metrics:
     return encode_metrics(row, iteration)
 
 
+def dagger_metrics(iteration: int, rng: np.random.Generator) -> Metrics:
+    """Metrics of DAgger iteration `iteration` (the keys of `DaggerRunner`'s rows): the
+    imitation loss falling, beta half way down."""
+    success = float(rng.uniform(0.05, 0.15))
+    returns = {f"return/{name}": float(v) for name, v in zip(REWARD_NAMES, (success, 0.01, 0.1), strict=True)}
+    row = {
+        "iteration": iteration,
+        "env_transitions": iteration * TRANSITIONS_PER_ITERATION,
+        "env_steps_per_s": 120.0,
+        "collect_s": 4.0,
+        "learn_s": 0.5,
+        "beta": 0.5,
+        "student_share": 0.5,
+        "imitation_loss": 0.3 / iteration,
+        "imitation_loss_after": 0.2 / iteration,
+        "value_loss": 0.0,
+        "gradient_norm": 0.4,
+        "learning_rate": 3e-4,
+        **returns,
+        "episodes": 64,
+        "success_rate": success,
+        "episode_length": 90.0,
+        "student_episodes": 32,
+        "student_episode_success": success / 2,
+    }
+    return encode_metrics(row, iteration)
+
+
 def clip_event(step: int, env: int) -> SafetyEvent:
     """The Cartesian clip clipped 2 of 10 commands at `step`, in environment `env`."""
     message = SafetyEvent(header=Header(step=step), kind=SafetyEventKind.CLIPPED_CARTESIAN,

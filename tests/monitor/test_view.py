@@ -36,6 +36,7 @@ from tests.monitor.recorded import (
     Rrd,
     action,
     clip_event,
+    dagger_metrics,
     drawn_ee,
     metrics,
     sim_messages,
@@ -79,6 +80,8 @@ def run(tmp_path_factory) -> tuple[Rrd, dict[str, list]]:
     for iteration in range(1, ITERATIONS + 1):
         sent.setdefault("metrics", []).append(metrics(iteration, rng))
         view.on_metrics(decode_metrics(sent["metrics"][-1]))
+    sent["metrics"].append(dagger_metrics(ITERATIONS + 1, rng))  # the DAgger tab's plots
+    view.on_metrics(decode_metrics(sent["metrics"][-1]))
     recording.flush()
     recording.disconnect()
     return Rrd(path), sent
@@ -190,7 +193,7 @@ def test_every_view_of_the_layout_shows_logged_entities(run) -> None:
     """The blueprint in the file names views by entity path: a path renamed in the view but
     not in the blueprint (an empty panel) fails here."""
     rrd, _ = run
-    assert len(rrd.view_origins) == 23
+    assert len(rrd.view_origins) == 28
     for origin in rrd.view_origins:
         assert any(e == origin or e.startswith(origin.rstrip("/") + "/") for e in rrd.entities), origin
 
@@ -229,7 +232,7 @@ def test_the_learning_curves_say_why_they_are_empty_until_the_first_metrics(run)
     rrd, sent = run
     status = [text for (text,) in rrd.static("/trainer/status", "TextDocument:text")]
     assert "No trainer metrics yet" in status[0] and "hamnet trainer" in status[0]
-    assert status[-1].startswith(f"**iteration {ITERATIONS}**")
+    assert status[-1].startswith(f"**iteration {len(sent['metrics'])}**")
     assert len(status) == 1 + len(sent["metrics"])
 
 
