@@ -116,7 +116,8 @@ def dagger_metrics(iteration: int, rng: np.random.Generator) -> Metrics:
     """Metrics of DAgger iteration `iteration` (the keys of `DaggerRunner`'s rows): the
     imitation loss falling, beta half way down."""
     success = float(rng.uniform(0.05, 0.15))
-    returns = {f"return/{name}": float(v) for name, v in zip(REWARD_NAMES, (success, 0.01, 0.1), strict=True)}
+    terms = (success, 0.01, 0.1)
+    returns = {f"return/{name}": v for name, v in zip(REWARD_NAMES, terms, strict=True)}
     row = {
         "iteration": iteration,
         "env_transitions": iteration * TRANSITIONS_PER_ITERATION,
