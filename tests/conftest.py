@@ -36,9 +36,11 @@ def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
     """Start `python -m hamnet <args>` processes; all are stopped at teardown."""
     processes: list[subprocess.Popen] = []
 
-    def start(*args: str) -> subprocess.Popen:
+    def start(*args: str, netns: str | None = None) -> subprocess.Popen:
+        """`hamnet <args>`, inside the network namespace `netns` when given (as root)."""
+        inside = ["ip", "netns", "exec", netns] if netns else []
         process = subprocess.Popen(
-            [sys.executable, "-m", "hamnet", *args],
+            [*inside, sys.executable, "-m", "hamnet", *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
