@@ -3,7 +3,9 @@ them all on Ctrl-C, SIGTERM, a time bound or when the stack's `until` service fi
 and print a summary. `--check` only validates the file.
 
 Transport and logging options are forwarded to every service when they differ from their
-defaults; `--namespace` (unless `default`) replaces the stack file's namespace.
+defaults; `--namespace` (unless `default`) replaces the stack file's namespace. With
+`--tls-dir`, the launcher presents its own certificate (`up`, unless `--identity` names
+another) and every service its own.
 """
 
 from __future__ import annotations
@@ -22,9 +24,8 @@ from hamnet.launcher.argv import forwarded
 from hamnet.launcher.run import run
 from hamnet.launcher.stack import StackError, load
 from hamnet.launcher.summary import render
-from hamnet.runtime.cli import CommonConfig, Flattened, parse
+from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.errors import ConfigError
-from hamnet.runtime.logs import configure_logging
 from hamnet.runtime.transport import TransportConfig
 
 
@@ -53,9 +54,8 @@ CONFIG = UpConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet up` with command-line arguments `argv`; returns the exit status."""
-    config = parse(CONFIG, argv, "hamnet up", __doc__)
+    config, _ = parse_service(CONFIG, argv, "up", __doc__)
     common = config.common
-    configure_logging(f"up/{common.worker}", common.logging.log_level, common.logging.log_format)
     try:
         stack = load(config.stack)
         if common.transport.namespace != TransportConfig().namespace:

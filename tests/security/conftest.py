@@ -12,7 +12,7 @@ import pytest
 from hamnet.security.certs import init_ca, issue
 
 IDENTITIES = (
-    "alice", "bob", "router", "safety", "trainer", "operator", "sim", "policy", "intruder",
+    "alice", "bob", "router", "up", "safety", "trainer", "operator", "sim", "policy", "intruder",
 )  # fmt: skip
 """Identities the stack's CA issues in these tests; `intruder` holds no role."""
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from hamnet.cli import main as hamnet
 from hamnet.launcher.argv import forwarded
 from hamnet.runtime.cli import CommonConfig, parse_service
 from hamnet.runtime.errors import ConfigError
@@ -87,3 +88,15 @@ def test_a_service_presents_its_own_certificate_unless_told_otherwise(certs: Pat
     assert told.common.transport.identity == "bob"
     launcher = CommonConfig(transport=TransportConfig(tls_dir=certs, identity="alice"))
     assert forwarded(launcher) == {"tls-dir": str(certs)}
+
+
+def test_hamnet_up_presents_its_own_certificate(certs: Path, tmp_path: Path, capsys) -> None:
+    """`hamnet up --tls-dir D` joins as `up` (D/up.pem), like a service under its name: a
+    folder without up.pem is one line and exit 2, one with it passes."""
+    stack = tmp_path / "stack.yaml"
+    stack.write_text("services: {watch: {command: echo}}\n")
+    assert hamnet(["up", "--check", str(stack), "--tls-dir", str(certs)]) == 0
+    (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
+    assert hamnet(["up", "--check", str(stack), "--tls-dir", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.strip().endswith(f"{tmp_path / 'up.pem'} (`hamnet certs` makes "
+                                                    "it; docs/security.md)")  # fmt: skip
