@@ -51,7 +51,7 @@ class Metrics(_message.Message):
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., iteration: _Optional[int] = ..., scalars: _Optional[_Mapping[str, float]] = ...) -> None: ...
 
 class RolloutChunk(_message.Message):
-    __slots__ = ("header", "horizon", "tensors")
+    __slots__ = ("header", "horizon", "tensors", "teacher_sha256")
     class TensorsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -62,7 +62,9 @@ class RolloutChunk(_message.Message):
     HEADER_FIELD_NUMBER: _ClassVar[int]
     HORIZON_FIELD_NUMBER: _ClassVar[int]
     TENSORS_FIELD_NUMBER: _ClassVar[int]
+    TEACHER_SHA256_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     horizon: int
     tensors: _containers.MessageMap[str, _common_pb2.Tensor]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., horizon: _Optional[int] = ..., tensors: _Optional[_Mapping[str, _common_pb2.Tensor]] = ...) -> None: ...
+    teacher_sha256: str
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., horizon: _Optional[int] = ..., tensors: _Optional[_Mapping[str, _common_pb2.Tensor]] = ..., teacher_sha256: _Optional[str] = ...) -> None: ...

@@ -97,6 +97,7 @@ TOPICS: tuple[Topic, ...] = (
     Topic("trainer/schedule", trainer_pb2.Schedule, "trainer", "after each update"),
     Topic("trainer/metrics", trainer_pb2.Metrics, "trainer", "after each update"),
     Topic("trainer/<w>/rollout", trainer_pb2.RolloutChunk, "rollout worker or policy (service chain)", "every rollout"),
+    Topic("trainer/<w>/demonstrations", trainer_pb2.RolloutChunk, "rollout worker (--algo dagger)", "every rollout"),
     Topic("health/<service>/<w>", health_pb2.Health, "every service", "every second"),
     Topic("alive/<service>/<w>", None, "every service", "while running"),
 )

@@ -1,4 +1,5 @@
-"""A `Rollout` <-> a RolloutChunk message, as rollout workers stream them to the trainer.
+"""A `Rollout` <-> a RolloutChunk message, as rollout workers stream them to the trainer
+(DAgger's `Demonstrations` travel the same way, `hamnet.trainer.dagger_chunks`).
 
 Every field of the rollout travels as a named tensor; the policy inputs (a tree of
 dataclasses) under dotted names (`inputs.observation.base`). What stays the same for a
@@ -27,6 +28,7 @@ from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.codec import decode
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.trainer.dagger import Demonstrations
 from hamnet.trainer.trajectory import Rollout
 from hamnet.trainer.trees import take_rows
 
@@ -42,6 +44,9 @@ _FLAGS = ("dones", "success")
 _SHAPES = {"actions": "TBA", "log_prob": "TB", "values": "TBR", "rewards": "TBR",
            "final_values": "TBR", "dones": "TB", "next_values": "BR", "success": "TB"}  # fmt: skip
 """The rollout's fields other than its inputs, by their dimensions' letters."""
+
+Batch = Rollout | Demonstrations
+"""What a chunk carries: T steps of B environments with the policy inputs of each."""
 
 
 def flatten(tree: object, prefix: str) -> dict[str, Tensor]:
@@ -76,14 +81,15 @@ def _rows_once(rows: Tensor) -> tuple[Tensor, Tensor]:
     return distinct.reshape(-1, *rows.shape[1:]), index.to(torch.int32)
 
 
-def encode_rollout(rollout: Rollout, version: int, step: int) -> RolloutChunk:
-    """The chunk of `rollout`, acted by weights `version`; `step` counts the producer's chunks."""
-    horizon = len(rollout.actions)
+def encode_rollout(batch: Batch, version: int, step: int) -> RolloutChunk:
+    """The chunk of a rollout (or of DAgger's demonstrations) `batch`, acted by weights
+    `version`; `step` counts the producer's chunks."""
+    horizon = len(batch.dones)
     chunk = RolloutChunk(header=Header(step=step, policy_version=version), horizon=horizon)
-    for field in dataclasses.fields(Rollout):
+    for field in dataclasses.fields(batch):
         if field.name != "inputs":
-            to_tensor(getattr(rollout, field.name).numpy(), chunk.tensors[field.name])
-    for name, rows in flatten(rollout.inputs, "inputs").items():
+            to_tensor(getattr(batch, field.name).numpy(), chunk.tensors[field.name])
+    for name, rows in flatten(batch.inputs, "inputs").items():
         if name.rsplit(".", 1)[-1] in PER_EPISODE:
             rows, index = _rows_once(rows)
             to_tensor(index.numpy(), chunk.tensors[name + INDEX])
@@ -122,18 +128,31 @@ def decode_rollout(chunk: RolloutChunk, policy: Policy) -> Rollout:
         PayloadError: a tensor is missing, unknown, of the wrong dtype or shape, not finite,
             or inputs the policy cannot evaluate.
     """
+    return decode_batch(chunk, Rollout, _SHAPES, _FLAGS, policy)
+
+
+def decode_batch(
+    chunk: RolloutChunk,
+    kind: type[Batch],
+    shapes: dict[str, str],
+    flags: tuple[str, ...],
+    policy: Policy,
+) -> Batch:
+    """The `kind` in `chunk`, checked for `policy` as `decode_rollout` says; `shapes`: its
+    fields other than the inputs by their dimensions' letters (T, B, A, R; one (T, B, A)
+    field, which the policy's check evaluates), `flags`: those that are bool."""
     steps, terms, action_dim = chunk.horizon, len(REWARD_NAMES), policy.config.action_dim
-    missing = [name for name in _SHAPES if name not in chunk.tensors]
+    missing = [name for name in shapes if name not in chunk.tensors]
     if missing or steps < 1:
         raise PayloadError("missing", f"RolloutChunk lacks {missing} (horizon {steps})")
-    batch = int(chunk.tensors["log_prob"].shape[-1]) if chunk.tensors["log_prob"].shape else 0
+    batch = int(chunk.tensors["dones"].shape[-1]) if chunk.tensors["dones"].shape else 0
     sizes = {"T": steps, "B": batch, "A": action_dim, "R": terms}
     fields = {
-        name: _array(chunk, name, bool if name in _FLAGS else np.float32, tuple(sizes[d] for d in dims))
-        for name, dims in _SHAPES.items()
+        name: _array(chunk, name, bool if name in flags else np.float32, tuple(sizes[d] for d in dims))
+        for name, dims in shapes.items()
     }  # fmt: skip
     names = leaf_names(PolicyInputs, "inputs")
-    known = set(_SHAPES) | set(names) | {n + INDEX for n in names if _per_episode(n)}
+    known = set(shapes) | set(names) | {n + INDEX for n in names if _per_episode(n)}
     unknown = sorted(set(chunk.tensors) - known)
     if unknown:
         raise PayloadError("shape", f"RolloutChunk has unknown tensors {unknown[:5]}")
@@ -149,14 +168,15 @@ def decode_rollout(chunk: RolloutChunk, policy: Policy) -> Rollout:
             inputs[name] = _array(
                 chunk, name, np.float32, (rows,) + (None,) * (len(chunk.tensors[name].shape) - 1)
             )
-    rollout = Rollout(inputs=unflatten(PolicyInputs, inputs, "inputs"), **fields)
+    decoded = kind(inputs=unflatten(PolicyInputs, inputs, "inputs"), **fields)
+    actions = fields[next(name for name, dims in shapes.items() if dims == "TBA")]
     first = torch.zeros(1, dtype=torch.long)
     try:
         with torch.no_grad():
-            policy.evaluate(take_rows(rollout.inputs, first), rollout.actions[0, :1])
+            policy.evaluate(take_rows(decoded.inputs, first), actions[0, :1])
     except (ValueError, RuntimeError, TypeError) as error:
         raise PayloadError("shape", f"RolloutChunk inputs do not fit the policy: {error}") from None
-    return rollout
+    return decoded
 
 
 @dataclass(frozen=True)
@@ -165,7 +185,8 @@ class Arrived:
 
     version: int
     """Version of the weights that acted in it (`header.policy_version`)."""
-    rollout: Rollout
+    rollout: Batch
+    """PPO's Rollout, or DAgger's Demonstrations."""
     source: str
     """The service that sent it, `service/worker` (`header.source`): whose liveliness token
     tells whether it is still there."""
@@ -173,12 +194,18 @@ class Arrived:
     """When Zenoh delivered it, monotonic s (set by the trainer)."""
 
 
-def chunk_decoder(policy: Policy) -> Callable[[str, bytes], Arrived]:
-    """An inbox decoder (key, payload) -> `Arrived` (version, Rollout, source) for `policy`."""
+def arrived_decoder(read: Callable[[RolloutChunk], Batch]) -> Callable[[str, bytes], Arrived]:
+    """An inbox decoder (key, payload) -> `Arrived` (version, what `read` makes of the chunk,
+    source); `read` raises PayloadError for a chunk that does not fit."""
 
     def decode_chunk(key: str, payload: bytes) -> Arrived:
-        chunk = decode(RolloutChunk, payload, finite=False)  # decode_rollout checks each tensor
+        chunk = decode(RolloutChunk, payload, finite=False)  # `read` checks each tensor
         header = chunk.header
-        return Arrived(header.policy_version, decode_rollout(chunk, policy), header.source)
+        return Arrived(header.policy_version, read(chunk), header.source)
 
     return decode_chunk
+
+
+def chunk_decoder(policy: Policy) -> Callable[[str, bytes], Arrived]:
+    """An inbox decoder (key, payload) -> `Arrived` (version, Rollout, source) for `policy`."""
+    return arrived_decoder(lambda chunk: decode_rollout(chunk, policy))

@@ -26,10 +26,12 @@ progress line every `--log-period-s`. `hamnet trainer plot RUN_DIR` draws a run'
 curves as PNG.
 
     hamnet trainer --algo dagger --inprocess --teacher runs/train-easy/checkpoints/latest.safetensors
+    hamnet trainer --algo dagger --teacher CKPT --workers 1 & hamnet rollout --algo dagger --teacher CKPT --worker 0
 
 distils a PPO teacher into the recurrent student on deployable inputs by DAgger (issue 15,
-docs/trainer.md "DAgger"): the same checkpoints, `--resume`, metrics, progress line and
-summary (with the teacher's and the student's held-out success rates), `--dagger.*` flags.
+docs/trainer.md "DAgger"), in-process or from rollout workers that host the teacher: the
+same checkpoints, `--resume`, metrics, progress line and summary (with the teacher's and the
+student's held-out success rates), `--dagger.*` flags.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated
 
 import tyro
 
@@ -51,7 +53,7 @@ from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.stages import stage_in
-from hamnet.trainer.dagger import DaggerConfig
+from hamnet.trainer.dagger import AlgoConfig
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.launch_ranks import start_other_ranks, wait_for
 from hamnet.trainer.ranks import ONE, Ranks, from_environment
@@ -90,14 +92,8 @@ class TrainerConfig:
     the newest weights with `hamnet policy`. Streaming runs always publish."""
     weights_period_s: float = 10.0
     """With --inprocess --publish: seconds between two weight announcements (and one at the end)."""
-    algo: Literal["ppo", "dagger"] = "ppo"
-    """ppo: learn by PPO. dagger: distil `--teacher` into the run's `--architecture` (default
-    `student` then) by DAgger, in-process (`--inprocess`)."""
-    teacher: Path | None = None
-    """With --algo dagger: the teacher, a policy checkpoint `hamnet trainer` wrote (its
-    `checkpoints/latest.safetensors`). Give the run the teacher's --stage and encoder flags."""
-    dagger: DaggerConfig = field(default_factory=DaggerConfig)
-    """DAgger's beta schedule and student update (`--dagger.*`), with --algo dagger."""
+    algorithm: Annotated[AlgoConfig, tyro.conf.arg(name="")] = field(default_factory=AlgoConfig)
+    """PPO or DAgger (`--algo`, `--teacher`, `--dagger.*`)."""
     ranks: int = 1
     """Learner processes on this machine (torch.distributed, gloo on loopback): this one is
     rank 0 and starts the others; rank r learns from the rollout workers whose id modulo
@@ -111,7 +107,7 @@ class TrainerConfig:
     def __post_init__(self) -> None:
         if self.ranks < 1:
             raise ConfigError(f"--ranks must be >= 1, got {self.ranks}")
-        if self.ranks > 1 and (self.inprocess or self.algo != "ppo"):
+        if self.ranks > 1 and (self.inprocess or self.algorithm.algo != "ppo"):
             raise ConfigError("--ranks shards rollout workers: it needs PPO without --inprocess")
         if self.workers % self.ranks:
             raise ConfigError(
@@ -153,7 +149,7 @@ def main(argv: Sequence[str]) -> int:
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
     code = commit()  # the commit of the code that trains
-    if config.algo == "dagger":
+    if config.algorithm.algo == "dagger":
         from hamnet.trainer.dagger_cli import distil
 
         return distil(config, identity, code)

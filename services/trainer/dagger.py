@@ -10,7 +10,9 @@ components, R reward terms.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
 
 import torch
 from torch import Tensor
@@ -55,6 +57,23 @@ class DaggerConfig:
             raise ValueError("beta_decay_transitions must be >= 0 and epochs >= 1")
         if not (self.lr > 0 and self.max_grad_norm > 0 and self.value_coef >= 0):
             raise ValueError("lr and max_grad_norm must be > 0, value_coef >= 0")
+
+
+@dataclass(frozen=True)
+class AlgoConfig:
+    """What a run learns by: the flags `hamnet trainer` and its `hamnet rollout` workers
+    share (`--algo`, `--teacher`, `--dagger.*`; workers must be given the trainer's)."""
+
+    algo: Literal["ppo", "dagger"] = "ppo"
+    """ppo: learn by PPO. dagger: distil `--teacher` into the run's `--architecture` (default
+    `student` then) by DAgger; rollout workers host the teacher beside the student."""
+    teacher: Path | None = None
+    """With --algo dagger: the teacher, a policy checkpoint `hamnet trainer` wrote (its
+    `checkpoints/latest.safetensors`), the same file for the trainer and its workers. Give
+    the run the teacher's --stage and encoder flags."""
+    dagger: DaggerConfig = field(default_factory=DaggerConfig)
+    """DAgger's beta schedule and student update (`--dagger.*`), with --algo dagger: workers
+    draw who acts from the same schedule."""
 
 
 def beta_at(env_transitions: int, config: DaggerConfig) -> float:

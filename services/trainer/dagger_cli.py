@@ -1,24 +1,29 @@
-"""`hamnet trainer --algo dagger`: distil a PPO teacher into the student by DAgger, then
-measure both on the same held-out episodes with the same evaluation code (`evaluate.py`):
-the teacher with clouds of every surface as it was trained, the student with clouds as the
-cameras see them and the pose estimate, as it is deployed.
+"""`hamnet trainer --algo dagger`: distil a PPO teacher into the student by DAgger, from
+`hamnet rollout --algo dagger` workers over Zenoh (`--workers N`, as PPO's) or in this
+process (`--inprocess`), then measure both on the same held-out episodes with the same
+evaluation code (`evaluate.py`): the teacher with clouds of every surface as it was trained,
+the student with clouds as the cameras see them and the pose estimate, as it is deployed.
 
 Every unusable input (no `--teacher`, a missing or non-policy file, a student as teacher, a
-student architecture that is not one, a snapshot of another run or teacher, rollout
-workers) is one line on stderr and exit status 2.
+student architecture that is not one, a snapshot of another run or teacher) is one line on
+stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import sys
 
 from hamnet.perception.config import student_clouds
+from hamnet.policy.policy import Policy
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.trainer.cli import TrainerConfig, publish_while
-from hamnet.trainer.dagger_runner import DaggerError, DaggerRunner, load_teacher
+from hamnet.trainer.dagger_chunks import DEMONSTRATIONS, demonstrations_decoder
+from hamnet.trainer.dagger_runner import DaggerError, DaggerRunner, Teacher, load_teacher
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
+from hamnet.trainer.stream import Streamed
 from hamnet.trainer.summary import write_summary
 
 log = logging.getLogger(__name__)
@@ -26,24 +31,21 @@ log = logging.getLogger(__name__)
 
 def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
     """Run DAgger as `config` says, trained by the code of commit `code`; the exit status."""
-    run = config.resumed_run
+    run, algorithm, resume = config.resumed_run, config.algorithm, config.resume is not None
     try:
-        if not config.inprocess:
-            raise DaggerError("--algo dagger collects in-process only (rollout workers host "
-                              "no teacher yet): add --inprocess")  # fmt: skip
-        if config.teacher is None:
+        if algorithm.teacher is None:
             raise DaggerError("--algo dagger needs --teacher CKPT, a policy checkpoint of "
                               "hamnet trainer (RUN_DIR/checkpoints/latest.safetensors)")  # fmt: skip
-        teacher = load_teacher(config.teacher)
-        runner = DaggerRunner(run, config.dagger, teacher, resume=config.resume is not None)
+        teacher = load_teacher(algorithm.teacher)
+        if config.inprocess and not config.publish:
+            runner = DaggerRunner(run, algorithm.dagger, teacher, resume)
+            runner.run()
+        else:
+            with Service(identity, config.common.transport) as service:
+                runner = distil_with(service, config, teacher)
     except (DaggerError, ResumeError) as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
-    if config.publish:
-        with Service(identity, config.common.transport) as service:
-            publish_while(service, runner, config.weights_period_s)
-    else:
-        runner.run()
     extra: dict[str, object] = {"algo": "dagger", "teacher": str(teacher.path),
                                 "teacher_sha256": teacher.sha256}  # fmt: skip
     student = None
@@ -59,3 +61,21 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
                  student.success_rate, held.success_rate)  # fmt: skip
     print(write_summary(runner.config, student, code, extra))
     return 0
+
+
+def distil_with(service: Service, config: TrainerConfig, teacher: Teacher) -> DaggerRunner:
+    """Distil while publishing on `service`: in-process, or from the demonstrations of
+    `config.workers` rollout workers, whose chunks of another teacher are refused."""
+    run, dagger = config.resumed_run, config.algorithm.dagger
+    resume = config.resume is not None
+    if config.inprocess:
+        runner = DaggerRunner(run, dagger, teacher, resume)
+        return publish_while(service, runner, config.weights_period_s)
+
+    def streamed(student: Policy) -> Streamed:
+        return Streamed(service, student, config.workers, run.num_envs, config.max_policy_lag,
+                        worker_timeout_s=config.worker_timeout_s,
+                        decoder=demonstrations_decoder(teacher.sha256), topic=DEMONSTRATIONS)  # fmt: skip
+
+    runner = DaggerRunner(run, dagger, teacher, resume, streamed)
+    return publish_while(service, runner, math.inf)  # the source announces every version

@@ -1,6 +1,8 @@
 """DAgger's training loop: the PPO `Runner`'s loop, checkpoints, snapshots and metrics
-file, with DAgger's rollouts (`dagger_worker.DaggerWorker`, in-process) and the student's
-imitation update (`dagger.update_student`) in place of PPO's.
+file, with DAgger's rollouts and the student's imitation update (`dagger.update_student`)
+in place of PPO's. The rollouts come from a `dagger_worker.DaggerWorker` in this process
+(`InProcessDagger`) or, as PPO's do, from rollout workers over Zenoh (`stream.Streamed` of
+`hamnet rollout --algo dagger` workers' demonstrations, `dagger_chunks`).
 
 The teacher is a policy checkpoint the PPO trainer wrote; it is frozen, and a snapshot
 records its SHA-256 so a run resumes only with the teacher it was distilled from. The
@@ -14,6 +16,7 @@ import dataclasses
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +29,8 @@ from hamnet.policy.weights import WeightsError, from_bytes, policy_from, sha256
 from hamnet.trainer.dagger import DaggerConfig, Demonstrations, beta_at, update_student
 from hamnet.trainer.dagger_worker import DaggerWorker, build_dagger_worker
 from hamnet.trainer.resume import Arrays, ResumeError, Snapshot
-from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.runner import Collected, RolloutSource, RunConfig, Runner
+from hamnet.trainer.workers import progress as workers_progress
 
 
 class DaggerError(ValueError):
@@ -75,14 +79,24 @@ def check_student(name: str) -> None:
 
 
 class InProcessDagger:
-    """DAgger's rollouts from one `DaggerWorker` in this process."""
+    """DAgger's rollouts from one `DaggerWorker` in this process (a `RolloutSource` whose
+    rollouts are `Demonstrations`)."""
 
-    def __init__(self, config: RunConfig, teacher: Policy, student: Policy) -> None:
-        self.worker: DaggerWorker = build_dagger_worker(config, teacher, student)
+    def __init__(self, config: RunConfig, teacher: Policy, dagger: DaggerConfig) -> None:
+        self.worker: DaggerWorker = build_dagger_worker(config, teacher)
+        self.teacher, self.dagger = teacher, dagger
 
     @property
     def num_envs(self) -> int:
         return self.worker.num_envs
+
+    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+        """T = `steps` steps of every environment, the student `policy` acting where beta's
+        coin says (at the counter `env_transitions`), the teacher labelling."""
+        policy.eval()
+        return Collected(
+            self.worker.collect(self.teacher, policy, steps, env_transitions, self.dagger)
+        )
 
     def snapshot(self) -> Snapshot:
         return self.worker.snapshot()
@@ -95,31 +109,39 @@ class DaggerRunner(Runner):
     """A DAgger run: the teacher labels, the student (the run's policy) learns."""
 
     def __init__(
-        self, config: RunConfig, dagger: DaggerConfig, teacher: Teacher, resume: bool = False
+        self,
+        config: RunConfig,
+        dagger: DaggerConfig,
+        teacher: Teacher,
+        resume: bool = False,
+        source: Callable[[Policy], RolloutSource] | None = None,
     ) -> None:
-        """The student is `config.architecture`; rollouts come in one group of environments
-        (no overlap: two perceptions share the step). ResumeError as `Runner`'s, and when the
-        snapshot is not of a DAgger run or of another teacher."""
+        """The student is `config.architecture`; `source(student)` makes the rollout source,
+        whose rollouts are `Demonstrations` (default `InProcessDagger`: one group of
+        environments, no overlap, since two perceptions share the step). ResumeError as
+        `Runner`'s, and when the snapshot is not of a DAgger run or of another teacher."""
         check_student(config.architecture)
         self.dagger, self.teacher = dagger, teacher
         self.student_episodes: deque[bool] = deque(maxlen=200)
         """Outcomes of the last episodes the student acted (the tracker's window)."""
         config = dataclasses.replace(config, overlap=False)
-        super().__init__(
-            config, lambda student: InProcessDagger(config, teacher.policy, student), resume
-        )
+
+        def in_process(_: Policy) -> InProcessDagger:
+            return InProcessDagger(config, teacher.policy, dagger)
+
+        super().__init__(config, in_process if source is None else source, resume)
 
     def iterate(self) -> dict[str, float]:
         """One rollout of teacher and student and one imitation update; the metrics."""
         started = time.perf_counter()
         config, student = self.config, self.policy
         student.eval()
-        demos: Demonstrations = self.source.worker.collect(
-            self.teacher.policy, student, config.steps_per_rollout, self.env_transitions,
-            self.dagger,
-        )  # fmt: skip
+        collected = self.source.collect(
+            student, config.steps_per_rollout, self.env_transitions, self.version
+        )
+        demos: Demonstrations = collected.rollout
         collect_done = time.perf_counter()
-        self.tracker.add(demos)
+        self.tracker.add(demos, collected.envs)
         ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
         self.student_episodes.extend(demos.success[ended].tolist())
         stats = update_student(student, self.optimizer, demos, self.dagger)
@@ -137,6 +159,9 @@ class DaggerRunner(Runner):
             "student_episode_success": (
                 float(np.mean(self.student_episodes)) if self.student_episodes else math.nan
             ),
+            "policy_lag": collected.policy_lag,
+            "dropped_rollouts": collected.dropped,
+            **collected.figures,
         }
 
     def progress(self, row: dict[str, float]) -> str:
@@ -145,7 +170,7 @@ class DaggerRunner(Runner):
             f"{row['env_steps_per_s']:.0f} env steps/s | beta {row['beta']:.2f} | student acts "
             f"{row['student_share']:.2f} | imitation {row['imitation_loss']:.4f} | success "
             f"{row['success_rate']:.2f} over {row['episodes']} episodes | return "
-            f"{row.get('return/total', math.nan):.3f}"
+            f"{row.get('return/total', math.nan):.3f}{workers_progress(row)}"
         )
 
     def snapshot(self) -> Snapshot:

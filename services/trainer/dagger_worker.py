@@ -31,6 +31,7 @@ from hamnet.perception.core import Perception, Percepts
 from hamnet.policy import inputs as builder
 from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.policy import Policy
+from hamnet.policy.registry import architecture
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import Command, Observation, VectorEnv
@@ -204,12 +205,13 @@ STUDENT_PERCEPTION_SEED = 1
 draws are not the teacher's perception's."""
 
 
-def build_dagger_worker(config: RunConfig, teacher: Policy, student: Policy) -> DaggerWorker:
+def build_dagger_worker(config: RunConfig, teacher: Policy) -> DaggerWorker:
     """The run's `config.num_envs` environments in one group, with the teacher's perception
-    (every surface) and the student's (`student_clouds()`) on one frozen encoder (the run's:
-    it must be the one the teacher was trained with)."""
+    (every surface) and the student's (`config.architecture`'s, `student_clouds()`) on one
+    frozen encoder (the run's: it must be the one the teacher was trained with)."""
     b, seed = config.num_envs, config.seed
-    needs = {role: p.config.clouds for role, p in zip(ROLES, (teacher, student), strict=True)}
+    student = architecture(config.architecture).config
+    needs = {"teacher": teacher.config.clouds, "student": student.clouds}
     encoder = frozen_encoder(config)[0] if any(needs.values()) else None
     clouds = {"teacher": CloudConfig(), "student": student_clouds()}
     offsets = {"teacher": 0, "student": STUDENT_PERCEPTION_SEED}

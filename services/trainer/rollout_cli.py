@@ -9,10 +9,19 @@ rollout back as a RolloutChunk (`hamnet.trainer.rollout_service`).
 Give it the trainer's `--stage`, `--sim.*`, `--architecture`, `--steps-per-rollout`, encoder
 flags (`--encoder-checkpoint`, `--random-encoder`) and `--max-policy-lag` (the other run
 flags are the trainer's and are ignored here). `--worker K` (a number) names the worker and seeds its environments apart.
+
+    hamnet trainer --algo dagger --teacher CKPT --workers 1 & hamnet rollout --algo dagger --teacher CKPT --worker 0
+
+makes DAgger's worker (docs/trainer.md "DAgger"): the teacher from CKPT labels, the student
+acts with the trainer's weights, who acts is drawn from beta at the announced counter; give it
+the trainer's `--teacher` (the same file: the trainer refuses another's chunks) and
+`--dagger.*`. A missing or unusable teacher, or a non-student `--architecture`, is one line
+on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
@@ -23,6 +32,8 @@ import tyro
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.trainer.cli import stage_default
+from hamnet.trainer.dagger import AlgoConfig
+from hamnet.trainer.dagger_runner import DaggerError, Teacher, check_student, load_teacher
 from hamnet.trainer.rollout_service import RolloutService
 from hamnet.trainer.runner import RunConfig
 
@@ -38,6 +49,9 @@ class RolloutConfig:
     max_policy_lag: int = 0
     """0: wait for new weights after every rollout (on-policy); L > 0: keep acting with the
     newest weights held (the trainer learns from chunks up to L versions old)."""
+    algorithm: Annotated[AlgoConfig, tyro.conf.arg(name="")] = field(default_factory=AlgoConfig)
+    """The trainer's `--algo`, `--teacher` and `--dagger.*`: with dagger this worker hosts
+    the teacher and streams demonstrations."""
 
 
 CONFIG = RolloutConfig
@@ -49,6 +63,22 @@ def main(argv: Sequence[str]) -> int:
     default = RolloutConfig(run=stage_default(argv))
     config, identity = parse_service(RolloutConfig, argv, "rollout", __doc__, default=default)
     torch.set_num_threads(1)
+    algorithm, teacher = config.algorithm, None
+    if algorithm.algo == "dagger":
+        try:
+            teacher = dagger_teacher(config)
+        except DaggerError as error:
+            print(f"hamnet rollout: {error}", file=sys.stderr)
+            return 2
     with Service(identity, config.common.transport) as service:
-        RolloutService(service, config.run, config.max_policy_lag).run()
+        RolloutService(service, config.run, config.max_policy_lag, teacher=teacher,
+                       dagger=algorithm.dagger).run()  # fmt: skip
     return 0
+
+
+def dagger_teacher(config: RolloutConfig) -> Teacher:
+    """The teacher of a DAgger worker; DaggerError without one, or with a non-student run."""
+    if config.algorithm.teacher is None:
+        raise DaggerError("--algo dagger needs --teacher CKPT, the trainer's teacher checkpoint")
+    check_student(config.run.architecture)
+    return load_teacher(config.algorithm.teacher)

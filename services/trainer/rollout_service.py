@@ -9,6 +9,12 @@ collects exactly what `hamnet trainer --inprocess` would. Worker k's environment
 `seed + k * SEED_STRIDE`, so workers never repeat each other's episodes and worker 0 repeats
 an in-process run.
 
+With a teacher (`hamnet rollout --algo dagger --teacher CKPT`) a worker is DAgger's: it hosts
+`dagger_runner.InProcessDagger` (the frozen teacher from the file, the student acting with
+the announced weights, who acts drawn from beta at the announced counter) and streams
+`Demonstrations` on `trainer/<w>/demonstrations` (`dagger_chunks`), each chunk naming the
+teacher's SHA-256.
+
 With `max_policy_lag` 0 (synchronous) a worker waits for a new announcement after each chunk;
 with a lag it keeps acting with the newest weights it has (the trainer drops what is too
 old). A bad announcement is logged and the worker keeps the weights it has.
@@ -19,13 +25,18 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Callable
+from functools import partial
 
 from hamnet.policy.policy import Policy
 from hamnet.policy.weights import WeightsError, from_announcement, load_into, policy_from
-from hamnet.proto.trainer_pb2 import WeightsAnnouncement
+from hamnet.proto.trainer_pb2 import RolloutChunk, WeightsAnnouncement
 from hamnet.runtime.service import Service
-from hamnet.trainer.chunks import encode_rollout
-from hamnet.trainer.runner import InProcess, RunConfig
+from hamnet.trainer.chunks import Batch, encode_rollout
+from hamnet.trainer.dagger import DaggerConfig
+from hamnet.trainer.dagger_chunks import DEMONSTRATIONS, encode_demonstrations
+from hamnet.trainer.dagger_runner import InProcessDagger, Teacher
+from hamnet.trainer.runner import InProcess, RolloutSource, RunConfig
 from hamnet.trainer.shell import WEIGHTS
 from hamnet.trainer.stream import ROLLOUT
 
@@ -52,13 +63,24 @@ class RolloutService:
     """One worker: in-process cores, the newest weights, a chunk per rollout."""
 
     def __init__(self, service: Service, config: RunConfig, max_policy_lag: int = 0,
-                 report_period_s: float = 10.0) -> None:  # fmt: skip
+                 report_period_s: float = 10.0, teacher: Teacher | None = None,
+                 dagger: DaggerConfig | None = None) -> None:  # fmt: skip
+        """With `teacher`, DAgger's worker, drawing who acts from `dagger`'s beta schedule
+        (default `DaggerConfig()`: give it the trainer's)."""
         self.service, self.config, self.max_policy_lag = service, config, max_policy_lag
         self.report_period_s = report_period_s
-        self.source = InProcess(worker_config(config, service.identity.worker))
-        ns = service.namespace
+        ns, worker = service.namespace, service.identity.worker
+        mine = worker_config(config, worker)
+        self.source: RolloutSource
+        self.encode: Callable[[Batch, int, int], RolloutChunk]
+        if teacher is None:
+            self.source, self.encode, topic = InProcess(mine), encode_rollout, ROLLOUT
+        else:
+            self.source = InProcessDagger(mine, teacher.policy, dagger or DaggerConfig())
+            self.encode = partial(encode_demonstrations, teacher_sha256=teacher.sha256)
+            topic = DEMONSTRATIONS
         service.inbox.subscribe("weights", WEIGHTS.key(ns), WeightsAnnouncement)
-        self.chunks = service.publisher(ROLLOUT.key(ns, w=service.identity.worker))
+        self.chunks = service.publisher(topic.key(ns, w=worker))
         self.policy: Policy | None = None
         self.version = 0
         """Version of the weights held (0: none yet)."""
@@ -79,7 +101,7 @@ class RolloutService:
                 continue
             steps, started = self.config.steps_per_rollout, time.monotonic()
             collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
-            self.chunks.put(encode_rollout(collected.rollout, self.version, self.sent))
+            self.chunks.put(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
             self.env_transitions += (
                 steps * self.source.num_envs

@@ -1,11 +1,13 @@
 """The trainer's rollout source over Zenoh: announce the weights, gather one chunk from each
 rollout worker, hand the learner their environments side by side.
 
-Consumes `trainer/<w>/rollout` (RolloutChunk, `hamnet.trainer.chunks`) from every worker;
+Consumes `trainer/<w>/rollout` (RolloutChunk, `hamnet.trainer.chunks`) from every worker
+(DAgger: `trainer/<w>/demonstrations`, `hamnet.trainer.dagger_chunks`, the same way);
 produces `trainer/weights` (WeightsAnnouncement with the schedule counter) once before every
 rollout, and answers queries on that key with the current announcement, so a worker that
 starts late (or missed one) asks for it instead of every worker receiving repeats. A chunk is checked on arrival (names, shapes, finite values, inputs the
-policy can read); one that does not fit is counted and dropped by the inbox.
+policy can read); one that does not fit is dropped by the inbox (its first of each kind
+logged with the reason) and counted in `dropped`.
 
 On-policy by default: with `max_policy_lag` 0 a worker acts only with the newest weights
 (it waits for each announcement) and the learner takes only chunks of its current version.
@@ -25,6 +27,7 @@ import logging
 import math
 import time
 from collections import defaultdict, deque
+from collections.abc import Callable
 
 from hamnet.policy.policy import Policy
 from hamnet.runtime import contract
@@ -61,39 +64,52 @@ class Streamed:
         report_period_s: float = 10.0,
         ranks: Ranks = ONE,
         worker_timeout_s: float = math.inf,
+        decoder: Callable[[Policy], Callable[[str, bytes], Arrived]] = chunk_decoder,
+        topic: contract.Topic = ROLLOUT,
     ) -> None:
         """With several learner `ranks`, this one learns from the workers numbered 0 to
         `workers` - 1 that it owns (`Ranks.own`: id modulo the ranks), every one in every
         iteration, and only the main rank announces the weights and answers queries for them.
         With one rank a worker whose token goes away, or that sends nothing for
-        `worker_timeout_s` after an iteration begins, drops out of it (`Roster`)."""
+        `worker_timeout_s` after an iteration begins, drops out of it (`Roster`). Chunks come
+        on `topic` (default `trainer/<w>/rollout`), read by `decoder(policy)` (PPO's rollouts; DAgger
+        gives its demonstrations' topic and decoder)."""
         if workers < 1 or max_policy_lag < 0 or workers % ranks.size:
             raise ValueError("workers must be >= 1, a multiple of the learner ranks, "
                              "and max_policy_lag >= 0")  # fmt: skip
         self.service, self.envs_per_worker = service, envs_per_worker
         self.workers = workers // ranks.size
         self.max_policy_lag, self.report_period_s = max_policy_lag, report_period_s
-        ns, decoder = service.namespace, chunk_decoder(policy)
+        ns, decode, self.topic = service.namespace, decoder(policy), topic
         self.roster = Roster(self.workers, envs_per_worker, ranks.size == 1, worker_timeout_s)
         service.inbox.watch("alive", ALIVE.pattern_in(ns))  # before the chunks: tokens first
         if ranks.size == 1:  # any worker ids
-            keys = [ROLLOUT.pattern_in(ns)]
+            keys = [topic.pattern_in(ns)]
         else:
-            keys = [ROLLOUT.key(ns, w=str(w)) for w in range(workers) if ranks.own(str(w))]
+            keys = [topic.key(ns, w=str(w)) for w in range(workers) if ranks.own(str(w))]
         for key in keys:
-            service.inbox.subscribe("rollout", key, decoder=decoder)
+            service.inbox.subscribe("rollout", key, decoder=decode)
         self.weights = service.publisher(WEIGHTS.key(ns)) if ranks.main else None
         if ranks.main:
             service.inbox.serve("weights_query", WEIGHTS.key(ns))
         self.queues: dict[str, deque[Arrived]] = defaultdict(deque)
         """Fitting chunks per worker id, oldest first, each with its arrival (monotonic s)."""
-        self.dropped = 0
+        self.stale = 0
+        """Fitting chunks dropped as too old or of the wrong size."""
         self.last_arrival: dict[str, float] = {}
         """When each worker's latest chunk learned from arrived (monotonic s)."""
 
     @property
     def num_envs(self) -> int:
         return self.workers * self.envs_per_worker
+
+    @property
+    def dropped(self) -> int:
+        """Chunks dropped so far: too old or of the wrong size (`stale`), or refused by the
+        decoder (unfit, another teacher's) or the full inbox (counted by the service)."""
+        refused = sum(count for (key, _), count in list(self.service.drops.counts.items())
+                      if self.topic.matches(key))  # fmt: skip
+        return self.stale + refused
 
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         """Announce `policy` as `version`, then wait for a fitting chunk from each worker the
@@ -129,7 +145,7 @@ class Streamed:
     def _collected(self, taken: list[str], version: int, announced: float) -> Collected:
         """One queued chunk of each `taken` worker, side by side, with its figures."""
         arrived = [self.queues[worker].popleft() for worker in taken]
-        transitions = self.envs_per_worker * len(arrived[0].rollout.actions)
+        transitions = self.envs_per_worker * len(arrived[0].rollout.dones)
         for worker, chunk in zip(taken, arrived, strict=True):
             since = max(announced, self.last_arrival.get(worker, announced))
             rate = transitions / max(chunk.arrived_s - since, 1e-9)
@@ -142,9 +158,9 @@ class Streamed:
     def _take(self, key: str, chunk: Arrived, arrived_s: float, steps: int) -> None:
         """Queue a decoded chunk from the worker of `key` (arrived at `arrived_s`, monotonic
         s), unless it cannot join an update."""
-        shape = tuple(chunk.rollout.actions.shape[:2])
+        shape = tuple(chunk.rollout.dones.shape)
         if shape != (steps, self.envs_per_worker):
-            self.dropped += 1
+            self.stale += 1
             log.warning("dropped a rollout from %s: %d steps of %d environments, the trainer "
                         "learns from %d of %d", key, *shape, steps, self.envs_per_worker)  # fmt: skip
             return
@@ -158,4 +174,4 @@ class Streamed:
         for queue in self.queues.values():
             while queue and not 0 <= version - queue[0].version <= self.max_policy_lag:
                 queue.popleft()
-                self.dropped += 1
+                self.stale += 1

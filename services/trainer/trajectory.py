@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TypeVar
 
 import torch
 from torch import Tensor
@@ -41,14 +42,24 @@ class Rollout:
     """(T, B) bool: the episode ended in success at this step."""
 
 
+RolloutLike = TypeVar("RolloutLike")
+"""A `Rollout` or DAgger's `Demonstrations`: the same layout of (T, B, ...) fields and
+time-major (T * B, ...) inputs."""
+
+
 def cat_rows(trees: list) -> object:
     """Concatenate trees of (B, ...) tensors along rows: (len * B, ...), time-major."""
     return zip_trees(trees, lambda tensors: torch.cat(tensors, dim=0))
 
 
-def merge_environments(rollouts: list[Rollout]) -> Rollout:
-    """One rollout of the environments of several (same T), in the given order."""
-    steps = len(rollouts[0].actions)
+PER_ENVIRONMENT = ("next_values", "first")
+"""Fields of a rollout (or of DAgger's `Demonstrations`) that are (B, ...), not (T, B, ...)."""
+
+
+def merge_environments(rollouts: list[RolloutLike]) -> RolloutLike:
+    """One rollout of the environments of several (same T), in the given order; DAgger's
+    demonstrations likewise."""
+    steps = len(rollouts[0].dones)
 
     def side_by_side(tensors: list[Tensor]) -> Tensor:
         """(T * B_i, ...) rows of each, time-major -> (T * sum B_i, ...), time-major."""
@@ -57,7 +68,8 @@ def merge_environments(rollouts: list[Rollout]) -> Rollout:
         return merged.reshape(-1, *merged.shape[2:])
 
     fields = {
-        f.name: torch.cat([getattr(r, f.name) for r in rollouts], dim=0 if f.name == "next_values" else 1)
-        for f in dataclasses.fields(Rollout) if f.name != "inputs"
+        f.name: torch.cat([getattr(r, f.name) for r in rollouts], dim=0 if f.name in PER_ENVIRONMENT else 1)
+        for f in dataclasses.fields(rollouts[0]) if f.name != "inputs"
     }  # fmt: skip
-    return Rollout(inputs=zip_trees([r.inputs for r in rollouts], side_by_side), **fields)
+    inputs = zip_trees([r.inputs for r in rollouts], side_by_side)
+    return dataclasses.replace(rollouts[0], inputs=inputs, **fields)

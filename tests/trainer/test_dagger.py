@@ -20,6 +20,7 @@ from hamnet.trainer.dagger import DaggerConfig, beta_at, imitation_loss, update_
 from hamnet.trainer.dagger_runner import DaggerRunner, load_teacher
 from hamnet.trainer.dagger_worker import build_dagger_worker
 from hamnet.trainer.resume import ResumeError
+from hamnet.trainer.rollout_cli import main as rollout_main
 from hamnet.trainer.runner import RunConfig, build_workers
 from hamnet.trainer.sequence import episode_starts, evaluate_sequence
 
@@ -60,15 +61,13 @@ def test_labels_are_the_teachers_mean_where_it_acts_and_where_the_student_does(
     teacher, student = load_teacher(teacher_file).policy, build("student", seed=0).eval()
     config = tiny_run(tmp_path)
     always = DaggerConfig(beta_initial=1.0, beta_final=1.0)
-    demos = build_dagger_worker(config, teacher, student).collect(
-        teacher, student, STEPS, 0, always
-    )
+    demos = build_dagger_worker(config, teacher).collect(teacher, student, STEPS, 0, always)
     (plain,), _ = build_workers(dataclasses.replace(config, architecture="hamnet"), groups=1)
     reference = plain.collect(teacher, STEPS, 0, deterministic=True)
     assert demos.teacher_acted.all()
     torch.testing.assert_close(demos.labels, reference.actions, rtol=1e-5, atol=1e-5)
     never = DaggerConfig(beta_initial=0.0, beta_final=0.0)
-    demos = build_dagger_worker(config, teacher, student).collect(teacher, student, STEPS, 0, never)
+    demos = build_dagger_worker(config, teacher).collect(teacher, student, STEPS, 0, never)
     assert not demos.teacher_acted.any()
     with torch.no_grad():
         own = evaluate_sequence(
@@ -84,8 +83,8 @@ def test_the_imitation_loss_falls_on_a_fixed_batch_and_on_held_states(
     the student's means nearer the teacher's on states of other episodes (another seed)."""
     teacher, student = load_teacher(teacher_file).policy, build("student", seed=0)
     mixed = DaggerConfig(beta_initial=0.5, beta_final=0.5, epochs=10)
-    train = build_dagger_worker(tiny_run(tmp_path), teacher, student)
-    held = build_dagger_worker(tiny_run(tmp_path, seed=5), teacher, student).collect(
+    train = build_dagger_worker(tiny_run(tmp_path), teacher)
+    held = build_dagger_worker(tiny_run(tmp_path, seed=5), teacher).collect(
         teacher, student.eval(), STEPS, 0, mixed
     )
 
@@ -175,11 +174,26 @@ def test_bad_teachers_and_settings_are_one_line_and_status_2(
         "not a policy checkpoint": ["--inprocess", "--teacher", str(garbage)],
         "a student's architecture": ["--inprocess", "--teacher", str(student)],
         "needs --teacher": ["--inprocess"],
-        "add --inprocess": ["--teacher", str(teacher_file)],
         "is not a student": ["--inprocess", "--teacher", str(teacher_file), "--architecture", "hamnet"],
     }  # fmt: skip
     for message, args in cases.items():
         capsys.readouterr()
         assert main([*TINY, *args, "--run-dir", str(tmp_path / "run")]) == 2, message
+        error = capsys.readouterr().err
+        assert error.count("\n") == 1 and message in error, error
+
+
+def test_a_dagger_worker_without_a_usable_teacher_is_one_line_and_status_2(
+    tmp_path: Path, teacher_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`hamnet rollout --algo dagger` checks its teacher and student before joining Zenoh."""
+    cases = {
+        "needs --teacher": [],
+        "cannot read teacher": ["--teacher", str(tmp_path / "missing")],
+        "is not a student": ["--teacher", str(teacher_file), "--architecture", "hamnet"],
+    }
+    for message, args in cases.items():
+        capsys.readouterr()
+        assert rollout_main([*TINY, *args]) == 2, message
         error = capsys.readouterr().err
         assert error.count("\n") == 1 and message in error, error
