@@ -13,9 +13,11 @@ import importlib
 import io
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from hamnet.cli import COMMANDS, Command
 from hamnet.launcher.argv import service_argv
+from hamnet.launcher.secure import Security
 from hamnet.launcher.stack import ArgValue, Stack
 from hamnet.runtime.cli import parse
 
@@ -105,13 +107,19 @@ def not_built(verdicts: list[Verdict]) -> str:
     )
 
 
-def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
-    """The `--check` report: one line per service with its command line, whether it is
-    critical or auxiliary, and its verdict."""
+def render(
+    path: str, stack: Stack, verdicts: list[Verdict], security: Security, missing: list[Path]
+) -> str:
+    """The `--check` report: how its processes meet (TLS, access control), then one line
+    per service with its command line, whether it is critical or auxiliary, and its
+    verdict. Missing certificates are noted, not errors: they are made on the machine
+    that runs the stack (`hamnet certs stack`)."""
     commands = [f"hamnet {s.command} [{','.join(s.workers)}]" for s in stack.services.values()]
     name_width = max(len(name) for name in stack.services)
     command_width = max(len(command) for command in commands)
-    lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}"]
+    lines = [f"{path}: stack {stack.name}, namespace {stack.namespace}", f"  {security.text()}"]
+    if missing:
+        lines.append(f"  {missing_text(missing)} (`hamnet certs stack {path}` makes them)")
     for v, command in zip(verdicts, commands, strict=True):
         role = "critical" if stack.services[v.service].is_critical else "auxiliary"
         lines.append(f"  {v.service:<{name_width}}  {command:<{command_width}}  {role:<9}  {v.status}")
@@ -122,3 +130,8 @@ def render(path: str, stack: Stack, verdicts: list[Verdict]) -> str:
     else:
         lines.append("valid" + (f"; not built yet: {missing}" if missing else ""))
     return "\n".join(lines)
+
+
+def missing_text(missing: list[Path]) -> str:
+    """`certificates missing in certs: ca, router, up` (identities, from file stems)."""
+    return f"certificates missing in {missing[0].parent}: {', '.join(dict.fromkeys(p.stem for p in missing))}"

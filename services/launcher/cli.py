@@ -5,7 +5,8 @@ and print a summary. `--check` only validates the file.
 Transport and logging options are forwarded to every service when they differ from their
 defaults; `--namespace` (unless `default`) replaces the stack file's namespace. With
 `--tls-dir`, the launcher presents its own certificate (`up`, unless `--identity` names
-another) and every service its own.
+another) and every service its own. A stack file's `secure:` section starts the stack's own
+router first and places every process on it (`hamnet.launcher.secure`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import tyro
 from hamnet.launcher import check
 from hamnet.launcher.argv import forwarded
 from hamnet.launcher.run import run
+from hamnet.launcher.secure import UP, RouterError, missing_certificates, secured, security
 from hamnet.launcher.stack import StackError, load
 from hamnet.launcher.summary import render
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
@@ -63,18 +65,32 @@ def main(argv: Sequence[str]) -> int:
     except (StackError, ValueError) as error:
         print(f"hamnet up: {error}", file=sys.stderr)
         return 2
+    stack, common = secured(stack, common)
     verdicts = check.check(stack, forwarded(common))
     errors = [v for v in verdicts if v.error]
+    tls_dir = common.transport.tls_dir
+    missing = missing_certificates(stack, tls_dir) if stack.secure and tls_dir else []
     if config.check:
-        print(check.render(str(config.stack), stack, verdicts))
+        print(check.render(str(config.stack), stack, verdicts, security(stack, common.transport),
+                           missing))  # fmt: skip
         return 2 if errors else 0
     for verdict in errors:
         print(f"hamnet up: {config.stack}: service {verdict.service}: {verdict.error}",
               file=sys.stderr)
     if errors:
         return 2
+    if missing:
+        print(f"hamnet up: {config.stack}: {check.missing_text(missing)}; make them with "
+              f"`hamnet certs stack {config.stack}`", file=sys.stderr)  # fmt: skip
+        return 2
+    if tls_dir is not None and not common.transport.identity:
+        common = replace(common, transport=replace(common.transport, identity=UP))
     duration_s = stack.duration_s if config.duration_s is None else config.duration_s
-    report = run(stack, verdicts, common, duration_s)
+    try:
+        report = run(stack, verdicts, common, duration_s)
+    except RouterError as error:
+        print(f"hamnet up: {error}", file=sys.stderr)
+        return 1
     print(render(report), flush=True)
     if config.summary_json is not None:
         config.summary_json.write_text(report.to_json() + "\n")

@@ -7,6 +7,7 @@ with exit status 1 when a process of a critical service fails (crashes with no r
 left); a failed process of an auxiliary service (`record`, `monitor` by default) is logged
 and listed in the summary while the rest of the stack goes on. The launcher itself is a
 service (`up/<worker>`) of the stack's namespace: it holds a token and reports its health.
+A secure stack's router is started first (the launcher joins it) and stopped last.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from dataclasses import dataclass, replace
 from hamnet.launcher.argv import forwarded, service_argv
 from hamnet.launcher.check import Verdict, not_built
 from hamnet.launcher.output import Output, use_colour
-from hamnet.launcher.stack import Stack
+from hamnet.launcher.secure import UP, security, start_router
+from hamnet.launcher.stack import ROUTER, Stack
 from hamnet.launcher.summary import Report, output_files, process_report
 from hamnet.launcher.supervisor import Outcome, Process, Supervisor
 from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness
@@ -68,18 +70,22 @@ def run(
     supervisor = Supervisor(processes, output)
     started = time.monotonic()
     transport = replace(common.transport, namespace=stack.namespace)
-    with Service(ServiceIdentity("up", common.worker), transport) as service:
-        liveliness = Liveliness(service.session, stack.namespace)
-        health = HealthBoard()
-        service.inbox.subscribe("health", HEALTH.pattern_in(stack.namespace), Health)
-        try:
-            ending = _supervise(stack, service, supervisor, liveliness, health, duration_s)
-        finally:
-            supervisor.stop(stack.stop_grace_s)
-        # The last reports (state STOPPING) hold each process's final counters.
-        while (received := service.inbox.get(timeout=0.2)) is not None:
-            health.add(received.value)
-        liveliness.close()
+    try:
+        start_router(supervisor, stack, transport)
+        with Service(ServiceIdentity(UP, common.worker), transport) as service:
+            liveliness = Liveliness(service.session, stack.namespace)
+            health = HealthBoard()
+            service.inbox.subscribe("health", HEALTH.pattern_in(stack.namespace), Health)
+            try:
+                ending = _supervise(stack, service, supervisor, liveliness, health, duration_s)
+            finally:
+                supervisor.stop(stack.stop_grace_s, spare=(ROUTER,))
+            # The last reports (state STOPPING) hold each process's final counters.
+            while (received := service.inbox.get(timeout=0.2)) is not None:
+                health.add(received.value)
+            liveliness.close()
+    finally:
+        supervisor.stop(stack.stop_grace_s)  # a secure stack's router, last
     log.info("stack %s ended: %s", stack.name, ending.reason)
     outputs, outputs_missing = output_files(stack.output_paths)
     return Report(
@@ -92,6 +98,7 @@ def run(
         not_built=missing,
         outputs=outputs,
         outputs_missing=outputs_missing,
+        security=security(stack, transport),
     )
 
 

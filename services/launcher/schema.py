@@ -89,6 +89,9 @@ def _convert_union(args: tuple[Any, ...], value: object, where: str) -> Any:
     if type(value) in args:  # exact match first: 4 stays an int in `str | int | float`
         return value
     for arg in args:
+        if dataclasses.is_dataclass(arg) and isinstance(value, Mapping):
+            return build(arg, value, where)  # its own errors name the key inside it
+    for arg in args:
         if arg is type(None):
             continue
         try:

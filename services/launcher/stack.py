@@ -115,6 +115,32 @@ class ServiceSpec:
 
 
 @dataclass(frozen=True)
+class Secure:
+    """The stack closed to strangers (docs/security.md): `hamnet up` first starts a router
+    with mutual TLS and these access rules, then joins it as a client, as does every service,
+    each under its own certificate. Paths are relative to where `hamnet up` runs."""
+
+    tls_dir: str = "certs"
+    """Folder of ca.pem and one certificate and key per identity: `router`, `up` and each
+    service's command (`hamnet certs stack <stack file>` makes them)."""
+    access: str = "compose/secure/router.json5"
+    """The router's Zenoh config holding the access rules (`python -m hamnet.security.acl`)."""
+    listen: str = "tls/127.0.0.1:7447"
+    """tls/<host>:<port> the router listens on and every process connects to (loopback by
+    default; a hub's address lets workers on other machines join)."""
+
+    def __post_init__(self) -> None:
+        protocol, _, address = self.listen.partition("/")
+        host, _, port = address.rpartition(":")
+        if protocol != "tls" or not host or not port.isdigit():
+            raise ValueError(f"listen must be tls/<host>:<port>, got {self.listen!r}")
+
+
+ROUTER = "router"
+"""The service a `secure` stack gets first: its router (no service of the file may be one)."""
+
+
+@dataclass(frozen=True)
 class Stack:
     """A stack file: services to run together in one namespace, and when the run ends."""
 
@@ -134,6 +160,9 @@ class Stack:
     """Warn when a process has not announced itself (liveliness token) within this time."""
     stop_grace_s: float = 5.0
     """Seconds between SIGTERM and SIGKILL when the stack stops."""
+    secure: Secure | None = None
+    """Run over mutual TLS with access control, behind a router of its own; null: plain
+    links on loopback, open to any local process."""
 
     def __post_init__(self) -> None:
         if not self.services:
@@ -182,7 +211,12 @@ def parse(document: object, default_name: str) -> Stack:
             name: {"command": name, **body} if isinstance(body, Mapping) else body
             for name, body in data["services"].items()
         }
-    return build(Stack, data)
+    stack = build(Stack, data)
+    for name, spec in stack.services.items() if stack.secure is not None else ():
+        if ROUTER in (name, spec.command):
+            raise SchemaError(f"services.{name}: a secure stack starts its own router; remove "
+                              "this service")  # fmt: skip
+    return stack
 
 
 def load(path: Path) -> Stack:

@@ -1,6 +1,7 @@
-"""The end-of-run report of `hamnet up`: how the stack ended, and for every process its
-restarts, uptime, exit status and what its Health reports said; the services not built
-yet; the declared output files that exist. Printed as a table, optionally saved as JSON.
+"""The end-of-run report of `hamnet up`: how the stack ended and whether it ran with TLS
+and access control, and for every process its restarts, uptime, exit status and what its
+Health reports said; the services not built yet; the declared output files that exist.
+Printed as a table, optionally saved as JSON.
 """
 
 from __future__ import annotations
@@ -8,9 +9,10 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from hamnet.launcher.secure import Security
 from hamnet.launcher.supervisor import Process
 from hamnet.launcher.watch import HealthBoard, Liveliness
 
@@ -66,6 +68,8 @@ class Report:
     """Declared outputs that exist, with their sizes in bytes."""
     outputs_missing: list[str]
     """Declared outputs that do not exist."""
+    security: Security = field(default_factory=Security)
+    """Whether links were mutual TLS, and whose access rules held."""
 
     @property
     def auxiliary_failed(self) -> list[str]:
@@ -120,9 +124,10 @@ def output_files(paths: tuple[Path, ...]) -> tuple[dict[str, int], list[str]]:
 def render(report: Report) -> str:
     """The report as a readable table."""
     lines = [
-        f"stack {report.stack} (namespace {report.namespace}): {report.ended} "
-        f"after {report.elapsed_s:.1f} s; exit status {report.exit_code}"
-    ]
+        (f"stack {report.stack} (namespace {report.namespace}): {report.ended} "
+         f"after {report.elapsed_s:.1f} s; exit status {report.exit_code}"),
+        report.security.text(),
+    ]  # fmt: skip
     rows = [("PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME", "READY",
              "RECEIVED", "PUBLISHED", "DROPS", "LOOP")]
     for p in report.processes:

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -181,9 +181,13 @@ class Supervisor:
         process.uptime_s += time.monotonic() - process.started_at
         _signal_group(process.popen.pid, signal.SIGKILL)
 
-    def stop(self, grace_s: float) -> None:
-        """Stop every process: SIGTERM to each group, then SIGKILL after `grace_s` seconds."""
-        running = [p for p in self.processes if p.outcome is Outcome.RUNNING]
+    def stop(self, grace_s: float, spare: Collection[str] = ()) -> None:
+        """Stop every process: SIGTERM to each group, then SIGKILL after `grace_s` seconds.
+
+        Processes of the services in `spare` keep running (a stack's router, which carries
+        the others' last reports); a later call stops them.
+        """
+        running = [p for p in self.processes if p.outcome is Outcome.RUNNING and p.service not in spare]
         for process in self.processes:
             if process.outcome is Outcome.RESTARTING:
                 process.outcome = Outcome.CRASHED
@@ -200,7 +204,7 @@ class Supervisor:
             else:
                 process.outcome = Outcome.STOPPED
             self._reap(process)
-        for follower in self._followers:
+        for follower in self._followers if not spare else ():
             follower.join(timeout=1.0)
 
 

@@ -3,6 +3,7 @@ small labs (docs/security.md says how to use an organization's own CA instead).
 
     hamnet certs init [--dir certs]                          # ca.pem, ca.key
     hamnet certs issue router [--dir certs] [--host hub.lan 10.0.0.5]  # router.pem, router.key
+    hamnet certs stack compose/secure/stack.yaml [--host hub.lan]  # all a stack needs
 """
 
 from __future__ import annotations
@@ -15,9 +16,12 @@ from typing import Annotated
 
 import tyro
 
+from hamnet.launcher.secure import OPERATOR, identities
+from hamnet.launcher.stack import ROUTER, StackError, load
 from hamnet.runtime.cli import parse
 from hamnet.runtime.errors import ConfigError
 from hamnet.security.certs import init_ca, issue
+from hamnet.security.files import ca_files, identity_files
 
 DEFAULT_DIR = Path("certs")
 """Where certificates go unless --dir says otherwise (ignored by git: it holds keys)."""
@@ -55,8 +59,49 @@ class IssueConfig:
     """Replace an existing certificate and key of this identity."""
 
 
+@dataclass(frozen=True)
+class StackConfig:
+    """Make every certificate a stack file needs, in its `secure.tls_dir`: the CA if there
+    is none yet, then one certificate per identity without one (the router, `up`, each
+    service's command, and `operator` for the e-stop); existing ones are kept."""
+
+    stack: Annotated[Path, tyro.conf.Positional]
+    """Stack file, e.g. compose/secure/stack.yaml."""
+    dir: Path | None = None
+    """Folder of the CA and certificates (default: the stack's secure.tls_dir, else certs)."""
+    host: tuple[str, ...] = ()
+    """Host names or IP addresses the router is reached at besides loopback (written into
+    the router's certificate only)."""
+    days: int = 365
+    """How long each new certificate is valid, days (a new CA: 3650)."""
+    force: bool = False
+    """Issue every identity's certificate again (the CA is kept)."""
+
+
+def stack_certificates(config: StackConfig) -> list[str]:
+    """Create what `config.stack` needs; returns one line per identity (written or kept)."""
+    try:
+        stack = load(config.stack)
+    except StackError as error:
+        raise ConfigError(str(error)) from None
+    directory = config.dir or Path(stack.secure.tls_dir if stack.secure else DEFAULT_DIR)
+    lines = []
+    if not ca_files(directory).certificate.exists():
+        files = init_ca(directory, days=3650)
+        lines.append(f"wrote {files.certificate} and {files.key}")
+    for name in sorted({*identities(stack), ROUTER, OPERATOR}):
+        own = identity_files(directory, name)
+        if own.certificate.exists() and not config.force:
+            lines.append(f"kept {own.certificate}")
+            continue
+        hosts = config.host if name == ROUTER else ()
+        files = issue(directory, name, config.days, hosts, force=config.force)
+        lines.append(f"wrote {files.certificate} and {files.key}")
+    return lines
+
+
 def main(argv: Sequence[str]) -> int:
-    """Run `hamnet certs init|issue` with arguments `argv`; returns the exit status."""
+    """Run `hamnet certs init|issue|stack` with arguments `argv`; returns the exit status."""
     verb, rest = (argv[0], argv[1:]) if argv else ("", [])
     try:
         if verb == "init":
@@ -65,11 +110,18 @@ def main(argv: Sequence[str]) -> int:
         elif verb == "issue":
             issued = parse(IssueConfig, rest, "hamnet certs issue", IssueConfig.__doc__ or "")
             files = issue(issued.dir, issued.name, issued.days, issued.host, issued.force)
+        elif verb == "stack":
+            made = parse(StackConfig, rest, "hamnet certs stack", StackConfig.__doc__ or "")
+            print("\n".join(stack_certificates(made)))
+            return 0
         elif verb in ("-h", "--help"):
             print(__doc__)
             return 0
         else:
-            print(f"hamnet certs: expected init or issue, got {verb!r}\n{__doc__}", file=sys.stderr)
+            print(
+                f"hamnet certs: expected init, issue or stack, got {verb!r}\n{__doc__}",
+                file=sys.stderr,
+            )
             return 2
     except ConfigError as error:
         print(f"hamnet certs {verb}: {error}", file=sys.stderr)

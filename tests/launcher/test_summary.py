@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from hamnet.launcher.secure import Security
 from hamnet.launcher.summary import ProcessReport, Report, output_files, render
 from hamnet.launcher.watch import HealthBoard
 from hamnet.proto.health_pb2 import DropCount, Health, ServiceState
@@ -56,18 +57,33 @@ def test_render_shows_processes_missing_services_and_outputs() -> None:
         stack="demo", namespace="demo", ended="duration of 5 s reached", exit_code=0,
         elapsed_s=5.5, processes=[process], not_built="sim (issue #3), trainer",
         outputs={"runs/demo/stack.mcap": 3 * 1024 * 1024}, outputs_missing=["runs/demo/monitor.rrd"],
+        security=Security("certs", "compose/secure/router.json5", "tls/127.0.0.1:7447"),
     )
     lines = render(report).splitlines()
     assert lines[0] == "stack demo (namespace demo): duration of 5 s reached after 5.5 s; exit status 0"
-    assert lines[1].split() == ["PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME",
+    assert lines[1] == ("secure: mutual TLS (certificates in certs), access control by "
+                        "compose/secure/router.json5 on the stack's router at tls/127.0.0.1:7447")  # fmt: skip
+    assert lines[2].split() == ["PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME",
                                 "READY", "RECEIVED", "PUBLISHED", "DROPS", "LOOP"]
-    assert lines[2].split() == ["watch/0", "echo", "stopped", "exit", "0", "1", "4.2", "s", "0.3",
+    assert lines[3].split() == ["watch/0", "echo", "stopped", "exit", "0", "1", "4.2", "s", "0.3",
                                 "s", "12", "0", "3", "9.9", "Hz"]
-    assert lines[3:] == [
+    assert lines[4:] == [
         "  watch/0 dropped 3 on hamnet/ns/x: decode",
         "  watch/0: 2 loop stalls",
         "not built yet: sim (issue #3), trainer",
         "written: runs/demo/stack.mcap (3.0 MiB)",
         "not written: runs/demo/monitor.rrd",
     ]
-    assert json.loads(report.to_json())["processes"][0]["pids"] == [11, 12]
+    document = json.loads(report.to_json())
+    assert document["processes"][0]["pids"] == [11, 12]
+    assert document["security"] == {"tls_dir": "certs", "access": "compose/secure/router.json5",
+                                    "router": "tls/127.0.0.1:7447"}  # fmt: skip
+
+
+def test_the_summary_says_when_a_stack_is_not_secure() -> None:
+    """A stack on plain links says so, and TLS without the stack's own router says whose
+    rules apply: a user sees which one ran."""
+    report = Report(stack="demo", namespace="demo", ended="stopped by a signal", exit_code=0,
+                    elapsed_s=1.0, processes=[], not_built="", outputs={}, outputs_missing=[])  # fmt: skip
+    assert render(report).splitlines()[1].startswith("not secure: plain links, no access control")
+    assert Security("certs").text().startswith("mutual TLS (certificates in certs); no access control")

@@ -46,7 +46,8 @@ def test_private_keys_are_readable_by_their_owner_only(tmp_path: Path) -> None:
         (("issue", "ca"), "identity 'ca' must be"),
         (("issue", "x", "--days", "0"), "days must be >= 1"),
         (("issue", "x", "--host", "bad host"), "neither a host name nor an IP address"),
-        (("renew",), "expected init or issue"),
+        (("renew",), "expected init, issue or stack"),
+        (("stack", "absent.yaml"), "absent.yaml: cannot read the stack file"),
     ],
 )
 def test_bad_requests_are_one_line(tmp_path: Path, capsys, argv, message) -> None:
@@ -67,3 +68,24 @@ def test_existing_certificate_is_replaced_only_with_force(tmp_path: Path, capsys
     assert "operator.pem exists: pass --force" in capsys.readouterr().err
     assert certs("issue", "operator", "--dir", str(tmp_path), "--force") == 0
     assert (tmp_path / "operator.pem").read_bytes() != first
+
+
+def test_one_command_makes_every_certificate_a_stack_needs(tmp_path: Path, capsys) -> None:
+    """`hamnet certs stack FILE`: the CA in the stack's tls_dir, then the router (with
+    --host), the launcher, each service's command and the operator; run again, it keeps
+    what exists."""
+    stack = tmp_path / "stack.yaml"
+    stack.write_text(f"secure: {{tls_dir: {tmp_path / 'keys'}}}\n"
+                     "services: {sim: {workers: [0, 1]}, watch: {command: echo}}\n")  # fmt: skip
+    assert certs("stack", str(stack), "--host", "hub.lan") == 0
+    names = ["echo", "operator", "router", "sim", "up"]
+    assert sorted(p.stem for p in (tmp_path / "keys").glob("*.pem")) == ["ca", *names]
+    assert {common_name(tmp_path / "keys" / f"{name}.pem") for name in names} == set(names)
+    router = x509.load_pem_x509_certificate((tmp_path / "keys" / "router.pem").read_bytes())
+    hosts = router.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert "hub.lan" in hosts.get_values_for_type(x509.DNSName)
+    first = (tmp_path / "keys" / "sim.pem").read_bytes()
+    capsys.readouterr()
+    assert certs("stack", str(stack)) == 0
+    assert capsys.readouterr().out.count("kept ") == len(names)
+    assert (tmp_path / "keys" / "sim.pem").read_bytes() == first

@@ -23,11 +23,11 @@ import zenoh
 
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
-from hamnet.runtime import contract
 from hamnet.runtime.codec import encode
-from hamnet.runtime.transport import TransportConfig, free_port, open_session, zenoh_config
+from hamnet.runtime.transport import TransportConfig, free_port, zenoh_config
 from hamnet.security.acl import router_config_text
 from tests.messages import random_message
+from tests.security.clients import Clients
 
 DEADLINE_S = 40.0
 """Generous bound for anything to arrive (the machine is shared with training runs)."""
@@ -36,18 +36,15 @@ DENIED = "CertCommonName({who})+Transport(Tls)+{zid} is unauthorized to {what} (
 """How Zenoh's access control logs a refused message (at trace level)."""
 
 
-class Stack:
+class Stack(Clients):
     """A secure router on a free tls/ port, and clients of it under given identities."""
 
     def __init__(self, certs: Path, tmp_path: Path) -> None:
-        self.certs = certs
-        self.namespace = f"secure{uuid.uuid4().hex[:8]}"
-        self.endpoint = f"tls/127.0.0.1:{free_port()}"
+        super().__init__(certs, f"secure{uuid.uuid4().hex[:8]}", f"tls/127.0.0.1:{free_port()}")
         config = tmp_path / "router.json5"
         config.write_text(router_config_text())
         self.log = tmp_path / "router.log"
         self.processes: list[subprocess.Popen] = []
-        self.sessions: list[zenoh.Session] = []
         self.spawn("router", "--tls-dir", str(certs), "--listen", self.endpoint,
                    "--zenoh-config", str(config),
                    "--zenoh-log", "warn,zenoh::net::routing::interceptor::access_control=trace")  # fmt: skip
@@ -67,19 +64,6 @@ class Stack:
         self.processes.append(process)
         return process
 
-    def client(self, identity: str, directory: Path | None = None) -> zenoh.Session:
-        """A Zenoh client of the router presenting `identity`'s certificate."""
-        transport = TransportConfig(namespace=self.namespace, mode="client", rendezvous="",
-                                    connect=(self.endpoint,), identity=identity,
-                                    tls_dir=directory or self.certs)  # fmt: skip
-        session = open_session(transport)
-        self.sessions.append(session)
-        return session
-
-    def key(self, path: str) -> str:
-        return contract.topic(path).key(self.namespace, w="0") if "<w>" in path else (
-            contract.topic(path).key(self.namespace))  # fmt: skip
-
     def wait_log(self, text: str) -> None:
         """Wait until the router's log holds `text`."""
         deadline = time.monotonic() + DEADLINE_S
@@ -89,8 +73,7 @@ class Stack:
             time.sleep(0.2)
 
     def close(self) -> None:
-        for session in self.sessions:
-            session.close()
+        super().close()
         for process in self.processes:
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGTERM)
