@@ -1,9 +1,11 @@
 """The stack's access rules as Zenoh's own `access_control` config, built from the topic
 contract: who may publish (or answer for) which keys, by certificate common name.
 
-Any identity the CA signed may subscribe to everything and publish the open topics; only
-`safety` may publish commands, only `trainer` weights and the step counter (schedule), and
-only `operator` may use the e-stop (which `safety` serves). Zenoh applies the rules where
+Every identity named after a `hamnet` command (and `operator`) may subscribe to everything
+and publish the open topics; only `safety` may publish commands, only `trainer` weights and
+the step counter (schedule), and only `operator` may use the e-stop (which `safety` serves).
+The real robot's `bridge` may only publish the robot's topics (state, scene, transition)
+and subscribe to safety's commands; any other name gets nothing. Zenoh applies the rules where
 a link ends, so they belong on the router every service joins as a client
 (`compose/secure/`, docs/security.md). `python -m hamnet.security.acl` prints the router's
 JSON5 config.
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import json
 
+from hamnet.cli import COMMANDS
 from hamnet.runtime import contract, keys
 
 MESSAGES = ("put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
@@ -39,8 +42,26 @@ ESTOP_REQUESTER = "operator"
 """The e-stop queryable is served by `safety` and asked (stop, reset, status) by `operator`
 only: a stop from anyone else would be a denial of service, a reset a release."""
 
+BRIDGE = "bridge"
+ROBOT = ("sim/<w>/state", "sim/<w>/scene", "sim/<w>/transition")
+"""What the real robot's bridge (issue 17) may publish, or answer queries on: the robot's
+topics, which it publishes in place of the sim; and its own health and liveliness token."""
+BRIDGE_HEARS = "safety/<w>/command"
+"""The one topic the bridge may subscribe to: the commands only safety may publish."""
+BOOKKEEPING = ("health/<service>/<w>", "alive/<service>/<w>")
+"""Every service's own health reports and liveliness token."""
+
+OPERATOR = "operator"
 MEMBER = "member"
-"""Subject of every peer: the router accepts only links whose certificate the CA signed."""
+"""Subject of every identity named after a `hamnet` command (and `operator`) but the
+bridge: a certificate of the stack's CA under another name gets nothing, and the bridge
+only its own rules (Zenoh's allow rules add up; a deny rule cannot take back what a
+default-deny config allowed)."""
+
+
+def members() -> list[str]:
+    """Names of the MEMBER subject: every `hamnet` command but the bridge, and the operator."""
+    return sorted({command.name for command in COMMANDS} - {BRIDGE} | {OPERATOR})
 
 
 def stack_acl(namespace: str = "*") -> dict[str, object]:
@@ -49,13 +70,14 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
     Returns:
         A dict for the `access_control` key of a Zenoh config (default deny).
     """
-    for path in (*OWNERS, ESTOP.path):
+    for path in (*OWNERS, ESTOP.path, *ROBOT, BRIDGE_HEARS, *BOOKKEEPING):
         contract.topic(path)  # a renamed topic must fail here, not open a hole
     open_keys = [t.pattern_in(namespace) for t in contract.TOPICS
                  if t.path not in OWNERS and t is not ESTOP]  # fmt: skip
     owned = {path: contract.topic(path).pattern_in(namespace) for path in OWNERS}
     estop = ESTOP.pattern_in(namespace)
     everything = f"{keys.ROOT}/{namespace}/**"
+    health, alive = (_own(path, namespace, BRIDGE) for path in BOOKKEEPING)
     rules = [
         _rule("deliver", MESSAGES, [everything], flow="egress"),
         _rule("listen", LISTEN, [everything]),
@@ -64,17 +86,30 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
         *(_rule(f"publish {path}", PUBLISH, [key]) for path, key in owned.items()),
         _rule("serve e-stop", ("declare_queryable", "reply"), [estop]),
         _rule("request e-stop", ("query",), [estop]),
-    ]
-    identities = sorted({*OWNERS.values(), ESTOP_SERVER, ESTOP_REQUESTER})
-    subjects = [{"id": MEMBER}] + [{"id": name, "cert_common_names": [name]} for name in identities]
+        _rule("publish the robot", PUBLISH,
+              [*(contract.topic(path).pattern_in(namespace) for path in ROBOT), health]),
+        _rule("hear safety", ("declare_subscriber",),
+              [contract.topic(BRIDGE_HEARS).pattern_in(namespace)]),
+        _rule("announce the bridge", ("liveliness_token",), [alive]),
+    ]  # fmt: skip
+    identities = sorted({*OWNERS.values(), ESTOP_SERVER, ESTOP_REQUESTER, BRIDGE})
+    subjects = [{"id": MEMBER, "cert_common_names": members()}] + [
+        {"id": name, "cert_common_names": [name]} for name in identities]  # fmt: skip
     grants = {MEMBER: ["deliver", "listen", "publish open topics", "query owned topics"],
-              ESTOP_SERVER: ["serve e-stop"], ESTOP_REQUESTER: ["request e-stop"]}  # fmt: skip
+              ESTOP_SERVER: ["serve e-stop"], ESTOP_REQUESTER: ["request e-stop"],
+              BRIDGE: ["deliver", "publish the robot", "hear safety", "announce the bridge"]}  # fmt: skip
     for path, owner in OWNERS.items():
         grants.setdefault(owner, []).append(f"publish {path}")
     policies = [{"id": f"{name} may", "rules": rules_, "subjects": [name]}
                 for name, rules_ in grants.items()]  # fmt: skip
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}  # fmt: skip
+
+
+def _own(path: str, namespace: str, service: str) -> str:
+    """Key expression of contract topic `path` for `service` only (any worker)."""
+    segments = ("*" if s.startswith("<") and s != "<service>" else s for s in path.split("/"))
+    return "/".join((keys.ROOT, namespace, *(service if s == "<service>" else s for s in segments)))
 
 
 def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str],

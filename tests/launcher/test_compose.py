@@ -64,6 +64,15 @@ def test_evaluation_stacks_serve_the_student_on_the_clouds_it_was_distilled_on(n
     }
 
 
+@pytest.mark.parametrize("name", ["eval.yaml", "real.yaml"])
+def test_evaluation_stacks_are_secure_by_default(name: str) -> None:
+    """A real robot must obey only its own safety service (issue 16): the stacks that drive
+    one start their own router with the contract's access rules, on loopback."""
+    secure = load(COMPOSE / name).secure
+    assert secure is not None and (ROOT / secure.access).is_file()
+    assert secure.access == "compose/secure/router.json5" and secure.listen.startswith("tls/127.0.0.1:")
+
+
 def docker_name(service: str, worker: str, workers: tuple[str, ...]) -> str:
     """Container service name of one process: `sim-0`, or `trainer` for a single worker."""
     return f"{service}-{worker}" if len(workers) > 1 else service

@@ -13,8 +13,9 @@ from hamnet.security.certs import init_ca, issue
 
 IDENTITIES = (
     "alice", "bob", "router", "up", "safety", "trainer", "operator", "sim", "policy", "intruder",
+    "bridge", "perception", "rollout",
 )  # fmt: skip
-"""Identities the stack's CA issues in these tests; `intruder` holds no role."""
+"""Identities the stack's CA issues in these tests; `intruder` is no identity of the stack."""
 
 
 @pytest.fixture(scope="session")

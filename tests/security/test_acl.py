@@ -9,7 +9,7 @@ import zenoh
 
 from hamnet.launcher.check import check
 from hamnet.launcher.stack import load
-from hamnet.security.acl import OWNERS, router_config_text, stack_acl
+from hamnet.security.acl import MEMBER, OWNERS, router_config_text, stack_acl
 
 SECURE = Path(__file__).resolve().parents[2] / "compose" / "secure"
 
@@ -35,3 +35,27 @@ def test_zenoh_accepts_the_rules_and_every_owned_topic_has_one_publisher() -> No
 def test_secure_stack_file_is_valid() -> None:
     stack = load(SECURE / "stack.yaml")
     assert {verdict.status for verdict in check(stack, {})} == {"ok"}
+
+
+def test_the_bridge_publishes_the_robot_and_hears_only_safety() -> None:
+    """The real robot's bridge (issue 17) may publish the robot's topics and its own health,
+    and subscribe to safety's commands only; it is not a member, which may do more. (A real
+    router with these rules: tests/security/test_secure_stack.py.)"""
+    acl = stack_acl()
+    rules = {rule["id"]: rule for rule in acl["rules"]}
+    grants = {policy["subjects"][0]: policy["rules"] for policy in acl["policies"]}
+    inbound = [rules[r] for r in grants["bridge"] if rules[r]["flows"] == ["ingress"]]
+
+    def keys_of(messages: set[str]) -> set[str]:
+        return {
+            key for rule in inbound if messages & set(rule["messages"]) for key in rule["key_exprs"]
+        }
+
+    assert keys_of({"put", "delete", "reply", "declare_queryable"}) == {
+        "hamnet/*/sim/*/state", "hamnet/*/sim/*/scene", "hamnet/*/sim/*/transition",
+        "hamnet/*/health/bridge/*"}  # fmt: skip
+    assert keys_of({"declare_subscriber", "declare_liveliness_subscriber", "query",
+                    "liveliness_query"}) == {"hamnet/*/safety/*/command"}  # fmt: skip
+    assert keys_of({"liveliness_token"}) == {"hamnet/*/alive/bridge/*"}
+    member = next(s for s in acl["subjects"] if s["id"] == MEMBER)["cert_common_names"]
+    assert "bridge" not in member and {"sim", "safety", "trainer", "up", "operator"} <= set(member)

@@ -21,11 +21,12 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime.codec import encode
 from hamnet.runtime.transport import TransportConfig, free_port, zenoh_config
-from hamnet.security.acl import router_config_text
+from hamnet.security.acl import router_config_text, stack_acl
 from tests.messages import random_message
 from tests.security.clients import Clients
 
@@ -33,7 +34,18 @@ DEADLINE_S = 40.0
 """Generous bound for anything to arrive (the machine is shared with training runs)."""
 
 DENIED = "CertCommonName({who})+Transport(Tls)+{zid} is unauthorized to {what} (ingress) on {key}"
-"""How Zenoh's access control logs a refused message (at trace level)."""
+"""How Zenoh's access control logs a refused message of an identity of the stack (trace)."""
+
+STRANGER = "{zid} did not match any configured ACL subject"
+"""How it logs a link whose certificate names no identity of the stack (info, once): all
+its messages are refused."""
+
+
+def refusal(who: str, session: zenoh.Session, what: str, key: str) -> str:
+    """The router's log line that shows `who`'s message refused."""
+    if any(who in subject["cert_common_names"] for subject in stack_acl()["subjects"]):
+        return DENIED.format(who=who, zid=session.info.zid(), what=what, key=key)
+    return STRANGER.format(zid=session.info.zid())
 
 
 class Stack(Clients):
@@ -92,12 +104,13 @@ def stack(certs: Path, tmp_path: Path) -> Iterator[Stack]:
     secure.close()
 
 
-def race(stack: Stack, path: str, owner: str, reader: str, make: Callable[[int], bytes]) -> None:
-    """`intruder` and `owner` both publish on `path`; `reader` must get only the owner's."""
+def race(stack: Stack, path: str, owner: str, reader: str, make: Callable[[int], bytes],
+         attacker: str = "intruder") -> None:  # fmt: skip
+    """`attacker` and `owner` both publish on `path`; `reader` must get only the owner's."""
     key = stack.key(path)
     received: list[bytes] = []
     stack.client(reader).declare_subscriber(key, lambda s: received.append(s.payload.to_bytes()))
-    intruder, legitimate = stack.client("intruder"), stack.client(owner)
+    intruder, legitimate = stack.client(attacker), stack.client(owner)
     attack, genuine = make(1), make(2)
     deadline = time.monotonic() + DEADLINE_S
     while genuine not in received:
@@ -111,13 +124,16 @@ def race(stack: Stack, path: str, owner: str, reader: str, make: Callable[[int],
         assert time.monotonic() < deadline, f"{owner}'s second message never arrived"
         time.sleep(0.05)
     assert attack not in received
-    stack.wait_log(DENIED.format(who="intruder", zid=intruder.info.zid(), what="Put", key=key))
+    stack.wait_log(refusal(attacker, intruder, "Put", key))
 
 
-def test_only_the_safety_identity_can_command_the_robot(stack: Stack) -> None:
+@pytest.mark.parametrize("attacker", ["intruder", "rollout"])
+def test_only_the_safety_identity_can_command_the_robot(stack: Stack, attacker: str) -> None:
     """Before: any peer's SafeCommand reached the sim, which drove joint 1 past its limit.
-    Now the router drops the intruder's commands; the sim's session gets safety's only."""
-    race(stack, "safety/<w>/command", owner="safety", reader="sim",
+    Now the router drops the commands of a certificate under another name (`intruder`,
+    which gets nothing at all) or of another service of the stack (`rollout`, compromised);
+    the sim's session gets safety's only."""
+    race(stack, "safety/<w>/command", owner="safety", reader="sim", attacker=attacker,
          make=lambda seed: encode(random_message(SafeCommand, seed=seed)))  # fmt: skip
 
 
@@ -137,7 +153,7 @@ def test_only_the_operator_can_release_a_latched_estop(stack: Stack) -> None:
     operator, intruder = stack.client("operator"), stack.client("intruder")
     assert estop(operator, key, "stop")["latched"] is True
     assert list(intruder.get(f"{key}?reset", timeout=2.0)) == []
-    stack.wait_log(DENIED.format(who="intruder", zid=intruder.info.zid(), what="Query", key=key))
+    stack.wait_log(refusal("intruder", intruder, "Query", key))
     assert estop(operator, key, "status")["latched"] is True
     assert estop(operator, key, "reset")["latched"] is False
 
@@ -156,6 +172,34 @@ def test_a_peer_without_a_valid_certificate_cannot_connect(stack: Stack, strange
     stack.wait_log("invalid peer certificate")
     race(stack, "trainer/schedule", owner="trainer", reader="policy",
          make=lambda seed: encode(random_message(Schedule, seed=seed)))  # fmt: skip
+
+
+def test_the_bridge_publishes_the_robot_only_and_hears_only_safetys_commands(stack: Stack) -> None:
+    """The real robot's bridge (issue 17) holds a valid certificate like every member, but may
+    publish only the robot's topics and subscribe only to safety's commands: its actions
+    never reach safety; its states reach the policy; it hears safety's commands, never the
+    perception tokens another member hears."""
+    race(stack, "policy/<w>/action", owner="policy", reader="safety", attacker="bridge",
+         make=lambda seed: encode(random_message(PolicyAction, seed=seed)))  # fmt: skip
+    bridge, policy = stack.client("bridge"), stack.client("policy")
+    heard: dict[str, list[bytes]] = {"tokens": [], "command": []}
+    for name, path in (("tokens", "perception/<w>/tokens"), ("command", "safety/<w>/command")):
+        bridge.declare_subscriber(stack.key(path), lambda s, into=heard[name]: into.append(b""))
+    states: list[bytes] = []
+    tokens: list[bytes] = []
+    policy.declare_subscriber(stack.key("sim/<w>/state"), lambda s: states.append(b""))
+    policy.declare_subscriber(stack.key("perception/<w>/tokens"), lambda s: tokens.append(b""))
+    safety, perception = stack.client("safety"), stack.client("perception")
+    deadline = time.monotonic() + DEADLINE_S
+    # Its subscriptions are declared in order: once commands arrive, tokens would too.
+    while not (heard["command"] and states and len(tokens) >= 3):
+        assert time.monotonic() < deadline, (len(heard["command"]), len(states), len(tokens))
+        if heard["command"]:
+            perception.put(stack.key("perception/<w>/tokens"), b"tokens")
+        safety.put(stack.key("safety/<w>/command"), b"command")
+        bridge.put(stack.key("sim/<w>/state"), b"state")
+        time.sleep(0.1)
+    assert heard["tokens"] == []
 
 
 def estop(session: zenoh.Session, key: str, command: str) -> dict:
