@@ -64,6 +64,7 @@ def run(
     missing = not_built(verdicts)
     log.info("stack %s (namespace %s): processes to start: %d", stack.name, stack.namespace,
              len(processes))
+    log.info("%s", security(stack, common.transport).text())
     if missing:
         log.warning("not built yet, not started: %s", missing)
     output = Output(sys.stdout, [p.label for p in processes], use_colour(sys.stdout))

@@ -87,3 +87,9 @@ def test_check_says_how_the_stack_runs_and_what_certificates_are_missing(tmp_pat
     assert hamnet(["up", str(path)]) == 2
     assert capsys.readouterr().err == (f"hamnet up: {path}: certificates missing in keys: ca, echo, "
                                        f"router, sim, up; make them with `hamnet certs stack {path}`\n")  # fmt: skip
+
+
+def test_check_says_when_a_stack_is_not_secure(tmp_path: Path, capsys) -> None:
+    path = write(tmp_path, "services: {watch: {command: echo}}\n")
+    assert hamnet(["up", "--check", str(path)]) == 0
+    assert capsys.readouterr().out.splitlines()[1].startswith("  not secure: plain links")

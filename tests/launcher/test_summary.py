@@ -86,4 +86,5 @@ def test_the_summary_says_when_a_stack_is_not_secure() -> None:
     report = Report(stack="demo", namespace="demo", ended="stopped by a signal", exit_code=0,
                     elapsed_s=1.0, processes=[], not_built="", outputs={}, outputs_missing=[])  # fmt: skip
     assert render(report).splitlines()[1].startswith("not secure: plain links, no access control")
+    assert json.loads(report.to_json())["security"] == {"tls_dir": None, "access": None, "router": None}
     assert Security("certs").text().startswith("mutual TLS (certificates in certs); no access control")

@@ -190,4 +190,5 @@ def test_the_secure_stack_closes_the_loop_and_says_it_is_secure(stack: Running) 
     steps = sim["published"][stack.key("sim/<w>/transition")]
     assert steps >= 50 and sim["received"]["command"] >= steps, sim
     assert processes["safety"]["published"][stack.key("safety/<w>/command")] >= steps
-    assert "secure: mutual TLS" in stack.run.output
+    said = [line for line in stack.run.lines if "secure: mutual TLS (certificates in" in line]
+    assert len(said) == 2, said  # when it starts (log) and in the summary
