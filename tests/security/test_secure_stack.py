@@ -8,7 +8,6 @@ the attacker's did, and that the router's log names the refusal."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -27,6 +26,7 @@ from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime.codec import encode
 from hamnet.runtime.transport import TransportConfig, free_port, zenoh_config
 from hamnet.security.acl import router_config_text, stack_acl
+from tests.estop import ask_estop
 from tests.messages import random_message
 from tests.security.clients import Clients
 
@@ -151,11 +151,11 @@ def test_only_the_operator_can_release_a_latched_estop(stack: Stack) -> None:
     stack.spawn("safety", "--num-envs", "2")
     key = stack.key("safety/<w>/estop")
     operator, intruder = stack.client("operator"), stack.client("intruder")
-    assert estop(operator, key, "stop")["latched"] is True
+    assert ask_estop(operator, key, "stop", DEADLINE_S)["latched"] is True
     assert list(intruder.get(f"{key}?reset", timeout=2.0)) == []
     stack.wait_log(refusal("intruder", intruder, "Query", key))
-    assert estop(operator, key, "status")["latched"] is True
-    assert estop(operator, key, "reset")["latched"] is False
+    assert ask_estop(operator, key, "status")["latched"] is True
+    assert ask_estop(operator, key, "reset")["latched"] is False
 
 
 def test_a_peer_without_a_valid_certificate_cannot_connect(stack: Stack, stranger: Path) -> None:
@@ -200,14 +200,3 @@ def test_the_bridge_publishes_the_robot_only_and_hears_only_safetys_commands(sta
         bridge.put(stack.key("sim/<w>/state"), b"state")
         time.sleep(0.1)
     assert heard["tokens"] == []
-
-
-def estop(session: zenoh.Session, key: str, command: str) -> dict:
-    """Ask the e-stop queryable; retried until the safety service answers."""
-    deadline = time.monotonic() + DEADLINE_S
-    while time.monotonic() < deadline:
-        for reply in session.get(f"{key}?{command}", timeout=2.0):
-            assert reply.ok is not None, reply.err.payload.to_string()
-            return json.loads(reply.ok.payload.to_string())
-        time.sleep(0.2)
-    raise AssertionError(f"no answer to e-stop {command!r}")

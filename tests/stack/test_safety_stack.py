@@ -9,7 +9,6 @@ and the sim's arm comes to rest within a second of it.
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
@@ -23,22 +22,12 @@ from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor, to_tensor
 from hamnet.runtime.transport import open_session
 from tests.conftest import transport_args
+from tests.estop import ask_estop
 
 B, J = 2, 7
 WATCHDOG_S = 0.3
 REST_DQ = 0.02
 """rad/s: every joint of every arm slower than this is at rest."""
-
-
-def estop(session, key: str, command: str) -> dict:
-    """Ask the e-stop queryable; retried until the safety service answers."""
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        for reply in session.get(f"{key}?{command}", timeout=2.0):
-            assert reply.ok is not None, reply.err.payload.to_string()
-            return json.loads(reply.ok.payload.to_string())
-        time.sleep(0.1)
-    raise AssertionError(f"no answer to e-stop {command!r}")
 
 
 def test_policy_to_sim_through_safety_with_nan_estop_and_watchdog(spawn, transport) -> None:
@@ -93,11 +82,11 @@ def test_policy_to_sim_through_safety_with_nan_estop_and_watchdog(spawn, transpo
                 nan_step = step
             if step == 20:
                 estop_steps["stop"] = step
-                assert estop(session, estop_key, "stop")["latched"] is True
+                assert ask_estop(session, estop_key, "stop")["latched"] is True
             if step == 26:
                 estop_steps["reset"] = step
-                assert estop(session, estop_key, "reset")["latched"] is False
-                assert estop(session, estop_key, "status")["latched"] is False
+                assert ask_estop(session, estop_key, "reset")["latched"] is False
+                assert ask_estop(session, estop_key, "status")["latched"] is False
                 replies = list(session.get(f"{estop_key}?halt", timeout=2.0))
                 assert len(replies) == 1 and replies[0].err is not None
             if step >= 40:  # the policy dies: no more actions
