@@ -28,6 +28,8 @@ class SafetyEventKind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     ESTOP_LATCHED: _ClassVar[SafetyEventKind]
     ESTOP_RESET: _ClassVar[SafetyEventKind]
     REJECTED_EPISODE: _ClassVar[SafetyEventKind]
+    ROBOT_ERROR: _ClassVar[SafetyEventKind]
+    ROBOT_RESET: _ClassVar[SafetyEventKind]
 COMMAND_MODE_UNSPECIFIED: CommandMode
 TRACK: CommandMode
 HOLD: CommandMode
@@ -43,6 +45,8 @@ WATCHDOG_STOP: SafetyEventKind
 ESTOP_LATCHED: SafetyEventKind
 ESTOP_RESET: SafetyEventKind
 REJECTED_EPISODE: SafetyEventKind
+ROBOT_ERROR: SafetyEventKind
+ROBOT_RESET: SafetyEventKind
 
 class SafeCommand(_message.Message):
     __slots__ = ("header", "episode_ids", "mode", "q_ref", "dq_ref", "kp", "kd", "tau_limit", "control_dt")

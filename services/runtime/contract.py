@@ -93,6 +93,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("safety/<w>/command", safety_pb2.SafeCommand, "safety", "every policy step"),
     Topic("safety/<w>/event", safety_pb2.SafetyEvent, "safety", "when a stage clips, rejects or stops"),
     Topic("safety/<w>/estop", None, "safety", "queryable: stop, reset, status", queryable=True),
+    Topic("bridge/<w>/event", safety_pb2.SafetyEvent, "bridge", "when the robot raises an error or is reset"),
+    Topic("bridge/<w>/reset", None, "bridge", "queryable: stop, reset, status", queryable=True),
     Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, "trainer", "after each update"),
     Topic("trainer/schedule", trainer_pb2.Schedule, "trainer", "after each update"),
     Topic("trainer/metrics", trainer_pb2.Metrics, "trainer", "after each update"),

@@ -1,0 +1,186 @@
+"""The bridge's core, without Zenoh: safe commands in, driver calls out, robot state and
+error events back, and the rule that an error stops the command stream until a reset.
+
+Every command is checked before it reaches the driver with the same reflex checks the strict
+fake applies (`hamnet.safety.fake_fr3.reflex_flags`: finite, inside the position limits,
+velocity, acceleration and jerk from the samples already sent), plus its gains and torque
+limits; one that fails is never sent: it becomes a `command_rejected` error, which stops the
+stream like a reflex of the robot would. A reset starts a new episode (new episode id), so
+that the safety filter plans again from the measured joint positions instead of continuing a
+plan the robot stopped following; commands computed for an older episode are ignored.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.bridge.driver import (
+    COMMAND_REJECTED,
+    CONNECTION_LOST,
+    STOP_REQUESTED,
+    Driver,
+    ImpedanceReference,
+    RobotError,
+    RobotReading,
+)
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.tensor import to_tensor
+from hamnet.safety.fake_fr3 import REFLEXES, reflex_flags
+from hamnet.sim.env import Command
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BridgeCommand:
+    """What the bridge needs of SafeCommand k."""
+
+    step: int
+    """k: the state the command answers."""
+    episode_id: int
+    """The episode the safety filter planned it for."""
+    command: Command
+    """References (1, S, J) and gains (1, J)."""
+
+
+class BridgeCore:
+    """One robot: its driver, the stream's state (streaming or stopped by errors), episodes."""
+
+    def __init__(self, driver: Driver, policy_period_s: float) -> None:
+        """Connect and read the robot once; the stream starts at rest at its position."""
+        self.driver = driver
+        driver.connect()
+        self.limits = driver.limits()
+        samples = policy_period_s / driver.control_period_s
+        if samples < 1 or abs(samples - round(samples)) > 1e-6:
+            raise ConfigError(f"--policy-period-s {policy_period_s} is not a whole number of "
+                              f"the driver's {driver.control_period_s} s periods")  # fmt: skip
+        self.samples = round(samples)
+        """S: reference samples per policy period."""
+        self.errors: tuple[RobotError, ...] = ()
+        """The errors that stopped the stream; empty while streaming."""
+        self.episode_id = 0
+        self.last_step = -1
+        """Step of the last command sent to the driver."""
+        self.counts = dict.fromkeys(("executed", "refused", "stale"), 0)
+        self._history = np.repeat(driver.read().q[None], 3, axis=0)  # (3, J) last sent, rad
+
+    @property
+    def streaming(self) -> bool:
+        """Whether commands reach the robot (no error since the last reset)."""
+        return not self.errors
+
+    def read(self) -> RobotReading | None:
+        """The robot's state, or None when the connection is lost (then an error)."""
+        try:
+            return self.driver.read()
+        except ConnectionError as error:
+            self._fail([RobotError(CONNECTION_LOST, str(error))])
+            return None
+
+    def poll(self) -> list[RobotError]:
+        """The driver's new errors; any of them stops the stream."""
+        errors = self.driver.poll_errors()
+        if errors:
+            self._fail(errors)
+        return errors
+
+    def execute(self, command: BridgeCommand) -> list[RobotError]:
+        """Send one command to the robot if it may go; returns the errors it caused."""
+        if command.step <= self.last_step or command.episode_id != self.episode_id:
+            self.counts["stale"] += 1
+            return []
+        if not self.streaming:
+            self.counts["refused"] += 1
+            return []
+        problem = self.check(command.command)
+        if problem:
+            errors = [RobotError(COMMAND_REJECTED, problem)]
+            self._fail(errors)
+            return errors
+        c = command.command
+        q_ref = c.q_ref[0]  # (S, J)
+        self.driver.send(ImpedanceReference(q_ref, c.kp[0], c.kd[0], c.tau_limit[0]))
+        self.last_step = command.step
+        self.counts["executed"] += 1
+        self._history = np.concatenate([self._history, q_ref])[-3:]
+        return self.poll()
+
+    def check(self, command: Command) -> str:
+        """Why a command must not reach the robot, or '' when it may."""
+        shape = (1, self.samples, J)
+        if np.shape(command.q_ref) != shape:
+            return f"q_ref is {np.shape(command.q_ref)}, expected {shape}"
+        gains = (command.kp, command.kd, command.tau_limit)
+        if any(np.shape(g) != (1, J) or not np.all(np.isfinite(g)) for g in gains):
+            return f"kp, kd and tau_limit must be finite, (1, {J})"
+        if (command.kp < 0).any() or (command.kd < 0).any():
+            return "negative stiffness or damping"
+        if (command.tau_limit < 0).any() or (command.tau_limit > self.limits.tau_max).any():
+            return "torque limits outside [0, tau_max]"
+        q = np.concatenate([self._history, command.q_ref[0]])[None]  # (1, 3 + S, J)
+        flags = reflex_flags(q, None, self.limits, self.driver.control_period_s)[0]  # (S, R)
+        hit = flags.any(axis=1)
+        if hit.any():
+            tick = int(hit.argmax())
+            names = [n for n, bad in zip(REFLEXES, flags[tick], strict=True) if bad]
+            return f"sample {tick} would trigger {', '.join(names)}"
+        return ""
+
+    def stop(self, reason: str) -> None:
+        """Stop the arm and the stream on request, as an error would."""
+        self._fail([RobotError(STOP_REQUESTED, reason)])
+
+    def reset(self) -> RobotReading | None:
+        """Clear the errors (reconnecting if the link was lost) and start a new episode at
+        the measured positions; None when the robot cannot be read."""
+        if any(e.name == CONNECTION_LOST for e in self.errors):
+            self.driver.connect()
+        self.driver.reset()
+        reading = self.read()
+        if reading is None:
+            return None
+        self.errors = ()
+        self.episode_id += 1
+        self._history = np.repeat(reading.q[None], 3, axis=0)
+        return reading
+
+    def _fail(self, errors: list[RobotError]) -> None:
+        """Stop the arm and the stream; the first errors since the last reset are kept."""
+        if self.streaming:
+            self.errors = tuple(errors)
+            log.warning("robot error, stream stopped until a reset: %s",
+                        "; ".join(f"{e.name} ({e.reason})" for e in errors))  # fmt: skip
+        self.driver.stop()
+
+
+def encode_state(
+    reading: RobotReading,
+    step: int,
+    episode_id: int,
+    episode_step: int,
+    goal_pose: np.ndarray,
+) -> RobotState:
+    """RobotState k of one robot, as the sim publishes it but with no privileged block and
+    no object pose estimate (no estimator runs yet).
+
+    Args:
+        reading: the measured state; step: k; episode_id, episode_step: the episode's.
+        goal_pose: (7,) the object's goal: position (m) and quaternion wxyz.
+    """
+    message = RobotState(header=Header(step=step))
+    to_tensor(np.array([episode_id], dtype=np.int64), message.episode_ids)  # (1,)
+    to_tensor(np.array([episode_step], dtype=np.int32), message.episode_step)  # (1,)
+    for name in ("q", "dq", "tau"):  # (1, J) each
+        to_tensor(getattr(reading, name)[None].astype(np.float32), getattr(message, name))
+    six_d = reading.ee_rotation[:, :2].T.reshape(6)  # columns 1 and 2, as the sim's
+    ee_pose = np.concatenate([reading.ee_position, six_d])[None]  # (1, 9)
+    to_tensor(ee_pose.astype(np.float32), message.ee_pose)
+    to_tensor(np.asarray(goal_pose, dtype=np.float32)[None], message.goal_pose)  # (1, 7)
+    return message

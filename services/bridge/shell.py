@@ -1,0 +1,155 @@
+"""The bridge's Zenoh shell: one robot in place of the sim, paced by the robot's clock.
+
+Consumes `safety/<w>/command` (SafeCommand k: references at the driver's control period,
+one policy period long, for one robot). Produces `sim/<w>/state` (RobotState, once per
+policy period: the sim's fields for B = 1, no privileged block, no object pose estimate) and
+`bridge/<w>/event` (SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the
+stream resumes). Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the
+e-stop's latch of `hamnet.safety.estop`): after an error the stream stays stopped until a
+`reset`. Free-running: state k+1 goes out one policy period after state k, whatever the
+commands do; each command is executed when it arrives if it is newer than the last one and
+planned for the current episode (`hamnet.bridge.core`). A command the transport cannot
+decode (non-finite, another sample period or batch) is dropped and counted in health.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import from_tensor
+from hamnet.safety.estop import EStop, on_query
+from hamnet.safety.shell import encode_event
+from hamnet.sim.shell import decode_command
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+COMMAND = contract.topic("safety/<w>/command")
+EVENT = contract.topic("bridge/<w>/event")
+RESET = contract.topic("bridge/<w>/reset")
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Pace, goal and reporting of the bridge."""
+
+    policy_period_s: float = 0.1
+    """One state per this many seconds; commands must hold this many seconds of samples at
+    the driver's period (run safety with the same `--trajectory.policy-period-s` and
+    `--trajectory.control-rate-hz 1000`)."""
+    goal_pose: tuple[float, float, float, float, float, float, float] = (
+        0.5, 0.0, 0.05, 1.0, 0.0, 0.0, 0.0)  # fmt: skip
+    """The object's goal published in every state: position (m), quaternion wxyz."""
+    max_steps: int = 0
+    """Exit after this many states (0: run until stopped)."""
+    report_period_s: float = 10.0
+    """Seconds between rate lines in the log."""
+
+    def __post_init__(self) -> None:
+        if self.max_steps < 0:
+            raise ConfigError(f"--max-steps must be >= 0, got {self.max_steps}")
+
+
+class BridgeShell:
+    """One robot on the network: its state, its commands, its errors and its reset."""
+
+    def __init__(self, service: Service, core: BridgeCore, loop: LoopConfig) -> None:
+        self.service, self.core, self.loop = service, core, loop
+        ns, w = service.namespace, service.identity.worker
+        decoder = functools.partial(_decode_command_payload, samples=core.samples,
+                                    control_dt=core.driver.control_period_s)  # fmt: skip
+        service.inbox.subscribe("command", COMMAND.key(ns, w=w), decoder=decoder)
+        self.state = service.publisher(STATE.key(ns, w=w))
+        self.event = service.publisher(EVENT.key(ns, w=w))
+        self.reset_key = RESET.key(ns, w=w)
+        self.requests = EStop()
+        self.step = 0
+        self.episode_step = 0
+        self.reported: tuple = ()
+        """The errors already published as events."""
+
+    def run(self) -> int:
+        """Publish states and execute commands until stopped or `max_steps`; stops the arm
+        and disconnects on the way out."""
+        queryable = self.service.session.declare_queryable(
+            self.reset_key, lambda query: on_query(self.requests, query)
+        )
+        log.info("%.0f ms policy period, %d samples per command, reset on %s",
+                 1e3 * self.loop.policy_period_s, self.core.samples, self.reset_key)  # fmt: skip
+        last_report = tick = time.monotonic()
+        try:
+            while self.service.running and not 0 < self.loop.max_steps <= self.step:
+                self._apply_requests()
+                self.core.poll()
+                self._publish_state()
+                self._report_errors()
+                tick += self.loop.policy_period_s
+                while self.service.running and (remaining := tick - time.monotonic()) > 0:
+                    received = self.service.receive(timeout=min(remaining, 0.05))
+                    if received is not None:
+                        self.core.execute(received.value)
+                        self._report_errors()
+                if time.monotonic() - tick > self.loop.policy_period_s:
+                    tick = time.monotonic()  # fell a period behind: do not burst to catch up
+                if time.monotonic() - last_report >= self.loop.report_period_s:
+                    log.info("step %d, commands %s, stopped by %s", self.step, self.core.counts,
+                             [e.name for e in self.core.errors] or "nothing")  # fmt: skip
+                    last_report = time.monotonic()
+        finally:
+            queryable.undeclare()
+            self.core.driver.close()
+        log.info("stopped after %d states, commands %s", self.step, self.core.counts)
+        return 0
+
+    def _publish_state(self) -> None:
+        reading = self.core.read()
+        if reading is None:
+            return  # no link: no state (safety holds its last answer)
+        goal = np.array(self.loop.goal_pose)
+        message = encode_state(reading, self.step, self.core.episode_id, self.episode_step, goal)
+        self.state.put(message)
+        self.step += 1
+        self.episode_step += 1
+
+    def _apply_requests(self) -> None:
+        for request in self.requests.take():
+            if request == "stop":
+                self.core.stop("stop requested")
+            elif request == "reset" and self.core.reset() is not None:
+                self.reported, self.episode_step = (), 0
+                log.info("reset at step %d: streaming again, episode %d", self.step,
+                         self.core.episode_id)  # fmt: skip
+                self.event.put(encode_event(SafetyEventKind.ROBOT_RESET, self.step,
+                                            np.zeros(1), "robot", "reset requested"))  # fmt: skip
+        self.requests.status = {"step": self.step, "streaming": self.core.streaming,
+                                "errors": [e.name for e in self.core.errors]}  # fmt: skip
+
+    def _report_errors(self) -> None:
+        """One ROBOT_ERROR event per error that stopped the stream, once."""
+        for error in self.core.errors[len(self.reported) :]:
+            self.service.count_event("robot_errors")
+            self.event.put(encode_event(SafetyEventKind.ROBOT_ERROR, self.step, np.zeros(1),
+                                        "robot", f"{error.name}: {error.reason}"))  # fmt: skip
+        self.reported = self.core.errors
+
+
+def _decode_command_payload(
+    key: str, payload: bytes, samples: int, control_dt: float
+) -> BridgeCommand:
+    message = parse(SafeCommand, payload)
+    step, command = decode_command(message, 1, samples, control_dt)
+    episode = -1
+    if message.HasField("episode_ids"):
+        episode = int(from_tensor(message.episode_ids, np.int64, (1,))[0])
+    return BridgeCommand(step, episode, command)

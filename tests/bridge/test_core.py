@@ -1,0 +1,131 @@
+"""The bridge's core without Zenoh: the safety filter's 1 kHz references run on the strict
+fake FR3 without a reflex; a NaN or out-of-limit command never reaches the driver and stops
+the stream; any robot error (reflex, deadline, lost connection) stops the stream until an
+explicit reset, which starts a new episode at the measured positions."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST, DEADLINE_MISSED
+from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
+from hamnet.fr3.limits import FR3, Q_HOME
+from hamnet.runtime.tensor import from_tensor
+from hamnet.safety.filter import SafetyFilter
+from hamnet.safety.trajectory import TrajectoryConfig
+from hamnet.sim.commands import hold_command
+
+PERIOD = 0.1
+KHZ = TrajectoryConfig(control_rate_hz=1000.0, policy_period_s=PERIOD)
+
+
+class Clock:
+    """A clock the test moves."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def make(deadline_s: float = 1.0) -> tuple[BridgeCore, FakeDriver, Clock]:
+    clock = Clock()
+    driver = FakeDriver(FakeDriverConfig(deadline_s), Q_HOME, clock)
+    return BridgeCore(driver, PERIOD), driver, clock
+
+
+def drive(core: BridgeCore, steps: int, seed: int = 0, first: int = 0) -> list:
+    """Random policy actions through the safety filter, executed by the bridge."""
+    rng = np.random.default_rng(seed)
+    reading = core.read()
+    safety = SafetyFilter(reading.q[None], trajectory=KHZ)
+    errors = []
+    for step in range(first, first + steps):
+        reading = core.read()
+        action = np.clip(0.7 * rng.standard_normal((1, 21)), -1, 1)
+        out = safety.command(action, reading.q[None], reading.dq[None], 0)
+        command = dataclasses.replace(hold_command(reading.q[None], core.samples), q_ref=out.q_ref,
+                                      kp=out.kp, kd=out.kd, tau_limit=out.tau_limit)  # fmt: skip
+        errors += core.execute(BridgeCommand(step, core.episode_id, command))
+    return errors
+
+
+def test_safe_commands_run_on_the_strict_fake_without_a_reflex() -> None:
+    core, driver, _ = make()
+    assert drive(core, 200) == [] and core.streaming
+    assert driver.sent == core.counts["executed"] == 200
+    assert int(driver.robot.ticks[0]) == 200 * core.samples
+    assert np.abs(driver.read().q - Q_HOME).max() > 0.05  # the arm moved
+
+
+@pytest.mark.parametrize("bad", ["nan", "beyond_limit", "jump", "torque_limit"])
+def test_a_bad_command_never_reaches_the_driver_and_stops_the_stream(bad: str) -> None:
+    core, driver, _ = make()
+    command = hold_command(Q_HOME[None], core.samples)
+    q_ref = command.q_ref.copy()
+    if bad == "nan":
+        q_ref[0, 5, 2] = np.nan
+    elif bad == "beyond_limit":
+        q_ref[0, :, 3] = FR3.q_max[3] + 0.01
+    elif bad == "jump":
+        q_ref[0, 10:, 0] += 0.01
+    command = dataclasses.replace(command, q_ref=q_ref)
+    if bad == "torque_limit":
+        command = dataclasses.replace(command, tau_limit=command.tau_limit + 1.0)
+    errors = core.execute(BridgeCommand(0, 0, command))
+    assert [e.name for e in errors] == [COMMAND_REJECTED] and not core.streaming
+    assert driver.sent == 0 and int(driver.robot.ticks[0]) == 0
+    good = hold_command(Q_HOME[None], core.samples)
+    assert core.execute(BridgeCommand(1, 0, good)) == [] and driver.sent == 0  # stopped
+    assert core.counts["refused"] == 1
+
+
+def test_a_reflex_stops_the_stream_until_an_explicit_reset() -> None:
+    core, driver, _ = make()
+    assert drive(core, 20) == []
+    reading = core.read()
+    loose = {name: getattr(FR3, name) * 1e9 for name in ("dq_max", "ddq_max", "jerk_max")}
+    core.limits = dataclasses.replace(FR3, **loose)  # the pre-check lets a jump through
+    jump = hold_command(reading.q[None] + 0.05, core.samples)
+    errors = core.execute(BridgeCommand(20, 0, jump))
+    assert errors and not core.streaming and driver.robot.in_reflex[0]
+    assert {e.name for e in errors} & {"joint_motion_generator_velocity_limits_violation"}
+    core.limits = FR3
+    assert np.all(core.read().dq == 0)  # the arm rests
+    assert core.execute(BridgeCommand(21, 0, hold_command(reading.q[None], core.samples))) == []
+    assert core.counts["refused"] == 1
+    reading = core.reset()
+    assert core.streaming and core.episode_id == 1 and not driver.robot.in_reflex[0]
+    old = hold_command(reading.q[None], core.samples)
+    assert core.execute(BridgeCommand(22, 0, old)) == [] and core.counts["stale"] == 1
+    assert drive(core, 20, seed=1, first=23) == [] and core.streaming
+
+
+def test_a_missed_deadline_and_a_lost_connection_stop_the_robot() -> None:
+    core, driver, clock = make(deadline_s=0.5)
+    assert drive(core, 5) == []
+    clock.now = 0.4
+    assert core.poll() == []
+    clock.now = 0.6
+    assert [e.name for e in core.poll()] == [DEADLINE_MISSED] and not core.streaming
+    assert np.all(core.read().dq == 0)
+    core.reset()
+    assert drive(core, 5, first=10) == []
+    driver.disconnect()
+    assert [e.name for e in core.poll()] == [CONNECTION_LOST] and core.read() is None
+    assert core.reset() is not None and core.streaming and core.episode_id == 2
+
+
+def test_the_state_has_the_sims_fields_but_no_privileged_block() -> None:
+    core, _, _ = make()
+    message = encode_state(core.read(), 7, 3, 2, np.array([0.5, 0, 0.1, 1, 0, 0, 0]))
+    assert not message.HasField("privileged") and message.header.step == 7
+    ee_pose = from_tensor(message.ee_pose, np.float32, (1, 9))
+    assert np.allclose(ee_pose[0, :3], [0.50, 0.0, 0.455], atol=0.01)  # Q_HOME's pose
+    assert np.allclose(ee_pose[0, 3:], [1, 0, 0, 0, -1, 0], atol=1e-4)  # paddle face down
+    assert from_tensor(message.episode_ids, np.int64, (1,)).tolist() == [3]
