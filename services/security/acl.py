@@ -3,9 +3,10 @@ contract: who may publish (or answer for) which keys, by certificate common name
 
 Every identity named after a `hamnet` command (and `operator`) may subscribe to everything
 and publish the open topics; only `safety` may publish commands, only `trainer` weights and
-the step counter (schedule), and only `operator` may use the e-stop (which `safety` serves).
-The real robot's `bridge` may only publish the robot's topics (state, scene, transition)
-and subscribe to safety's commands; any other name gets nothing. Zenoh applies the rules where
+the step counter (schedule), and only `operator` may use the e-stop (which `safety` serves)
+and the bridge's reset. The real robot's `bridge` may only publish the robot's topics
+(state, scene, transition) and its own events, serve its reset, and subscribe to safety's
+commands; any other name gets nothing. Zenoh applies the rules where
 a link ends, so they belong on the router every service joins as a client
 (`compose/secure/`, docs/security.md). `python -m hamnet.security.acl` prints the router's
 JSON5 config.
@@ -33,14 +34,18 @@ OWNERS: dict[str, str] = {
     "safety/<w>/command": "safety",
     "trainer/weights": "trainer",
     "trainer/schedule": "trainer",
+    "bridge/<w>/event": "bridge",
 }
 """Topics one identity alone may publish; everyone may still read (and query) them."""
 
-ESTOP = contract.topic("safety/<w>/estop")
-ESTOP_SERVER = "safety"
-ESTOP_REQUESTER = "operator"
-"""The e-stop queryable is served by `safety` and asked (stop, reset, status) by `operator`
-only: a stop from anyone else would be a denial of service, a reset a release."""
+SERVED: dict[str, str] = {
+    "safety/<w>/estop": "safety",
+    "bridge/<w>/reset": "bridge",
+}
+"""The latches and who serves them: safety's e-stop and the bridge's robot-error reset."""
+REQUESTER = "operator"
+"""The one identity that may ask a latch (stop, reset, status): a stop from anyone else
+would be a denial of service, a reset a release of a stopped robot."""
 
 BRIDGE = "bridge"
 ROBOT = ("sim/<w>/state", "sim/<w>/scene", "sim/<w>/transition")
@@ -70,12 +75,12 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
     Returns:
         A dict for the `access_control` key of a Zenoh config (default deny).
     """
-    for path in (*OWNERS, ESTOP.path, *ROBOT, BRIDGE_HEARS, *BOOKKEEPING):
+    for path in (*OWNERS, *SERVED, *ROBOT, BRIDGE_HEARS, *BOOKKEEPING):
         contract.topic(path)  # a renamed topic must fail here, not open a hole
     open_keys = [t.pattern_in(namespace) for t in contract.TOPICS
-                 if t.path not in OWNERS and t is not ESTOP]  # fmt: skip
+                 if t.path not in OWNERS and t.path not in SERVED]  # fmt: skip
     owned = {path: contract.topic(path).pattern_in(namespace) for path in OWNERS}
-    estop = ESTOP.pattern_in(namespace)
+    served = {path: contract.topic(path).pattern_in(namespace) for path in SERVED}
     everything = f"{keys.ROOT}/{namespace}/**"
     health, alive = (_own(path, namespace, BRIDGE) for path in BOOKKEEPING)
     rules = [
@@ -84,22 +89,24 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
         _rule("publish open topics", (*PUBLISH, "query"), open_keys),
         _rule("query owned topics", ("query",), list(owned.values())),
         *(_rule(f"publish {path}", PUBLISH, [key]) for path, key in owned.items()),
-        _rule("serve e-stop", ("declare_queryable", "reply"), [estop]),
-        _rule("request e-stop", ("query",), [estop]),
+        *(_rule(f"serve {path}", ("declare_queryable", "reply"), [key]) for path, key in served.items()),
+        _rule("request latches", ("query",), list(served.values())),
         _rule("publish the robot", PUBLISH,
               [*(contract.topic(path).pattern_in(namespace) for path in ROBOT), health]),
         _rule("hear safety", ("declare_subscriber",),
               [contract.topic(BRIDGE_HEARS).pattern_in(namespace)]),
         _rule("announce the bridge", ("liveliness_token",), [alive]),
     ]  # fmt: skip
-    identities = sorted({*OWNERS.values(), ESTOP_SERVER, ESTOP_REQUESTER, BRIDGE})
+    identities = sorted({*OWNERS.values(), *SERVED.values(), REQUESTER, BRIDGE})
     subjects = [{"id": MEMBER, "cert_common_names": members()}] + [
         {"id": name, "cert_common_names": [name]} for name in identities]  # fmt: skip
     grants = {MEMBER: ["deliver", "listen", "publish open topics", "query owned topics"],
-              ESTOP_SERVER: ["serve e-stop"], ESTOP_REQUESTER: ["request e-stop"],
+              REQUESTER: ["request latches"],
               BRIDGE: ["deliver", "publish the robot", "hear safety", "announce the bridge"]}  # fmt: skip
     for path, owner in OWNERS.items():
         grants.setdefault(owner, []).append(f"publish {path}")
+    for path, server in SERVED.items():
+        grants.setdefault(server, []).append(f"serve {path}")
     policies = [{"id": f"{name} may", "rules": rules_, "subjects": [name]}
                 for name, rules_ in grants.items()]  # fmt: skip
     return {"enabled": True, "default_permission": "deny", "rules": rules,

@@ -29,7 +29,23 @@ def test_zenoh_accepts_the_rules_and_every_owned_topic_has_one_publisher() -> No
         holders = [who for who, rules in grants.items() if f"publish {path}" in rules]
         assert holders == [owner]
     open_rule = next(r for r in acl["rules"] if r["id"] == "publish open topics")
-    assert not any("command" in k or "weights" in k or "estop" in k for k in open_rule["key_exprs"])
+    assert not any(word in k for k in open_rule["key_exprs"]
+                   for word in ("command", "weights", "estop", "bridge/*/event", "bridge/*/reset"))  # fmt: skip
+
+
+def test_only_the_operator_asks_the_latches_and_each_has_one_server() -> None:
+    """Safety's e-stop and the bridge's robot-error reset: a reset from anyone but the
+    operator would release a stopped robot."""
+    acl = stack_acl()
+    rules = {rule["id"]: rule for rule in acl["rules"]}
+    grants = {p["subjects"][0]: p["rules"] for p in acl["policies"]}
+    askers = [who for who, ids in grants.items()
+              if any("query" in rules[r]["messages"] and "hamnet/*/bridge/*/reset" in rules[r]["key_exprs"]
+                     for r in ids)]  # fmt: skip
+    assert askers == ["operator"]
+    servers = {who: [r for r in ids if r.startswith("serve ")] for who, ids in grants.items()}
+    assert servers["safety"] == ["serve safety/<w>/estop"]
+    assert servers["bridge"] == ["serve bridge/<w>/reset"]
 
 
 def test_secure_stack_file_is_valid() -> None:
@@ -38,8 +54,8 @@ def test_secure_stack_file_is_valid() -> None:
 
 
 def test_the_bridge_publishes_the_robot_and_hears_only_safety() -> None:
-    """The real robot's bridge (issue 17) may publish the robot's topics and its own health,
-    and subscribe to safety's commands only; it is not a member, which may do more. (A real
+    """The real robot's bridge (issue 17) may publish the robot's topics, its own health and
+    events, serve its reset, and subscribe to safety's commands only; it is not a member, which may do more. (A real
     router with these rules: tests/security/test_secure_stack.py.)"""
     acl = stack_acl()
     rules = {rule["id"]: rule for rule in acl["rules"]}
@@ -53,7 +69,7 @@ def test_the_bridge_publishes_the_robot_and_hears_only_safety() -> None:
 
     assert keys_of({"put", "delete", "reply", "declare_queryable"}) == {
         "hamnet/*/sim/*/state", "hamnet/*/sim/*/scene", "hamnet/*/sim/*/transition",
-        "hamnet/*/health/bridge/*"}  # fmt: skip
+        "hamnet/*/health/bridge/*", "hamnet/*/bridge/*/event", "hamnet/*/bridge/*/reset"}  # fmt: skip
     assert keys_of({"declare_subscriber", "declare_liveliness_subscriber", "query",
                     "liveliness_query"}) == {"hamnet/*/safety/*/command"}  # fmt: skip
     assert keys_of({"liveliness_token"}) == {"hamnet/*/alive/bridge/*"}
