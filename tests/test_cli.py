@@ -8,7 +8,8 @@ import sys
 
 import pytest
 
-from hamnet.cli import COMMANDS, main, usage
+import hamnet.cli
+from hamnet.cli import COMMANDS, Command, main, usage
 
 REQUIRED = {"sim", "bridge", "perception", "policy", "safety", "trainer", "monitor", "record",
             "replay", "up", "router", "topics", "echo"}
@@ -34,10 +35,13 @@ def test_built_commands_document_their_options(command) -> None:
     assert f"hamnet {command.name}" in result.stdout and "--" in result.stdout
 
 
-@pytest.mark.parametrize("command", [c for c in COMMANDS if not c.module], ids=lambda c: c.name)
-def test_commands_not_built_say_so_and_fail(command, capsys) -> None:
-    assert main([command.name]) == 2
-    assert "not built yet" in capsys.readouterr().err
+def test_a_command_not_built_says_so_and_fails(monkeypatch, capsys) -> None:
+    """Every command is built today; one listed before its service exists (the way each
+    started) names its issue and exits 2."""
+    planned = Command("camera", "depth frames from a RealSense", None, 17)
+    monkeypatch.setattr(hamnet.cli, "COMMANDS", (*COMMANDS, planned))
+    assert main(["camera"]) == 2
+    assert "hamnet camera: not built yet (issue #17)" in capsys.readouterr().err
 
 
 def test_unknown_commands_and_no_command_fail_with_usage(capsys) -> None:

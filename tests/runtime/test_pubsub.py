@@ -158,7 +158,10 @@ def test_catching_up_again_within_the_period_asks_nothing(sessions, transport) -
 
 def test_watched_tokens_come_and_go_in_order_with_the_messages(sessions, transport) -> None:
     """The trainer learns that a rollout worker left from `watch`: a token present before
-    the watch starts is reported, and its withdrawal follows the owner's last message."""
+    the watch starts is reported, and its withdrawal and the owner's last message both
+    arrive. Zenoh orders neither before the other (data and liveliness travel apart; a
+    fresh clone's run once saw the withdrawal first), so the order is not asserted: a chunk
+    that comes after its worker's token went is counted by the trainer, not relied on."""
     owner, watcher = sessions
     alive = contract.topic("alive/<service>/<w>")
     key = alive.key(transport.namespace, service="rollout", w="3")
@@ -174,6 +177,6 @@ def test_watched_tokens_come_and_go_in_order_with_the_messages(sessions, transpo
     token.undeclare()
     names = [(r.name, r.value if r.name == "alive" else None)
              for r in iter(lambda: inbox.get(timeout=5), None)][:2]  # fmt: skip
-    assert names == [("state", None), ("alive", False)]
+    assert sorted(names) == [("alive", False), ("state", None)]
     with pytest.raises(ValueError, match="catch_up"):
         inbox.catch_up("alive", key)
