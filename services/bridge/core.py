@@ -27,6 +27,7 @@ from hamnet.bridge.driver import (
     RobotReading,
 )
 from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.fr3.model import ee_pose_9d
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime.errors import ConfigError
@@ -179,8 +180,7 @@ def encode_state(
     to_tensor(np.array([episode_step], dtype=np.int32), message.episode_step)  # (1,)
     for name in ("q", "dq", "tau"):  # (1, J) each
         to_tensor(getattr(reading, name)[None].astype(np.float32), getattr(message, name))
-    six_d = reading.ee_rotation[:, :2].T.reshape(6)  # columns 1 and 2, as the sim's
-    ee_pose = np.concatenate([reading.ee_position, six_d])[None]  # (1, 9)
+    ee_pose = ee_pose_9d(reading.ee_position, reading.ee_rotation)[None]  # (1, 9)
     to_tensor(ee_pose.astype(np.float32), message.ee_pose)
     to_tensor(np.asarray(goal_pose, dtype=np.float32)[None], message.goal_pose)  # (1, 7)
     return message

@@ -57,6 +57,14 @@ def robot_dof_index(model: mujoco.MjModel) -> np.ndarray:
     return np.array([model.joint(name).dofadr[0] for name in JOINT_NAMES])
 
 
+def ee_pose_9d(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """The end-effector pose as RobotState carries it (sim and bridge alike): (..., 9) of the
+    position (..., 3), m, and the first two columns of the rotation (..., 3, 3), column after
+    column (the 6D rotation the policy reads)."""
+    six_d = np.swapaxes(rotation[..., :, :2], -1, -2).reshape(*rotation.shape[:-2], 6)
+    return np.concatenate([position, six_d], axis=-1)
+
+
 def mujoco_ee_pose(
     model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

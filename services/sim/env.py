@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.fr3.model import ee_pose_9d
 from hamnet.sim import episodes as draw
 from hamnet.sim import quaternion
 from hamnet.sim.config import SimConfig
@@ -208,14 +209,13 @@ class VectorEnv:
         pos, quat = self._object_pose()
         site_pos = p.bind("site_xpos")[:, w.ee_site]  # (B, 3)
         site_rot = p.bind("site_xmat")[:, w.ee_site].reshape(-1, 3, 3)  # (B, 3, 3)
-        six_d = site_rot[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)  # (B, 6): columns 1, 2
         return Observation(
             episode_ids=self.episode_ids.copy(),
             episode_step=self.episode_step.copy(),
             q=p.qpos[:, w.robot_qpos].astype(np.float32),
             dq=p.qvel[:, w.robot_dof].astype(np.float32),
             tau=p.bind("qfrc_actuator")[:, w.robot_dof].astype(np.float32),
-            ee_pose=np.concatenate([site_pos, six_d], axis=1).astype(np.float32),
+            ee_pose=ee_pose_9d(site_pos, site_rot).astype(np.float32),
             goal_pose=np.concatenate([self.goal_pos, self.goal_quat], axis=1).astype(np.float32),
             object_pose=np.concatenate([pos, quat], axis=1).astype(np.float32),
             object_velocity=self._object_velocity(quat).astype(np.float32),
