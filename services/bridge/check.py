@@ -1,7 +1,7 @@
 """`hamnet bridge check`: before any policy runs, is the robot there and fit to follow one?
 
 Connects through the chosen driver, reads the limits and the state, then sends `--rounds`
-holds of the measured position through the bridge's own command path (`BridgeCore`: the
+holds of the first measured position through the bridge's own command path (`BridgeCore`: the
 same pre-check as in service) and times each send plus the next read. Verdict ok (exit 0)
 when the state is finite and inside the limits, no error came back and the slowest round
 trip is within `--max-round-trip-fraction` of the policy period; else not ok (exit 1), with
@@ -12,26 +12,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.bridge.cli import DriverName, make_driver
+from hamnet.bridge.cli import DriverConfig, make_driver
 from hamnet.bridge.core import BridgeCommand, BridgeCore
-from hamnet.bridge.fake import FakeDriverConfig
 from hamnet.runtime.cli import parse
 from hamnet.runtime.errors import ConfigError
 from hamnet.sim.commands import hold_command
 
 
 @dataclass(frozen=True)
-class CheckConfig:
+class CheckConfig(DriverConfig):
     """Which robot to check, and how hard."""
 
-    driver: DriverName = "franky"
-    """franky (not built yet) or fake."""
-    fake: FakeDriverConfig = field(default_factory=FakeDriverConfig)
-    """The fake driver's options."""
     policy_period_s: float = 0.1
     """The policy period the robot will be commanded at, s."""
     rounds: int = 20
@@ -49,7 +44,7 @@ class CheckConfig:
 def check(config: CheckConfig) -> list[str]:
     """Run the check, printing what it finds; returns the reasons it is not ok."""
     try:
-        core = BridgeCore(make_driver(config.driver, config.fake), config.policy_period_s)
+        core = BridgeCore(make_driver(config), config.policy_period_s)
     except ConnectionError as error:
         return [f"cannot connect: {error}"]
     problems = []
@@ -69,8 +64,8 @@ def check(config: CheckConfig) -> list[str]:
         elif np.any(reading.q < limits.q_min) or np.any(reading.q > limits.q_max):
             problems.append("the joints are outside their limits")
         trips = []
+        hold = hold_command(reading.q[None], core.samples)  # where the arm stood at first
         for step in range(config.rounds):
-            hold = hold_command(reading.q[None], core.samples)
             started = time.perf_counter()
             core.execute(BridgeCommand(step, core.episode_id, hold))
             reading = core.read()

@@ -1,9 +1,12 @@
 """`hamnet bridge`: the real FR3 in place of the sim, behind the same topics (see
 `hamnet.bridge.shell` for the topics and the pacing).
 
-`--driver fake` runs the strict simulated FR3 (`hamnet.bridge.fake`), for tests; `franky`
-(libfranka through franky) is not built yet. `hamnet bridge check` connects, reads the
-limits and the state, measures the round trip and prints a verdict (`hamnet.bridge.check`).
+`--driver franky` (the default) drives an FR3 through libfranka (`hamnet.bridge.franky_driver`;
+the `franky` extra; `franky-sim` serves the same protocol on loopback: run `franky-sim`, then
+`--franky.host` the address it prints and `--franky.realtime ignore`); `--driver fake` runs
+the strict simulated FR3 (`hamnet.bridge.fake`), for tests. `hamnet bridge check` connects,
+reads the limits and the state, measures the round trip and prints a verdict
+(`hamnet.bridge.check`).
 """
 
 from __future__ import annotations
@@ -15,32 +18,40 @@ from typing import Annotated, Literal
 from hamnet.bridge.core import BridgeCore
 from hamnet.bridge.driver import Driver
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
+from hamnet.bridge.franky_driver import FrankyDriver, FrankyDriverConfig
 from hamnet.bridge.shell import BridgeShell, LoopConfig
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
-from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.service import Service
 
 DriverName = Literal["franky", "fake"]
 
 
 @dataclass(frozen=True)
-class BridgeServiceConfig:
+class DriverConfig:
+    """Which robot, and its driver's options (the service and its check extend it)."""
+
+    driver: DriverName = "franky"
+    """franky (an FR3, or franky-sim, through libfranka) or fake (the strict simulated FR3,
+    for tests)."""
+    franky: FrankyDriverConfig = field(default_factory=FrankyDriverConfig)
+    """The franky driver's options."""
+    fake: FakeDriverConfig = field(default_factory=FakeDriverConfig)
+    """The fake driver's options."""
+
+
+@dataclass(frozen=True)
+class BridgeServiceConfig(DriverConfig):
     """One robot: its driver, the pace of its states and its reports."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
-    driver: DriverName = "franky"
-    """franky (a real FR3 through libfranka; not built yet) or fake (the strict simulated
-    FR3, for tests)."""
-    fake: FakeDriverConfig = field(default_factory=FakeDriverConfig)
-    """The fake driver's options."""
     loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
 
 
-def make_driver(name: DriverName, fake: FakeDriverConfig) -> Driver:
-    """The driver called `name`; ConfigError for one not built yet."""
-    if name == "fake":
-        return FakeDriver(fake)
-    raise ConfigError(f"the {name} driver is not built yet (issue #17): use --driver fake")
+def make_driver(config: DriverConfig) -> Driver:
+    """The chosen driver, not yet connected (ConfigError when its extra is missing)."""
+    if config.driver == "fake":
+        return FakeDriver(config.fake)
+    return FrankyDriver(config.franky)
 
 
 def main(argv: Sequence[str]) -> int:
@@ -50,7 +61,7 @@ def main(argv: Sequence[str]) -> int:
 
         return check(argv[1:])
     config, identity = parse_service(CONFIG, argv, "bridge", __doc__)
-    core = BridgeCore(make_driver(config.driver, config.fake), config.loop.policy_period_s)
+    core = BridgeCore(make_driver(config), config.loop.policy_period_s)
     with Service(identity, config.common.transport) as service:
         return BridgeShell(service, core, config.loop).run()
 

@@ -3,8 +3,9 @@ error events back, and the rule that an error stops the command stream until a r
 
 Every command is checked before it reaches the driver with the same reflex checks the strict
 fake applies (`hamnet.safety.fake_fr3.reflex_flags`: finite, inside the position limits,
-velocity, acceleration and jerk from the samples already sent), plus its gains and torque
-limits; one that fails is never sent: it becomes a `command_rejected` error, which stops the
+velocity, acceleration and jerk from the samples already sent; an episode's first command
+from rest at its first sample, which must lie within START_TOLERANCE of the measured
+position), plus its gains and torque limits; one that fails is never sent: it becomes a `command_rejected` error, which stops the
 stream like a reflex of the robot would. A reset starts a new episode (new episode id), so
 that the safety filter plans again from the measured joint positions instead of continuing a
 plan the robot stopped following; commands computed for an older episode are ignored.
@@ -36,6 +37,11 @@ from hamnet.safety.fake_fr3 import REFLEXES, reflex_flags
 from hamnet.sim.env import Command
 
 log = logging.getLogger(__name__)
+
+START_TOLERANCE = 0.005
+"""How far an episode's first reference may start from the last measured position, rad: a
+resting arm settles by a fraction of a milliradian between the state the safety filter
+planned from and the command's arrival; the driver starts tracking from where it is."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +76,8 @@ class BridgeCore:
         self.last_step = -1
         """Step of the last command sent to the driver."""
         self.counts = dict.fromkeys(("executed", "refused", "stale"), 0)
-        self._history = np.repeat(driver.read().q[None], 3, axis=0)  # (3, J) last sent, rad
+        self._measured = driver.read().q  # (J,) the last measured positions, rad
+        self._history: np.ndarray | None = None  # (3, J) the last samples sent this episode
 
     @property
     def streaming(self) -> bool:
@@ -80,10 +87,12 @@ class BridgeCore:
     def read(self) -> RobotReading | None:
         """The robot's state, or None when the connection is lost (then an error)."""
         try:
-            return self.driver.read()
+            reading = self.driver.read()
         except ConnectionError as error:
             self._fail([RobotError(CONNECTION_LOST, str(error))])
             return None
+        self._measured = reading.q
+        return reading
 
     def poll(self) -> list[RobotError]:
         """The driver's new errors; any of them stops the stream."""
@@ -110,7 +119,7 @@ class BridgeCore:
         self.driver.send(ImpedanceReference(q_ref, c.kp[0], c.kd[0], c.tau_limit[0]))
         self.last_step = command.step
         self.counts["executed"] += 1
-        self._history = np.concatenate([self._history, q_ref])[-3:]
+        self._history = q_ref[-3:]
         return self.poll()
 
     def check(self, command: Command) -> str:
@@ -125,7 +134,13 @@ class BridgeCore:
             return "negative stiffness or damping"
         if (command.tau_limit < 0).any() or (command.tau_limit > self.limits.tau_max).any():
             return "torque limits outside [0, tau_max]"
-        q = np.concatenate([self._history, command.q_ref[0]])[None]  # (1, 3 + S, J)
+        first = command.q_ref[0, 0]  # (J,)
+        if self._history is None:  # the episode's first command starts where the arm is
+            offset = np.abs(first - self._measured).max()
+            if offset > START_TOLERANCE:
+                return f"starts {offset:.4f} rad from the measured position"
+        history = np.repeat(first[None], 3, axis=0) if self._history is None else self._history
+        q = np.concatenate([history, command.q_ref[0]])[None]  # (1, 3 + S, J)
         flags = reflex_flags(q, None, self.limits, self.driver.control_period_s)[0]  # (S, R)
         hit = flags.any(axis=1)
         if hit.any():
@@ -149,7 +164,7 @@ class BridgeCore:
             return None
         self.errors = ()
         self.episode_id += 1
-        self._history = np.repeat(reading.q[None], 3, axis=0)
+        self._history = None
         return reading
 
     def _fail(self, errors: list[RobotError]) -> None:

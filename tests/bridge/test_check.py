@@ -1,5 +1,5 @@
-"""`hamnet bridge check`: the fake FR3 passes with a verdict and exit 0; a driver that is not
-built is one line and exit 2; an impossible round-trip budget is a verdict of not ok, exit 1."""
+"""`hamnet bridge check`: the fake FR3 passes with a verdict and exit 0; a franky driver with no
+reachable robot is not ok, exit 1; an impossible round-trip budget is a verdict of not ok, exit 1."""
 
 from __future__ import annotations
 
@@ -12,10 +12,12 @@ def test_the_fake_fr3_passes_the_check(capsys) -> None:
     assert "round trip over 5 holds" in out and out.splitlines()[-1] == "verdict: ok"
 
 
-def test_a_driver_not_built_is_one_line_and_exit_2(capsys) -> None:
-    assert main(["bridge", "check"]) == 2
-    assert capsys.readouterr().err.strip() == (
-        "hamnet bridge: the franky driver is not built yet (issue #17): use --driver fake"
+def test_no_robot_at_the_address_is_not_ok(capsys) -> None:
+    args = ["--franky.host", "127.0.0.9", "--franky.realtime", "ignore"]  # nothing listens there
+    assert main(["bridge", "check", *args]) == 1
+    verdict = capsys.readouterr().out.splitlines()[-1]
+    assert verdict.startswith(
+        "verdict: NOT OK: cannot connect: cannot reach the robot at 127.0.0.9"
     )
 
 

@@ -15,12 +15,10 @@ from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST, DEADLINE_MIS
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
 from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.runtime.tensor import from_tensor
-from hamnet.safety.filter import SafetyFilter
-from hamnet.safety.trajectory import TrajectoryConfig
 from hamnet.sim.commands import hold_command
+from tests.bridge.driving import drive
 
 PERIOD = 0.1
-KHZ = TrajectoryConfig(control_rate_hz=1000.0, policy_period_s=PERIOD)
 
 
 class Clock:
@@ -37,22 +35,6 @@ def make(deadline_s: float = 1.0) -> tuple[BridgeCore, FakeDriver, Clock]:
     clock = Clock()
     driver = FakeDriver(FakeDriverConfig(deadline_s), Q_HOME, clock)
     return BridgeCore(driver, PERIOD), driver, clock
-
-
-def drive(core: BridgeCore, steps: int, seed: int = 0, first: int = 0) -> list:
-    """Random policy actions through the safety filter, executed by the bridge."""
-    rng = np.random.default_rng(seed)
-    reading = core.read()
-    safety = SafetyFilter(reading.q[None], trajectory=KHZ)
-    errors = []
-    for step in range(first, first + steps):
-        reading = core.read()
-        action = np.clip(0.7 * rng.standard_normal((1, 21)), -1, 1)
-        out = safety.command(action, reading.q[None], reading.dq[None], 0)
-        command = dataclasses.replace(hold_command(reading.q[None], core.samples), q_ref=out.q_ref,
-                                      kp=out.kp, kd=out.kd, tau_limit=out.tau_limit)  # fmt: skip
-        errors += core.execute(BridgeCommand(step, core.episode_id, command))
-    return errors
 
 
 def test_safe_commands_run_on_the_strict_fake_without_a_reflex() -> None:

@@ -1,0 +1,133 @@
+"""The franky driver on franky-sim, the real libfranka protocol on loopback: the deploy
+safety filter's 1 kHz references of a random policy run in real time without a robot
+error and are tracked; a NaN command never reaches the robot; a stop brings the arm to
+rest; a reset streams again; a dead server is a lost connection within the link timeout;
+`hamnet bridge check` passes."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from hamnet.bridge.core import BridgeCommand, BridgeCore
+from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST
+from hamnet.bridge.franky_driver import (
+    FrankyDriver,
+    FrankyDriverConfig,
+    play_sample,
+    torque_bounded,
+)
+from hamnet.cli import main
+from hamnet.sim.commands import hold_command
+from tests.bridge.driving import drive
+from tests.franky_sim import franky_sim
+
+PERIOD = 0.05
+
+
+@pytest.fixture(scope="module")
+def robot() -> Iterator[str]:
+    """One franky-sim for the module's tests; yields its address."""
+    with franky_sim() as (host, _):
+        yield host
+
+
+def connect(host: str) -> BridgeCore:
+    return BridgeCore(FrankyDriver(FrankyDriverConfig(host=host, realtime="ignore")), PERIOD)
+
+
+def speed_after(core: BridgeCore, seconds: float) -> float:
+    """The fastest joint's mean speed over 0.2 s, `seconds` from now, rad/s (by positions:
+    franky-sim reports a stale velocity while idle)."""
+    time.sleep(seconds)
+    before = core.read().q
+    time.sleep(0.2)
+    return float(np.abs(core.read().q - before).max() / 0.2)
+
+
+def test_a_random_policy_runs_in_real_time_without_an_error(robot: str) -> None:
+    core = connect(robot)
+    try:
+        start = core.read().q
+        assert drive(core, 60, paced=True) == [] and core.streaming
+        moved = np.abs(core.read().q - start).max()
+        assert moved > 0.05, "the arm did not follow the references"
+        driver = core.driver
+        assert driver.refused == driver.dropped == 0
+    finally:
+        core.driver.close()
+
+
+def test_a_nan_command_never_reaches_the_robot_and_the_arm_stays_at_rest(robot: str) -> None:
+    core = connect(robot)
+    try:
+        q = core.read().q
+        command = hold_command(q[None], core.samples)
+        q_ref = command.q_ref.copy()
+        q_ref[0, 7, 1] = np.nan
+        errors = core.execute(BridgeCommand(0, 0, dataclasses.replace(command, q_ref=q_ref)))
+        assert [e.name for e in errors] == [COMMAND_REJECTED] and not core.streaming
+        assert core.driver.refused == 0 and core.driver._motion is None  # nothing was sent
+        assert speed_after(core, 0.3) < 1e-2
+    finally:
+        core.driver.close()
+
+
+def test_a_stop_brings_the_moving_arm_to_rest_and_a_reset_streams_again(robot: str) -> None:
+    core = connect(robot)
+    try:
+        assert drive(core, 10, paced=True) == []
+        core.stop("test")
+        assert speed_after(core, 0.5) < 1e-2
+        assert (
+            core.execute(
+                BridgeCommand(10, core.episode_id, hold_command(core.read().q[None], core.samples))
+            )
+            == []
+        )
+        assert core.counts["refused"] == 1
+        assert core.reset() is not None and core.streaming and core.episode_id == 1
+        assert drive(core, 10, first=11, paced=True) == [] and core.streaming
+    finally:
+        core.driver.close()
+
+
+def test_a_dead_robot_is_a_lost_connection_within_the_link_timeout() -> None:
+    with franky_sim() as (host, process):
+        core = connect(host)
+        assert drive(core, 5, paced=True) == []
+        process.kill()
+        process.wait()
+        started = time.monotonic()
+        while core.streaming and time.monotonic() - started < 2.0:
+            core.poll()
+            core.read()
+            time.sleep(0.01)
+        assert [e.name for e in core.errors] == [CONNECTION_LOST]
+        assert time.monotonic() - started < 0.5
+        core.driver.close()
+
+
+def test_the_check_passes_on_franky_sim(robot: str, capsys) -> None:
+    args = ["--franky.host", robot, "--franky.realtime", "ignore", "--rounds", "5"]
+    assert main(["bridge", "check", *args]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "verdict: ok"
+
+
+def test_samples_play_on_the_robots_clock_and_the_last_is_held() -> None:
+    q_ref = np.arange(5.0)[:, None] * np.ones((1, 7))  # (S=5, J): 1 rad per ms
+    q, dq = play_sample(q_ref, 0.0025)
+    assert q[0] == 2.0 and dq[0] == pytest.approx(1000.0)
+    q, dq = play_sample(q_ref, 0.05)
+    assert q[0] == 4.0 and dq[0] == 0.0
+
+
+def test_the_reference_keeps_the_spring_torque_within_the_limit() -> None:
+    kp, limit = np.full(7, 100.0), np.full(7, 5.0)
+    bounded = torque_bounded(np.full(7, 1.0), np.zeros(7), kp, limit)
+    assert np.allclose(kp * bounded, limit)
+    assert np.allclose(torque_bounded(np.full(7, 0.01), np.zeros(7), kp, limit), 0.01)
