@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from hamnet.proto import common_pb2 as hamnet_dot_proto_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19hamnet/proto/health.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"7\n\tDropCount\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x0e\n\x06reason\x18\x02 \x01(\t\x12\r\n\x05\x63ount\x18\x03 \x01(\x04\"\xd8\x03\n\x06Health\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07service\x18\x02 \x01(\t\x12\x0e\n\x06worker\x18\x03 \x01(\t\x12#\n\x05state\x18\x04 \x01(\x0e\x32\x14.hamnet.ServiceState\x12\x10\n\x08uptime_s\x18\x05 \x01(\x01\x12.\n\x08received\x18\x06 \x03(\x0b\x32\x1c.hamnet.Health.ReceivedEntry\x12\x30\n\tpublished\x18\x07 \x03(\x0b\x32\x1d.hamnet.Health.PublishedEntry\x12 \n\x05\x64rops\x18\x08 \x03(\x0b\x32\x11.hamnet.DropCount\x12\x14\n\x0cloop_rate_hz\x18\t \x01(\x01\x12*\n\x06\x65vents\x18\n \x03(\x0b\x32\x1a.hamnet.Health.EventsEntry\x1a/\n\rReceivedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x30\n\x0ePublishedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a-\n\x0b\x45ventsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01*V\n\x0cServiceState\x12\x1d\n\x19SERVICE_STATE_UNSPECIFIED\x10\x00\x12\x0c\n\x08STARTING\x10\x01\x12\x0b\n\x07RUNNING\x10\x02\x12\x0c\n\x08STOPPING\x10\x03\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19hamnet/proto/health.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"7\n\tDropCount\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x0e\n\x06reason\x18\x02 \x01(\t\x12\r\n\x05\x63ount\x18\x03 \x01(\x04\"\xb6\x04\n\x06Health\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07service\x18\x02 \x01(\t\x12\x0e\n\x06worker\x18\x03 \x01(\t\x12#\n\x05state\x18\x04 \x01(\x0e\x32\x14.hamnet.ServiceState\x12\x10\n\x08uptime_s\x18\x05 \x01(\x01\x12.\n\x08received\x18\x06 \x03(\x0b\x32\x1c.hamnet.Health.ReceivedEntry\x12\x30\n\tpublished\x18\x07 \x03(\x0b\x32\x1d.hamnet.Health.PublishedEntry\x12 \n\x05\x64rops\x18\x08 \x03(\x0b\x32\x11.hamnet.DropCount\x12\x14\n\x0cloop_rate_hz\x18\t \x01(\x01\x12*\n\x06\x65vents\x18\n \x03(\x0b\x32\x1a.hamnet.Health.EventsEntry\x12,\n\x07\x66igures\x18\x0b \x03(\x0b\x32\x1b.hamnet.Health.FiguresEntry\x1a/\n\rReceivedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x30\n\x0ePublishedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a-\n\x0b\x45ventsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a.\n\x0c\x46iguresEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01*V\n\x0cServiceState\x12\x1d\n\x19SERVICE_STATE_UNSPECIFIED\x10\x00\x12\x0c\n\x08STARTING\x10\x01\x12\x0b\n\x07RUNNING\x10\x02\x12\x0c\n\x08STOPPING\x10\x03\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -38,16 +38,20 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_HEALTH_PUBLISHEDENTRY']._serialized_options = b'8\001'
   _globals['_HEALTH_EVENTSENTRY']._loaded_options = None
   _globals['_HEALTH_EVENTSENTRY']._serialized_options = b'8\001'
-  _globals['_SERVICESTATE']._serialized_start=596
-  _globals['_SERVICESTATE']._serialized_end=682
+  _globals['_HEALTH_FIGURESENTRY']._loaded_options = None
+  _globals['_HEALTH_FIGURESENTRY']._serialized_options = b'8\001'
+  _globals['_SERVICESTATE']._serialized_start=690
+  _globals['_SERVICESTATE']._serialized_end=776
   _globals['_DROPCOUNT']._serialized_start=64
   _globals['_DROPCOUNT']._serialized_end=119
   _globals['_HEALTH']._serialized_start=122
-  _globals['_HEALTH']._serialized_end=594
-  _globals['_HEALTH_RECEIVEDENTRY']._serialized_start=450
-  _globals['_HEALTH_RECEIVEDENTRY']._serialized_end=497
-  _globals['_HEALTH_PUBLISHEDENTRY']._serialized_start=499
-  _globals['_HEALTH_PUBLISHEDENTRY']._serialized_end=547
-  _globals['_HEALTH_EVENTSENTRY']._serialized_start=549
-  _globals['_HEALTH_EVENTSENTRY']._serialized_end=594
+  _globals['_HEALTH']._serialized_end=688
+  _globals['_HEALTH_RECEIVEDENTRY']._serialized_start=496
+  _globals['_HEALTH_RECEIVEDENTRY']._serialized_end=543
+  _globals['_HEALTH_PUBLISHEDENTRY']._serialized_start=545
+  _globals['_HEALTH_PUBLISHEDENTRY']._serialized_end=593
+  _globals['_HEALTH_EVENTSENTRY']._serialized_start=595
+  _globals['_HEALTH_EVENTSENTRY']._serialized_end=640
+  _globals['_HEALTH_FIGURESENTRY']._serialized_start=642
+  _globals['_HEALTH_FIGURESENTRY']._serialized_end=688
 # @@protoc_insertion_point(module_scope)

@@ -30,7 +30,7 @@ class DropCount(_message.Message):
     def __init__(self, key: _Optional[str] = ..., reason: _Optional[str] = ..., count: _Optional[int] = ...) -> None: ...
 
 class Health(_message.Message):
-    __slots__ = ("header", "service", "worker", "state", "uptime_s", "received", "published", "drops", "loop_rate_hz", "events")
+    __slots__ = ("header", "service", "worker", "state", "uptime_s", "received", "published", "drops", "loop_rate_hz", "events", "figures")
     class ReceivedEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -52,6 +52,13 @@ class Health(_message.Message):
         key: str
         value: int
         def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class FiguresEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: float
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[float] = ...) -> None: ...
     HEADER_FIELD_NUMBER: _ClassVar[int]
     SERVICE_FIELD_NUMBER: _ClassVar[int]
     WORKER_FIELD_NUMBER: _ClassVar[int]
@@ -62,6 +69,7 @@ class Health(_message.Message):
     DROPS_FIELD_NUMBER: _ClassVar[int]
     LOOP_RATE_HZ_FIELD_NUMBER: _ClassVar[int]
     EVENTS_FIELD_NUMBER: _ClassVar[int]
+    FIGURES_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     service: str
     worker: str
@@ -72,4 +80,5 @@ class Health(_message.Message):
     drops: _containers.RepeatedCompositeFieldContainer[DropCount]
     loop_rate_hz: float
     events: _containers.ScalarMap[str, int]
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., service: _Optional[str] = ..., worker: _Optional[str] = ..., state: _Optional[_Union[ServiceState, str]] = ..., uptime_s: _Optional[float] = ..., received: _Optional[_Mapping[str, int]] = ..., published: _Optional[_Mapping[str, int]] = ..., drops: _Optional[_Iterable[_Union[DropCount, _Mapping]]] = ..., loop_rate_hz: _Optional[float] = ..., events: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    figures: _containers.ScalarMap[str, float]
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., service: _Optional[str] = ..., worker: _Optional[str] = ..., state: _Optional[_Union[ServiceState, str]] = ..., uptime_s: _Optional[float] = ..., received: _Optional[_Mapping[str, int]] = ..., published: _Optional[_Mapping[str, int]] = ..., drops: _Optional[_Iterable[_Union[DropCount, _Mapping]]] = ..., loop_rate_hz: _Optional[float] = ..., events: _Optional[_Mapping[str, int]] = ..., figures: _Optional[_Mapping[str, float]] = ...) -> None: ...

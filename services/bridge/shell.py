@@ -10,6 +10,9 @@ e-stop's latch of `hamnet.safety.estop`): after an error the stream stays stoppe
 commands do; each command is executed when it arrives if it is newer than the last one and
 planned for the current episode (`hamnet.bridge.core`). A command the transport cannot
 decode (non-finite, another sample period or batch) is dropped and counted in health.
+Each executed command is timed from its state's publication: the median and p99 of the
+last LATENCY_WINDOW go into the rate line and into health as figures
+(`command_latency_median_ms`, `command_latency_p99_ms`).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from __future__ import annotations
 import functools
 import logging
 import time
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +37,11 @@ from hamnet.safety.shell import encode_event
 from hamnet.sim.shell import decode_command
 
 log = logging.getLogger(__name__)
+
+LATENCY_WINDOW = 1000
+"""Commands over which the state-to-command latency percentiles are taken."""
+LATENCY_HORIZON = 100
+"""States kept for timing their commands: a later command is stale anyway."""
 
 STATE = contract.topic("sim/<w>/state")
 COMMAND = contract.topic("safety/<w>/command")
@@ -78,6 +87,10 @@ class BridgeShell:
         self.episode_step = 0
         self.reported: tuple = ()
         """The errors already published as events."""
+        self.published: dict[int, float] = {}
+        """When each recent state went out (step -> monotonic s), to time its command."""
+        self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
+        """Seconds from a state's publication to the execution of its command, newest last."""
 
     def run(self) -> int:
         """Publish states and execute commands until stopped or `max_steps`; stops the arm
@@ -98,17 +111,18 @@ class BridgeShell:
                 while self.service.running and (remaining := tick - time.monotonic()) > 0:
                     received = self.service.receive(timeout=min(remaining, 0.05))
                     if received is not None:
-                        self.core.execute(received.value)
-                        self._report_errors()
+                        self._execute(received.value)
                 if time.monotonic() - tick > self.loop.policy_period_s:
                     tick = time.monotonic()  # fell a period behind: do not burst to catch up
                 if time.monotonic() - last_report >= self.loop.report_period_s:
+                    self._report_latency()
                     log.info("step %d, commands %s, stopped by %s", self.step, self.core.counts,
                              [e.name for e in self.core.errors] or "nothing")  # fmt: skip
                     last_report = time.monotonic()
         finally:
             queryable.undeclare()
             self.core.driver.close()
+            self._report_latency()
         log.info("stopped after %d states, commands %s", self.step, self.core.counts)
         return 0
 
@@ -119,8 +133,29 @@ class BridgeShell:
         goal = np.array(self.loop.goal_pose)
         message = encode_state(reading, self.step, self.core.episode_id, self.episode_step, goal)
         self.state.put(message)
+        self.published[self.step] = time.monotonic()
+        self.published.pop(self.step - LATENCY_HORIZON, None)
         self.step += 1
         self.episode_step += 1
+
+    def _execute(self, command: BridgeCommand) -> None:
+        """Execute a command, timing it from its state's publication when it went out."""
+        executed = self.core.counts["executed"]
+        self.core.execute(command)
+        if self.core.counts["executed"] > executed and command.step in self.published:
+            self.latencies.append(time.monotonic() - self.published.pop(command.step))
+        self._report_errors()
+
+    def _report_latency(self) -> None:
+        """The latency percentiles of the recent commands, into health and the log."""
+        if not self.latencies:
+            return
+        median, p99 = 1e3 * np.percentile(self.latencies, [50, 99])
+        self.service.set_figure("command_latency_median_ms", float(median))
+        self.service.set_figure("command_latency_p99_ms", float(p99))
+        self.service.set_figure("command_latency_count", float(len(self.latencies)))
+        log.info("state to command: median %.1f ms, p99 %.1f ms over the last %d commands",
+                 median, p99, len(self.latencies))  # fmt: skip
 
     def _apply_requests(self) -> None:
         for request in self.requests.take():

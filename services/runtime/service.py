@@ -74,6 +74,8 @@ class Service:
         self.drops = DropCounter()
         self.events: Counter[str] = Counter()
         """Notable events by name since the start (`count_event`), in every health report."""
+        self.figures: dict[str, float] = {}
+        """Measured figures by name (`set_figure`), carried by every health report."""
         self.health_period_s = health_period_s
         self._inbox_capacity = inbox_capacity
         self._stop = threading.Event()
@@ -147,6 +149,10 @@ class Service:
         totals, and `hamnet up` sums them in its summary."""
         self.events[name] += 1
 
+    def set_figure(self, name: str, value: float) -> None:
+        """Report a measured figure (e.g. a latency percentile) in the next health reports."""
+        self.figures[name] = value
+
     def receive(self, timeout: float = 0.1) -> Received | None:
         """Next message for the run loop; publishes health when it is due."""
         self._loops += 1
@@ -176,6 +182,7 @@ class Service:
             report.received.update(self.inbox.received)
         report.published.update({key: p.published for key, p in self._publishers.items()})
         report.events.update(self.events)
+        report.figures.update(self.figures)
         report.drops.extend(
             DropCount(key=key, reason=reason, count=count)
             for (key, reason), count in sorted(self.drops.counts.items())

@@ -2,7 +2,7 @@
 `hamnet safety` as processes on real Zenoh, with this test as the policy: random actions
 for hundreds of policy steps without a robot error; a NaN action is rejected by safety and
 never reaches the robot; when the policy stops answering, the watchdog brings the arm to
-rest within a second."""
+rest within a second; the bridge reports its state-to-command latency in health."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import time
 import numpy as np
 
 from hamnet.proto.common_pb2 import Header
+from hamnet.proto.health_pb2 import Health
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState
@@ -42,9 +43,11 @@ def test_a_policy_drives_franky_sim_through_safety_and_stops_when_it_dies(spawn,
         inbox.subscribe("state", contract.topic("sim/<w>/state").key(ns, w="0"), RobotState)
         inbox.subscribe("robot", contract.topic("bridge/<w>/event").key(ns, w="0"), SafetyEvent)
         inbox.subscribe("safety", contract.topic("safety/<w>/event").key(ns, w="0"), SafetyEvent)
+        health = contract.topic("health/<service>/<w>").key(ns, service="bridge", w="0")
+        inbox.subscribe("health", health, Health)
         actions = Publisher(session, contract.topic("policy/<w>/action").key(ns, w="0"), "policy/0")
         rng = np.random.default_rng(0)
-        events: dict[str, list[SafetyEvent]] = {"robot": [], "safety": []}
+        events: dict[str, list] = {"robot": [], "safety": [], "health": []}
         trace: list[tuple[float, np.ndarray]] = []  # (time, q) of each state
         answered, died = 0, None
         started = time.monotonic()
@@ -74,6 +77,9 @@ def test_a_policy_drives_franky_sim_through_safety_and_stops_when_it_dies(spawn,
         finally:
             session.close()
     assert events["robot"] == [], [(e.kind, e.reason) for e in events["robot"]]
+    figures = [h.figures for h in events["health"] if "command_latency_p99_ms" in h.figures]
+    assert figures, "the bridge reported no command latency"
+    assert 0.0 < figures[-1]["command_latency_median_ms"] <= figures[-1]["command_latency_p99_ms"]
     kinds = [e.kind for e in events["safety"]]
     assert SafetyEventKind.REJECTED_NONFINITE in kinds and SafetyEventKind.WATCHDOG_STOP in kinds
     times = np.array([t for t, _ in trace])
