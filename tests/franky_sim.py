@@ -1,43 +1,5 @@
-"""`franky-sim` (the libfranka network protocol served by a MuJoCo FR3) as a test robot on
-a loopback address of its own, so tests can run side by side."""
+"""franky-sim for tests: the product's (`hamnet.bridge.franky_sim`)."""
 
-from __future__ import annotations
+from hamnet.bridge.franky_sim import franky_sim
 
-import os
-import random
-import signal
-import subprocess
-import sys
-import tempfile
-import time
-from collections.abc import Iterator
-from contextlib import contextmanager
-from pathlib import Path
-
-STARTUP_S = 60.0
-"""Longest wait for the server to listen (it imports MuJoCo and builds its model)."""
-
-
-@contextmanager
-def franky_sim() -> Iterator[tuple[str, subprocess.Popen]]:
-    """A running franky-sim on a random 127.x.y.z; yields its address and process."""
-    host = f"127.{random.randint(1, 254)}.{random.randint(1, 254)}.{random.randint(2, 254)}"
-    executable = Path(sys.executable).with_name("franky-sim")
-    with tempfile.NamedTemporaryFile("w+", suffix=".log") as log:
-        process = subprocess.Popen(
-            [str(executable), "--simulator", "mujoco", "--hostname", host],
-            stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
-        )  # fmt: skip
-        try:
-            deadline = time.monotonic() + STARTUP_S
-            while "Connect to the server" not in Path(log.name).read_text():
-                if process.poll() is not None:
-                    raise RuntimeError(f"franky-sim exited: {Path(log.name).read_text()}")
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f"franky-sim did not start within {STARTUP_S} s")
-                time.sleep(0.1)
-            yield host, process
-        finally:
-            if process.poll() is None:
-                os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
+__all__ = ["franky_sim"]

@@ -60,6 +60,10 @@ def main(argv: Sequence[str]) -> int:
         from hamnet.bridge.check import main as check
 
         return check(argv[1:])
+    if argv and argv[0] == "gap":
+        from hamnet.bridge.gap import main as gap
+
+        return gap(argv[1:])
     config, identity = parse_service(CONFIG, argv, "bridge", __doc__)
     core = BridgeCore(make_driver(config), config.loop.policy_period_s)
     with Service(identity, config.common.transport) as service:
