@@ -41,6 +41,9 @@ from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.world import build_world
 
+STALL_S = 5.0
+"""Longest wall time a policy period may take on the robot's clock before the replay stops
+waiting for it (a dead franky-sim's clock stands still)."""
 ACTION_WIDTH = 21
 """The policy's raw action: joint residual, stiffness, damping ratio (7 each)."""
 
@@ -75,6 +78,8 @@ class Run:
     """N commands, each (1, S, J) references at 1 kHz and (1, J) gains."""
     q_sim: np.ndarray
     """(N, J) our sim's joint positions after each step, rad."""
+    q_feedforward: np.ndarray
+    """(N, J) the same with franky's velocity feedforward (`ArmSim.execute`), rad."""
     lowest_z: float
     """Lowest height of any arm body's origin above the base over the run, m (franky-sim's
     floor is at the base)."""
@@ -112,12 +117,24 @@ class ArmSim:
         """Lowest arm body origin above the base, m."""
         return float(self.physics.bind("xpos")[0, self.world.robot_bodies, 2].min())
 
-    def execute(self, command: Command) -> np.ndarray:
-        """One command (1 kHz references) as `VectorEnv.step` runs it; returns q (J,)."""
+    def execute(self, command: Command, feedforward: bool = False) -> np.ndarray:
+        """One command (1 kHz references) as `VectorEnv.step` runs it; returns q (J,).
+        `feedforward`: franky's law instead, kp (q_ref - q) + kd (dq_ref - dq) with the
+        franky driver's dq_ref (`velocity_shifted`), a diagnostic the sim itself lacks."""
+        q_ref = velocity_shifted(command) if feedforward else command.q_ref
         self.physics.set_gains(command.kp, command.kd, command.tau_limit)
         timestep = self.physics.timestep
-        self.physics.step(at_physics_steps(command.q_ref, CONTROL_PERIOD_S, timestep), 1)
+        self.physics.step(at_physics_steps(q_ref, CONTROL_PERIOD_S, timestep), 1)
         return self.q
+
+
+def velocity_shifted(command: Command) -> np.ndarray:
+    """(B, S, J) references q_ref + (kd / kp) dq_ref, dq_ref the samples' difference (the
+    last held at rest, as the franky driver plays them): with them the sim's
+    kp (q_ref - q) - kd dq becomes franky's kp (q_ref - q) + kd (dq_ref - dq)."""
+    q_ref = command.q_ref
+    dq_ref = np.diff(q_ref, axis=1, append=q_ref[:, -1:]) / CONTROL_PERIOD_S  # (B, S, J)
+    return q_ref + (command.kd / np.maximum(command.kp, 1e-9))[:, None, :] * dq_ref
 
 
 def at_physics_steps(q_ref: np.ndarray, sample_period_s: float, timestep: float) -> np.ndarray:
@@ -149,18 +166,41 @@ def plan(q0: np.ndarray, config: GapConfig) -> Run:
         commands.append(command)
         q_sim.append(sim.execute(command))
         lowest = min(lowest, sim.lowest_z())
-    return Run(commands, np.array(q_sim), float(lowest))
+    sim.reset(q0)
+    q_feedforward = [sim.execute(command, feedforward=True) for command in commands]
+    return Run(commands, np.array(q_sim), np.array(q_feedforward), float(lowest))
+
+
+class RobotClock:
+    """The robot's own clock, s (libfranka's state time), as the franky driver's clock.
+
+    franky-sim steps its physics in Python and falls behind the wall clock on a loaded
+    machine (0.67x measured on 2 shared cores); the driver plays references on its clock,
+    so on the wall clock franky-sim's arm would see them sped up. On this clock both arms
+    get the references at the rate their physics runs, as a real FR3 would. Reads the
+    driver's robot (no public accessor for the robot's time)."""
+
+    def __init__(self) -> None:
+        self.driver: FrankyDriver | None = None
+
+    def __call__(self) -> float:
+        robot = None if self.driver is None else self.driver._robot
+        return 0.0 if robot is None else float(robot.state.time.to_sec())
 
 
 def replay(core: BridgeCore, commands: list[Command], period_s: float) -> np.ndarray:
-    """The commands through the bridge core, one per period of wall clock; returns (N, J)
-    the measured positions at the end of each period (just before the next command)."""
+    """The commands through the bridge core, one per policy period of the driver's clock;
+    returns (N, J) the measured positions at the end of each period (just before the next
+    command)."""
+    clock = core.driver.clock
     q = []
-    tick = time.monotonic()
+    tick = clock()
     for step, command in enumerate(commands):
         errors = core.execute(BridgeCommand(step, core.episode_id, command))
         tick += period_s
-        time.sleep(max(tick - time.monotonic(), 0.0))
+        wall = time.monotonic() + STALL_S
+        while clock() < tick and time.monotonic() < wall:
+            time.sleep(CONTROL_PERIOD_S)
         reading = core.read()
         errors += core.poll()
         if errors or reading is None:
@@ -185,6 +225,8 @@ def report(run: Run, q_franky: np.ndarray, config: GapConfig) -> dict:
         "max_gap_rad": np.abs(gap).max(axis=0).tolist(),
         "rms_tracking_sim_rad": rms(run.q_sim - held).tolist(),
         "rms_tracking_franky_rad": rms(q_franky - held).tolist(),
+        "rms_gap_feedforward_rad": rms(run.q_feedforward - q_franky).tolist(),
+        "rms_tracking_feedforward_rad": rms(run.q_feedforward - held).tolist(),
         "range_sim_rad": np.ptp(run.q_sim, axis=0).tolist(),
         "range_franky_rad": np.ptp(q_franky, axis=0).tolist(),
         "lowest_body_z_m": run.lowest_z,
@@ -229,15 +271,21 @@ def measure(config: GapConfig) -> tuple[Run, np.ndarray, dict]:
     """Start franky-sim, plan on our sim from its posture, replay on it; the run, franky's
     positions (N, J) and the numbers."""
     with franky_sim() as (host, _):
-        driver = FrankyDriver(FrankyDriverConfig(host=host, realtime="ignore"))
+        clock = RobotClock()
+        driver = FrankyDriver(FrankyDriverConfig(host=host, realtime="ignore"), clock)
+        clock.driver = driver
         core = BridgeCore(driver, config.policy_period_s)
         try:
             q0 = core.read().q
             run = plan(q0, config)
+            started = clock(), time.monotonic()
             q_franky = replay(core, run.commands, config.policy_period_s)
+            rate = (clock() - started[0]) / (time.monotonic() - started[1])
         finally:
             driver.close()
-    return run, q_franky, report(run, q_franky, config)
+    numbers = report(run, q_franky, config)
+    numbers["franky_sim_real_time_factor"] = rate
+    return run, q_franky, numbers
 
 
 def main(argv: Sequence[str]) -> int:
