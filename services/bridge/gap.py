@@ -236,12 +236,15 @@ def report(run: Run, q_franky: np.ndarray, config: GapConfig) -> dict:
 
 
 def table(numbers: dict) -> str:
-    """The per-joint numbers as a text table, mrad."""
-    lines = ["joint       rms gap  max gap  rms track sim  rms track franky  (mrad)"]
+    """The per-joint numbers as a text table, mrad (ff: our sim with franky's velocity
+    feedforward)."""
+    columns = ("rms_gap_rad", "max_gap_rad", "rms_tracking_sim_rad", "rms_tracking_franky_rad",
+               "rms_gap_feedforward_rad")  # fmt: skip
+    lines = ["joint       rms gap  max gap  rms track sim  rms track franky  rms gap ff  (mrad)"]
     for j, name in enumerate(numbers["joints"]):
-        row = [numbers[k][j] * 1e3 for k in
-               ("rms_gap_rad", "max_gap_rad", "rms_tracking_sim_rad", "rms_tracking_franky_rad")]  # fmt: skip
-        lines.append(f"{name:<10} {row[0]:8.2f} {row[1]:8.2f} {row[2]:14.2f} {row[3]:17.2f}")
+        row = [numbers[k][j] * 1e3 for k in columns]
+        lines.append(f"{name:<10} {row[0]:8.2f} {row[1]:8.2f} {row[2]:14.2f} {row[3]:17.2f}"
+                     f" {row[4]:11.2f}")  # fmt: skip
     return "\n".join(lines)
 
 
