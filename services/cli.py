@@ -32,6 +32,7 @@ class Command:
 COMMANDS: tuple[Command, ...] = (
     Command("sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", "hamnet.sim.cli", 3),
     Command("bridge", "real FR3 in place of the sim (same contract; `hamnet bridge check`)", "hamnet.bridge.cli", 17),
+    Command("camera", "depth frames of the robot's cameras (realsense, sim render or replay)", "hamnet.camera.cli", 17),
     Command("perception", "point clouds and UniCORN tokens", "hamnet.perception.cli", 6),
     Command("policy", "HAMnet and baseline inference with hot-reloaded weights", "hamnet.policy.cli", 5),
     Command("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", "hamnet.safety.cli", 4),

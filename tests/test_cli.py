@@ -38,10 +38,10 @@ def test_built_commands_document_their_options(command) -> None:
 def test_a_command_not_built_says_so_and_fails(monkeypatch, capsys) -> None:
     """Every command is built today; one listed before its service exists (the way each
     started) names its issue and exits 2."""
-    planned = Command("camera", "depth frames from a RealSense", None, 17)
+    planned = Command("calibrate", "camera extrinsics from a target", None, 17)
     monkeypatch.setattr(hamnet.cli, "COMMANDS", (*COMMANDS, planned))
-    assert main(["camera"]) == 2
-    assert "hamnet camera: not built yet (issue #17)" in capsys.readouterr().err
+    assert main(["calibrate"]) == 2
+    assert "hamnet calibrate: not built yet (issue #17)" in capsys.readouterr().err
 
 
 def test_unknown_commands_and_no_command_fail_with_usage(capsys) -> None:

@@ -26,31 +26,41 @@ class DepthView:
 
     depth: np.ndarray
     """(H, W) float32 depth along the optical axis, m; 0 where there is no reading."""
-    labels: np.ndarray
-    """(H, W) uint8 segmentation: SCENE, OBJECT or 0."""
+    labels: np.ndarray | None
+    """(H, W) uint8 segmentation: SCENE, OBJECT or 0; None when the camera has none (a real
+    camera: `hamnet.perception.segmenters` then splits the fused cloud)."""
     intrinsics: np.ndarray
     """(3, 3) pinhole matrix, pixels."""
     camera_to_world: np.ndarray
     """(4, 4) pose of the camera in the world (OpenCV axes)."""
 
 
-def fuse(views: list[DepthView], label: int, config: CameraConfig) -> np.ndarray:
-    """The cloud (N, 3) of one label over all views: back-projected, cropped, voxel
-    downsampled and cleaned of statistical outliers, world frame, m."""
+def fuse(views: list[DepthView], label: int | None, config: CameraConfig) -> np.ndarray:
+    """The cloud (N, 3) of one label (None: every pixel) over all views: back-projected,
+    cropped, voxel downsampled and cleaned of statistical outliers, world frame, m."""
     cloud = o3d.geometry.PointCloud()
     for view in views:
         h, w = view.depth.shape
-        depth = np.where(view.labels == label, view.depth, 0.0).astype(np.float32)
+        if label is None:
+            depth = view.depth.astype(np.float32)
+        elif view.labels is None:
+            raise ValueError("a view without labels cannot be split by label (use a segmenter)")
+        else:
+            depth = np.where(view.labels == label, view.depth, 0.0).astype(np.float32)
         k = view.intrinsics
         intrinsic = o3d.camera.PinholeCameraIntrinsic(w, h, k[0, 0], k[1, 1], k[0, 2], k[1, 2])
         cloud += o3d.geometry.PointCloud.create_from_depth_image(
             o3d.geometry.Image(depth), intrinsic, np.linalg.inv(view.camera_to_world),
             depth_scale=1.0, depth_trunc=config.max_depth,
         )  # fmt: skip
-    box = o3d.geometry.AxisAlignedBoundingBox(np.array(config.workspace_min), np.array(config.workspace_max))
+    box = o3d.geometry.AxisAlignedBoundingBox(
+        np.array(config.workspace_min), np.array(config.workspace_max)
+    )
     cloud = cloud.crop(box).voxel_down_sample(config.voxel_size)
     if len(cloud.points) > config.outlier_neighbors:
-        cloud, _ = cloud.remove_statistical_outlier(config.outlier_neighbors, config.outlier_std_ratio)
+        cloud, _ = cloud.remove_statistical_outlier(
+            config.outlier_neighbors, config.outlier_std_ratio
+        )
     return np.asarray(cloud.points)
 
 
@@ -63,15 +73,21 @@ def resample(points: np.ndarray, num_points: int, rng: np.random.Generator) -> n
 
 
 def camera_clouds(
-    views: list[DepthView], config: CameraConfig | None = None, rng: np.random.Generator | None = None
+    views: list[DepthView],
+    config: CameraConfig | None = None,
+    rng: np.random.Generator | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Object and scene clouds (P, 3) each from depth views, world frame, m."""
     config = config if config is not None else CameraConfig()
     rng = rng if rng is not None else np.random.default_rng(0)
-    return tuple(resample(fuse(views, label, config), config.num_points, rng) for label in (OBJECT, SCENE))
+    return tuple(
+        resample(fuse(views, label, config), config.num_points, rng) for label in (OBJECT, SCENE)
+    )
 
 
-def d435_rig(target: np.ndarray, radius: float = 1.0, height: float = 0.7) -> list[tuple[np.ndarray, float, float]]:
+def d435_rig(
+    target: np.ndarray, radius: float = 1.0, height: float = 0.7
+) -> list[tuple[np.ndarray, float, float]]:
     """Four cameras around the table as in the paper's setup: (look-at point (3,), azimuth
     deg, elevation deg) each, at `radius` m from `target` and `height` m above it, 90 degrees
     apart, starting 45 degrees off the robot's axis (the robot is at the origin facing +x)."""

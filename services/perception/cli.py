@@ -7,6 +7,11 @@ Encodes with the pre-trained UniCORN shipped in the package (`SHIPPED_ENCODER`, 
 carries encoder_version 0. Cloud sampling is
 configured under `--clouds.<field>` (e.g. `--clouds.noise-std 0.005`), the architecture the
 checkpoint must match under `--encoder.<field>`.
+
+`--clouds-from cameras` builds the clouds from the depth frames of `hamnet camera` instead of
+the sim's scene message and object pose (the real robot; docs/cameras.md): fused under
+`--cameras.<field>`, split by `--segmenter mask` (the frames' labels) or `plane` (table
+plane and clustering, `--plane.<field>`); one robot per worker.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import torch
 
@@ -26,10 +31,17 @@ from hamnet.perception.checkpoint import (
     load_checkpoint,
     write_random_checkpoint,
 )
-from hamnet.perception.config import CloudConfig, EncoderConfig
+from hamnet.perception.config import (
+    CameraConfig,
+    CloudConfig,
+    EncoderConfig,
+    PlaneConfig,
+    SegmenterName,
+)
 from hamnet.perception.shell import PerceptionShell, ShellConfig
 from hamnet.perception.unicorn import UniCORN
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.compute import torch_device
 from hamnet.runtime.service import Service
 
 
@@ -50,11 +62,24 @@ class PerceptionServiceConfig:
     """The architecture the checkpoint must have."""
     clouds: CloudConfig = field(default_factory=CloudConfig)
     """Environment, object and local cloud sampling."""
+    clouds_from: Literal["scene", "cameras"] = "scene"
+    """scene: the sim's scene message and privileged object pose; cameras: the depth frames
+    on `camera/<w>/frames` (the real robot, or `hamnet camera --source sim`)."""
+    cameras: CameraConfig = field(default_factory=CameraConfig)
+    """Depth fusion of the camera path (its num_points must equal --clouds.num-points)."""
+    segmenter: SegmenterName = "mask"
+    """Object from scene, camera path: mask (the frames' labels) or plane (table plane
+    removal and clustering, for a real camera)."""
+    plane: PlaneConfig = field(default_factory=PlaneConfig)
+    """The plane segmenter's options."""
     loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
 
     def __post_init__(self) -> None:
         if self.random_init and self.checkpoint != SHIPPED_ENCODER:
             raise ValueError("give either --checkpoint PATH or --random-init, not both")
+        if self.cameras.num_points != self.clouds.num_points:
+            raise ValueError(f"--cameras.num-points ({self.cameras.num_points}) must equal "
+                             f"--clouds.num-points ({self.clouds.num_points})")  # fmt: skip
 
 
 CONFIG = PerceptionServiceConfig
@@ -87,4 +112,18 @@ def main(argv: Sequence[str]) -> int:
         print(f"hamnet perception: {error}", file=sys.stderr)
         return 2
     with Service(identity, config.common.transport) as service:
+        if config.clouds_from == "cameras":
+            return camera_shell(service, encoder, version, config).run()
         return PerceptionShell(service, encoder, version, config.loop, config.clouds).run()
+
+
+def camera_shell(service: Service, encoder: UniCORN, version: int, config: PerceptionServiceConfig):
+    """The shell of `--clouds-from cameras` (imported here: the sim path needs no open3d)."""
+    from hamnet.perception.camera_core import CameraPerception
+    from hamnet.perception.camera_shell import CameraPerceptionShell
+    from hamnet.perception.segmenters import make_segmenter
+
+    segmenter = make_segmenter(config.segmenter, config.cameras, config.plane)
+    device = torch_device(config.loop.device, config.loop.threads)
+    core = CameraPerception(encoder, segmenter, config.clouds, device, config.loop.seed)
+    return CameraPerceptionShell(service, core, version, config.loop)

@@ -82,7 +82,9 @@ class CloudConfig:
         if not (self.visibility_pixel > 0.0 and self.visibility_depth >= 0.0):
             raise ValueError("visibility_pixel must be > 0 and visibility_depth >= 0")
         if self.scene_pool < self.num_points:
-            raise ValueError(f"scene_pool ({self.scene_pool}) must be >= num_points ({self.num_points})")
+            raise ValueError(
+                f"scene_pool ({self.scene_pool}) must be >= num_points ({self.num_points})"
+            )
         if self.crop_below < 0.0 or self.workspace_height <= 0.0:
             raise ValueError("crop_below must be >= 0 and workspace_height > 0")
         if self.noise_std < 0.0 or not 0.0 <= self.dropout < 1.0 or self.tolerance < 0.0:
@@ -178,3 +180,31 @@ class CameraConfig:
         if not (self.max_depth > 0 and self.voxel_size > 0 and self.outlier_std_ratio > 0):
             raise ValueError("max_depth, voxel_size and outlier_std_ratio must be > 0")
         _at_least(self, 1, "outlier_neighbors", "num_points")
+
+
+SegmenterName = Literal["mask", "plane"]
+"""How the camera path tells object from scene (`hamnet.perception.segmenters`)."""
+
+
+@dataclass(frozen=True)
+class PlaneConfig:
+    """Table-plane removal and clustering (`PlaneSegmenter`)."""
+
+    distance: float = 0.01
+    """RANSAC inlier distance to the table plane, m (D435 depth noise at 1 m is a few mm)."""
+    iterations: int = 500
+    """RANSAC iterations."""
+    min_height: float = 0.01
+    """Points less than this above the plane belong to the table, m."""
+    cluster_eps: float = 0.02
+    """DBSCAN neighbourhood radius, m (a few voxels of `CameraConfig.voxel_size`)."""
+    cluster_min_points: int = 10
+    """DBSCAN core point threshold."""
+    seed: int = 0
+    """Seed of RANSAC's sampling (open3d's global random generator)."""
+
+    def __post_init__(self) -> None:
+        if not (self.distance > 0 and self.min_height >= 0 and self.cluster_eps > 0):
+            raise ValueError("distance and cluster_eps must be > 0, min_height >= 0")
+        if self.iterations < 1 or self.cluster_min_points < 1:
+            raise ValueError("iterations and cluster_min_points must be >= 1")

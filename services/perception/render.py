@@ -1,7 +1,10 @@
 """Render depth views of a sim scene with MuJoCo's offscreen renderer (EGL), from virtual
 cameras placed like the paper's four D435s, with a segmentation mask (scene cuboids, object).
 
-Runs as a script because MuJoCo picks its OpenGL backend when it is first imported:
+`RigRenderer` renders one environment with the arm at any joint positions (the camera
+service's `sim` source). MuJoCo picks its OpenGL backend when it is first imported, so this
+module must be imported before anything imports mujoco (it sets `MUJOCO_GL=egl` unless set);
+the script form runs in a process of its own:
 
     python -m hamnet.perception.render OUT.npz [--seed N] [--width W --height H]
 
@@ -16,6 +19,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
+from typing import Self  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
@@ -45,7 +49,9 @@ def _pose(scene: mujoco.MjvScene) -> np.ndarray:
     """(4, 4) OpenCV camera-to-world pose of the rendered view: MuJoCo keeps two eye cameras
     half the inter-pupillary distance apart and renders a mono view from their average."""
     eyes = scene.camera[0], scene.camera[1]
-    forward, up = (np.mean([np.array(getattr(e, name)) for e in eyes], 0) for name in ("forward", "up"))
+    forward, up = (
+        np.mean([np.array(getattr(e, name)) for e in eyes], 0) for name in ("forward", "up")
+    )
     pose = np.eye(4)
     pose[:3, :3] = np.stack([np.cross(forward, up), -up, forward], axis=1)
     pose[:3, 3] = np.mean([np.array(e.pos) for e in eyes], 0)
@@ -59,22 +65,36 @@ def _intrinsics(gl_camera, width: int, height: int) -> np.ndarray:
     return np.array([[fx, 0.0, width / 2 - 0.5], [0.0, fy, height / 2 - 0.5], [0.0, 0.0, 1.0]])
 
 
-def render_views(env: VectorEnv, index: int, width: int, height: int) -> list[DepthView]:
-    """Depth and segmentation of environment `index` from the four D435-like cameras."""
-    model, data = environment_model(env, index)
-    table = env.scenes(np.array([index])).cuboid_centre[0, 0]
-    labels_of = np.zeros(model.ngeom + 1, np.uint8)
-    labels_of[env.world.cuboid_geoms] = SCENE
-    labels_of[env.world.object_geoms] = OBJECT
-    option = mujoco.MjvOption()
-    option.geomgroup[:] = 1  # the object's parts are in group 3, hidden by default
-    views = []
-    with mujoco.Renderer(model, height, width) as renderer:
-        for lookat, azimuth, elevation in d435_rig(table):
+class RigRenderer:
+    """Depth and segmentation of environment `index` of `env` from the four D435-like
+    cameras, with the arm posed at any joint positions (the camera service's sim source
+    renders the arm where the robot, simulated or real, reports it). Holds one offscreen
+    context: `close` it (or use it as a context manager)."""
+
+    def __init__(self, env: VectorEnv, index: int, width: int, height: int) -> None:
+        self.model, self.data = environment_model(env, index)
+        self.robot_qpos = env.world.robot_qpos
+        table = env.scenes(np.array([index])).cuboid_centre[0, 0]
+        self.rig = d435_rig(table)
+        self.labels_of = np.zeros(self.model.ngeom + 1, np.uint8)
+        self.labels_of[env.world.cuboid_geoms] = SCENE
+        self.labels_of[env.world.object_geoms] = OBJECT
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[:] = 1  # the object's parts are in group 3, hidden by default
+        self.width, self.height = width, height
+        self.renderer = mujoco.Renderer(self.model, height, width)
+
+    def views(self, q: np.ndarray | None = None) -> list[DepthView]:
+        """The four views, with the arm at joint positions `q` (J,) rad (None: as reset)."""
+        if q is not None:
+            self.data.qpos[self.robot_qpos] = q
+            mujoco.mj_forward(self.model, self.data)
+        renderer, views = self.renderer, []
+        for lookat, azimuth, elevation in self.rig:
             camera = mujoco.MjvCamera()
             camera.lookat[:], camera.distance = lookat, float(np.hypot(1.0, 0.7))
             camera.azimuth, camera.elevation = azimuth, elevation
-            renderer.update_scene(data, camera, scene_option=option)
+            renderer.update_scene(self.data, camera, scene_option=self.option)
             renderer.enable_depth_rendering()
             depth = renderer.render().copy()
             renderer.disable_depth_rendering()
@@ -82,10 +102,29 @@ def render_views(env: VectorEnv, index: int, width: int, height: int) -> list[De
             segment = renderer.render()
             renderer.disable_segmentation_rendering()
             is_geom = segment[..., 1] == mujoco.mjtObj.mjOBJ_GEOM
-            labels = np.where(is_geom, labels_of[np.clip(segment[..., 0], 0, model.ngeom)], 0)
+            labels = np.where(
+                is_geom, self.labels_of[np.clip(segment[..., 0], 0, self.model.ngeom)], 0
+            )
             views.append(DepthView(depth.astype(np.float32), labels.astype(np.uint8),
-                                   _intrinsics(renderer.scene.camera[0], width, height), _pose(renderer.scene)))  # fmt: skip
-    return views
+                                   _intrinsics(renderer.scene.camera[0], self.width, self.height),
+                                   _pose(renderer.scene)))  # fmt: skip
+        return views
+
+    def close(self) -> None:
+        """Free the offscreen context."""
+        self.renderer.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def render_views(env: VectorEnv, index: int, width: int, height: int) -> list[DepthView]:
+    """Depth and segmentation of environment `index` from the four D435-like cameras."""
+    with RigRenderer(env, index, width, height) as renderer:
+        return renderer.views()
 
 
 def main() -> None:

@@ -3,7 +3,8 @@ contract: who may publish (or answer for) which keys, by certificate common name
 
 Every identity named after a `hamnet` command (and `operator`) may subscribe to everything
 and publish the open topics; only `safety` may publish commands, only `trainer` weights and
-the step counter (schedule), and only `operator` may use the e-stop (which `safety` serves)
+the step counter (schedule), only `camera` depth frames (perception's view of the
+world), and only `operator` may use the e-stop (which `safety` serves)
 and the bridge's reset. The real robot's `bridge` may only publish the robot's topics
 (state, scene, transition) and its own events, serve its reset, and subscribe to safety's
 commands; any other name gets nothing. Zenoh applies the rules where
@@ -35,6 +36,7 @@ OWNERS: dict[str, str] = {
     "trainer/weights": "trainer",
     "trainer/schedule": "trainer",
     "bridge/<w>/event": "bridge",
+    "camera/<w>/frames": "camera",
 }
 """Topics one identity alone may publish; everyone may still read (and query) them."""
 

@@ -1,0 +1,89 @@
+"""The camera service's Zenoh shell: polls a frame source and publishes its frames.
+
+Consumes `sim/<w>/state` (RobotState: the arm's joint positions, for the `sim` source only;
+the newest state wins, older queued ones are skipped). Produces `camera/<w>/frames`
+(DepthFrames: every camera of the rig at one frame time). Ends when the source is done (the
+end of a recording) or on a signal.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from hamnet.camera.frames import encode_frames
+from hamnet.camera.sources import FrameSource, RobotPose
+from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import PayloadError, field_array
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+FRAMES = contract.topic("camera/<w>/frames")
+
+
+def decode_pose(message: RobotState) -> RobotPose:
+    """The arm's joint positions in RobotState k (first environment).
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
+    """
+    q = field_array(message, "q", np.float32, (None, NUM_JOINTS), finite=True)
+    if len(q) == 0:
+        raise PayloadError("shape", "RobotState.q holds no environment")
+    return RobotPose(message.header.run, message.header.step, q[0].copy())
+
+
+class CameraShell:
+    """Publishes one source's frames on `camera/<w>/frames`."""
+
+    def __init__(
+        self, service: Service, source: FrameSource, report_period_s: float = 10.0
+    ) -> None:
+        self.service, self.source, self.report_period_s = service, source, report_period_s
+        ns, w = service.namespace, service.identity.worker
+        if source.needs_state:
+            service.inbox.subscribe(
+                "state",
+                STATE.key(ns, w=w),
+                decoder=lambda key, p: decode_pose(parse(RobotState, p)),
+            )
+        self.frames = service.publisher(FRAMES.key(ns, w=w))
+        self.robot: RobotPose | None = None
+        self.published, self.seconds = 0, []
+        self._last_report = time.monotonic()
+
+    def run(self) -> int:
+        """Publish frames until the source is done or the service stops."""
+        while self.service.running and not self.source.done:
+            received = self.service.receive(timeout=self.source.poll_s)
+            while received is not None:  # the newest state wins
+                self.robot = received.value
+                received = self.service.receive(timeout=0)
+            started = time.perf_counter()
+            frames = self.source.poll(self.robot)
+            if frames is not None:
+                self.frames.put(encode_frames(frames.views, frames.step, frames.names))
+                self.published += 1
+                self.seconds.append(time.perf_counter() - started)
+            self._report()
+        log.info("published %d frame sets", self.published)
+        return 0
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        elapsed = now - self._last_report
+        if elapsed < self.report_period_s:
+            return
+        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
+        log.info(
+            "%.1f frame sets/s, median %.1f ms to make one", len(self.seconds) / elapsed, median
+        )
+        self.seconds.clear()
+        self._last_report = now

@@ -1,0 +1,147 @@
+"""The perception shell of the depth-camera path (`hamnet perception --clouds-from cameras`):
+tokens for every robot state from the latest depth frames.
+
+Consumes `camera/<w>/frames` (DepthFrames of the robot's cameras, `hamnet camera`) and
+`sim/<w>/state` (RobotState of one robot, B = 1: the bridge, or a one-environment sim;
+only its step, run and episode id are read, so no privileged block is needed). Produces
+`perception/<w>/tokens` (PerceptionTokens with the state's step and episode id), the
+message the policy pairs with the state, as the sim path (`shell.PerceptionShell`) does.
+
+Each state is answered from the newest frames received (frames come at the cameras' rate,
+states at the policy's); frames are processed only when a state needs them and newer ones
+arrived. A state that comes before any usable frame waits (counted as `waiting_for_frames`)
+and is answered when one arrives. Frames that show no object are counted (`nothing_seen`)
+and skipped: the state waits for the next frames. A state sent again gets the same answer.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.camera.frames import decode_frames
+from hamnet.perception.camera_core import CameraPerception, NothingSeen
+from hamnet.perception.cameras import DepthView
+from hamnet.perception.core import Percepts
+from hamnet.perception.shell import ShellConfig, encode_tokens
+from hamnet.proto.camera_pb2 import DepthFrames
+from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime import contract
+from hamnet.runtime.codec import parse
+from hamnet.runtime.service import Service
+from hamnet.runtime.tensor import field_array
+
+log = logging.getLogger(__name__)
+
+STATE = contract.topic("sim/<w>/state")
+FRAMES = contract.topic("camera/<w>/frames")
+TOKENS = contract.topic("perception/<w>/tokens")
+
+
+@dataclass(frozen=True)
+class StepIn:
+    """What the camera path needs of RobotState k: which step and episode to answer."""
+
+    run: int
+    step: int
+    episode_ids: np.ndarray  # (1,) int64
+
+
+def decode_step(message: RobotState) -> StepIn:
+    """RobotState k of one robot.
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (more than one environment: the cameras
+            see one robot).
+    """
+    episode_ids = field_array(message, "episode_ids", np.int64, (1,))
+    return StepIn(message.header.run, message.header.step, episode_ids.copy())
+
+
+class CameraPerceptionShell:
+    """One perception worker answering states from depth frames."""
+
+    def __init__(
+        self, service: Service, core: CameraPerception, version: int, config: ShellConfig
+    ) -> None:
+        self.service, self.core, self.version, self.config = service, core, version, config
+        ns, w = service.namespace, service.identity.worker
+        service.inbox.subscribe("frames", FRAMES.key(ns, w=w), decoder=self._decode_frames)
+        service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
+        self.tokens = service.publisher(TOKENS.key(ns, w=w))
+        self.frames: list[DepthView] | None = None
+        """The newest frames not processed yet."""
+        self.percepts: Percepts | None = None
+        """Clouds and tokens of the newest frames that showed an object."""
+        self.waiting: StepIn | None = None
+        self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
+        self.counts = dict.fromkeys(
+            ("published", "repeated", "waiting_for_frames", "nothing_seen"), 0
+        )
+        self.seconds: list[float] = []
+        self._last_report = time.monotonic()
+
+    def run(self) -> int:
+        """Answer states until stopped; returns the exit status."""
+        log.info(
+            "clouds from camera frames; encoder version %d on %s", self.version, self.core.device
+        )
+        while self.service.running:
+            received = self.service.receive(timeout=0.1)
+            if received is not None:
+                if received.name == "frames":
+                    self.frames = received.value
+                    if self.waiting is not None:
+                        state, self.waiting = self.waiting, None
+                        self._on_state(state)
+                else:
+                    self._on_state(received.value)
+            self._report()
+        return 0
+
+    def _on_state(self, state: StepIn) -> None:
+        if self.answered is not None and self.answered[0] == (state.run, state.step):
+            self.tokens.put(self.answered[1])
+            self.counts["repeated"] += 1
+            return
+        started = time.perf_counter()
+        if self.frames is not None:
+            frames, self.frames = self.frames, None
+            try:
+                self.percepts = self.core.percepts(frames)
+            except NothingSeen as error:
+                self.counts["nothing_seen"] += 1
+                log.debug("frames skipped: %s", error)
+        if self.percepts is None:
+            self.counts["waiting_for_frames"] += 1
+            self.waiting = state
+            return
+        message = encode_tokens(self.percepts, state.step, state.episode_ids, self.version)
+        self.tokens.put(message)
+        self.answered = ((state.run, state.step), message)
+        self.counts["published"] += 1
+        self.seconds.append(time.perf_counter() - started)
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        elapsed = now - self._last_report
+        if elapsed < self.config.report_period_s:
+            return
+        c = self.counts
+        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
+        log.info("%.1f token messages/s, median %.1f ms per step, %d repeated, %d states waiting for "
+                 "frames, %d frames without an object", c["published"] / elapsed, median, c["repeated"],
+                 c["waiting_for_frames"], c["nothing_seen"])  # fmt: skip
+        self.counts = dict.fromkeys(self.counts, 0)
+        self.seconds.clear()
+        self._last_report = now
+
+    def _decode_state(self, key: str, payload: bytes) -> StepIn:
+        return decode_step(parse(RobotState, payload))
+
+    def _decode_frames(self, key: str, payload: bytes) -> list[DepthView]:
+        return decode_frames(parse(DepthFrames, payload))
