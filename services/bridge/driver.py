@@ -79,6 +79,11 @@ class Driver(Protocol):
         """Connect to the robot; raises ConnectionError when it cannot."""
         ...
 
+    def clock(self) -> float:
+        """The robot's clock, s: the bridge paces its states by it (a simulated robot may
+        run slower than the wall clock; a real one does not)."""
+        ...
+
     def limits(self) -> FR3Limits:
         """The robot's joint limits."""
         ...

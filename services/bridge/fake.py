@@ -55,7 +55,7 @@ class FakeDriver:
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config = config if config is not None else FakeDriverConfig()
-        self.clock = clock
+        self._clock = clock
         self.robot = FakeFR3(np.asarray(q_start, dtype=np.float64), FakeFR3Config())
         self._model, self._data = load_pinocchio()
         self._last = np.repeat(self.robot.q, 2, axis=0)  # (2, J): the last two executed, rad
@@ -77,7 +77,11 @@ class FakeDriver:
     def connect(self) -> None:
         """Connect (always succeeds); the arm rests where it is."""
         self._connected = True
-        self._last_send = self.clock()
+        self._last_send = self._clock()
+
+    def clock(self) -> float:
+        """The wall clock (the fake executes references in virtual time when they arrive)."""
+        return self._clock()
 
     def limits(self) -> FR3Limits:
         """The FR3's limits, which the fake enforces."""
@@ -103,7 +107,7 @@ class FakeDriver:
         self.robot.command(q_ref, tau)
         executed = int(self.robot.ticks[0]) - before
         self.sent += 1
-        self._last_send = self.clock()
+        self._last_send = self._clock()
         if executed:
             self._last = np.concatenate([self._last, q_ref[:executed]])[-2:]
             self._tau = tau[executed - 1]
@@ -120,7 +124,7 @@ class FakeDriver:
     def poll_errors(self) -> list[RobotError]:
         """Errors since the last call; checks the command deadline first."""
         moving = np.any(self._last[1] != self._last[0])
-        late = self.clock() - self._last_send > self.config.deadline_s
+        late = self._clock() - self._last_send > self.config.deadline_s
         if self._connected and not self._stopped and moving and late:
             self._errors.append(RobotError(DEADLINE_MISSED, f"no reference for over "
                                            f"{self.config.deadline_s} s while moving"))  # fmt: skip
@@ -133,7 +137,7 @@ class FakeDriver:
         self.stop()
         self.robot.recover(q=self._last[1:])
         self._stopped = False
-        self._last_send = self.clock()
+        self._last_send = self._clock()
 
     def close(self) -> None:
         """Stop the arm and disconnect."""

@@ -2,21 +2,26 @@
 client-side joint impedance tracking motion (PyPI `franky-control`, the `franky` extra).
 
 franky runs the 1 kHz torque loop in C++ and reads, each cycle, the latest joint reference
-and gains set from Python. A streamer thread plays each policy period's references on the
-robot's clock: sample i of a period is set i control periods after the period starts, with
-its velocity (the samples' difference) so the loop's damping tracks the motion rather than
-braking it. A period starts when the previous one ends, or when it arrives if the previous
-one has already ended (then the last sample was held meanwhile: a late command); a backlog
-of more than one period is dropped, so latency cannot accumulate. The commanded torque
-limit is kept by bounding each sample's distance from the measured position to
-tau_limit / kp (franky's tracking motion has no per-command torque clamp; the damping term
-comes on top, and the robot's own limits stay the hard ones).
+and gains set from Python. The law is the sim's, the one the policy was trained with:
+tau = kp (q_ref - q) - kd dq on top of the robot's own gravity compensation, so the
+reference carries no velocity and franky's Coriolis compensation is off (with the samples'
+velocity as feedforward the arm runs ahead of the trained one by up to 0.1 rad: `hamnet
+bridge gap`, docs/bridge.md). A streamer thread plays each policy period's references on
+the robot's clock (libfranka's state time, which on franky-sim can run slower than the wall
+clock): sample i of a period is set i control periods after the period starts. A period
+starts when the previous one ends, or when it arrives if the previous one has already ended
+(the last sample was held meanwhile: a late command); a backlog of more than one period is
+dropped, so latency cannot accumulate. The commanded torque limit is kept by bounding each
+sample's distance from the measured position to tau_limit / kp (franky's tracking motion has
+no per-command torque clamp; the damping term comes on top, and the robot's own limits stay
+the hard ones).
 
 Errors, polled by the streamer and returned by `poll_errors`: a libfranka control exception
 (a reflex) by its message; the robot's clock standing still for `--franky.link-timeout-s`
-(`connection_lost`: libfranka stops the robot on its side when its client goes); no new
-period for `--franky.deadline-s` while moving (`command_deadline_missed`). Any of them
-stops the motion; nothing is followed again until `reset` (libfranka's error recovery).
+of the wall clock (`connection_lost`: libfranka stops the robot on its side when its client
+goes); no new period for `--franky.deadline-s` of the wall clock while moving
+(`command_deadline_missed`). Any of them stops the motion; nothing is followed again until
+`reset` (libfranka's error recovery).
 """
 
 from __future__ import annotations
@@ -84,14 +89,10 @@ def import_franky() -> Any:
     return franky
 
 
-def play_sample(q_ref: np.ndarray, elapsed_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """The reference (position, velocity) `elapsed_s` into a period of samples q_ref (S, J)
-    at libfranka's period: sample i from i periods on, the last one held (velocity 0) once
-    the period is over."""
-    i = int(elapsed_s / CONTROL_PERIOD_S)
-    if i >= len(q_ref) - 1:
-        return q_ref[-1], np.zeros(q_ref.shape[1])
-    return q_ref[i], (q_ref[i + 1] - q_ref[i]) / CONTROL_PERIOD_S
+def play_sample(q_ref: np.ndarray, elapsed_s: float) -> np.ndarray:
+    """The reference position `elapsed_s` into a period of samples q_ref (S, J) at
+    libfranka's period: sample i from i periods on, the last one held once it is over."""
+    return q_ref[min(int(elapsed_s / CONTROL_PERIOD_S), len(q_ref) - 1)]
 
 
 def torque_bounded(
@@ -106,10 +107,12 @@ class FrankyDriver:
     """An FR3 through franky behind `Driver`; `connect` reaches the robot."""
 
     def __init__(
-        self, config: FrankyDriverConfig | None = None, clock: Callable[[], float] = time.monotonic
+        self,
+        config: FrankyDriverConfig | None = None,
+        wall_clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config = config if config is not None else FrankyDriverConfig()
-        self.clock = clock
+        self.wall_clock = wall_clock
         self._franky = import_franky()
         self._model, self._data = load_pinocchio()
         self._robot: Any = None
@@ -117,12 +120,12 @@ class FrankyDriver:
         self._lock = threading.Lock()
         self._period: ImpedanceReference | None = None  # guarded by _lock
         self._period_start = 0.0  # guarded by _lock
-        self._last_send = clock()
+        self._last_send = wall_clock()
         self._errors: list[RobotError] = []  # guarded by _lock
         self._stopped = threading.Event()
         self._halt_lock = threading.Lock()
         self._streamer: threading.Thread | None = None
-        self._robot_time = (-1.0, clock())  # (robot's clock, s; our clock when it changed)
+        self._robot_time = (-1.0, wall_clock())  # (robot's clock, s; wall clock when it changed)
         self.late = 0
         """Periods that started after the previous one had ended (its last sample held)."""
         self.dropped = 0
@@ -150,8 +153,14 @@ class FrankyDriver:
             raise ConnectionError(
                 f"cannot reach the robot at {self.config.host}: {error}"
             ) from error
-        self._robot_time = (-1.0, self.clock())
+        self._robot_time = (-1.0, self.wall_clock())
         self._stopped.clear()
+
+    def clock(self) -> float:
+        """The robot's clock (libfranka's state time), s."""
+        if self._robot is None:
+            raise ConnectionError("not connected to the robot")
+        return float(self._robot.state.time.to_sec())
 
     def limits(self) -> FR3Limits:
         """The FR3's datasheet limits (libfranka does not report them)."""
@@ -174,8 +183,8 @@ class FrankyDriver:
         if self._robot is None or self._stopped.is_set():
             self.refused += 1
             return
+        self._last_send = self.wall_clock()
         now = self.clock()
-        self._last_send = now
         with self._lock:
             previous = self._period
             end = self._period_start + (len(previous.q_ref) * CONTROL_PERIOD_S if previous else 0.0)
@@ -209,7 +218,7 @@ class FrankyDriver:
         self.stop()
         if self._robot is not None:
             self._robot.recover_from_errors()
-        self._last_send = self.clock()
+        self._last_send = self.wall_clock()
         self._stopped.clear()
 
     def close(self) -> None:
@@ -236,7 +245,7 @@ class FrankyDriver:
         """Start franky's tracking motion at the measured position, then the streamer."""
         franky = self._franky
         self._motion = franky.JointImpedanceTrackingMotion(
-            stiffness=reference.kp, damping=reference.kd,
+            stiffness=reference.kp, damping=reference.kd, compensate_coriolis=False,
             gains_time_constant=self.config.gains_time_constant_s,
         )  # fmt: skip
         self._motion.set_reference(franky.JointReference(q=np.asarray(self._robot.state.q)))
@@ -250,19 +259,19 @@ class FrankyDriver:
         while not self._stopped.is_set():
             with self._lock:
                 period, start = self._period, self._period_start
-            now = self.clock()
             state = robot.state
+            robot_time = float(state.time.to_sec())
             q = np.asarray(state.q, dtype=np.float64)
-            q_ref, dq_ref = play_sample(period.q_ref, max(now - start, 0.0))
+            q_ref = play_sample(period.q_ref, max(robot_time - start, 0.0))
             q_ref = torque_bounded(q_ref, q, period.kp, np.minimum(period.tau_limit, FR3.tau_max))
-            error = self._problem(robot, float(state.time.to_sec()), np.asarray(state.dq), now)
+            error = self._problem(robot, robot_time, np.asarray(state.dq), self.wall_clock())
             if error is not None:
                 with self._lock:
                     self._errors.append(error)
                 self._stopped.set()
                 self._halt()
                 return
-            motion.set_reference(franky.JointReference(q=q_ref, dq=dq_ref))
+            motion.set_reference(franky.JointReference(q=q_ref))
             time.sleep(CONTROL_PERIOD_S)
 
     def _problem(
@@ -286,7 +295,7 @@ class FrankyDriver:
     def _check_link(self, robot_time: float) -> None:
         """ConnectionError when the robot's clock has not moved for the link timeout."""
         last, since = self._robot_time
-        now = self.clock()
+        now = self.wall_clock()
         if robot_time != last:
             self._robot_time = (robot_time, now)
         elif now - since > self.config.link_timeout_s:

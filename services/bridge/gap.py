@@ -15,7 +15,10 @@ Our sim executes a command as `VectorEnv.step` does (`BatchPhysics.set_gains` an
 without episodes: the arm alone, every contact other than the arm's own pairs switched off
 (no table, no object), nominal joint dynamics (no randomization). The sim's physics step is
 2.5 ms, so it follows the 1 kHz references by the sample in effect at the middle of each
-step (`at_physics_steps`).
+step (`at_physics_steps`). Both follow the same law, kp (q_ref - q) - kd dq on top of
+gravity compensation (the franky driver sends no reference velocity, for this reason).
+franky-sim's references play on its own clock (`Driver.clock`), which runs below real time
+on a loaded machine: both arms get them at the rate their physics runs.
 """
 
 from __future__ import annotations
@@ -78,8 +81,6 @@ class Run:
     """N commands, each (1, S, J) references at 1 kHz and (1, J) gains."""
     q_sim: np.ndarray
     """(N, J) our sim's joint positions after each step, rad."""
-    q_feedforward: np.ndarray
-    """(N, J) the same with franky's velocity feedforward (`ArmSim.execute`), rad."""
     lowest_z: float
     """Lowest height of any arm body's origin above the base over the run, m (franky-sim's
     floor is at the base)."""
@@ -117,24 +118,12 @@ class ArmSim:
         """Lowest arm body origin above the base, m."""
         return float(self.physics.bind("xpos")[0, self.world.robot_bodies, 2].min())
 
-    def execute(self, command: Command, feedforward: bool = False) -> np.ndarray:
-        """One command (1 kHz references) as `VectorEnv.step` runs it; returns q (J,).
-        `feedforward`: franky's law instead, kp (q_ref - q) + kd (dq_ref - dq) with the
-        franky driver's dq_ref (`velocity_shifted`), a diagnostic the sim itself lacks."""
-        q_ref = velocity_shifted(command) if feedforward else command.q_ref
+    def execute(self, command: Command) -> np.ndarray:
+        """One command (1 kHz references) as `VectorEnv.step` runs it; returns q (J,)."""
         self.physics.set_gains(command.kp, command.kd, command.tau_limit)
         timestep = self.physics.timestep
-        self.physics.step(at_physics_steps(q_ref, CONTROL_PERIOD_S, timestep), 1)
+        self.physics.step(at_physics_steps(command.q_ref, CONTROL_PERIOD_S, timestep), 1)
         return self.q
-
-
-def velocity_shifted(command: Command) -> np.ndarray:
-    """(B, S, J) references q_ref + (kd / kp) dq_ref, dq_ref the samples' difference (the
-    last held at rest, as the franky driver plays them): with them the sim's
-    kp (q_ref - q) - kd dq becomes franky's kp (q_ref - q) + kd (dq_ref - dq)."""
-    q_ref = command.q_ref
-    dq_ref = np.diff(q_ref, axis=1, append=q_ref[:, -1:]) / CONTROL_PERIOD_S  # (B, S, J)
-    return q_ref + (command.kd / np.maximum(command.kp, 1e-9))[:, None, :] * dq_ref
 
 
 def at_physics_steps(q_ref: np.ndarray, sample_period_s: float, timestep: float) -> np.ndarray:
@@ -166,26 +155,7 @@ def plan(q0: np.ndarray, config: GapConfig) -> Run:
         commands.append(command)
         q_sim.append(sim.execute(command))
         lowest = min(lowest, sim.lowest_z())
-    sim.reset(q0)
-    q_feedforward = [sim.execute(command, feedforward=True) for command in commands]
-    return Run(commands, np.array(q_sim), np.array(q_feedforward), float(lowest))
-
-
-class RobotClock:
-    """The robot's own clock, s (libfranka's state time), as the franky driver's clock.
-
-    franky-sim steps its physics in Python and falls behind the wall clock on a loaded
-    machine (0.67x measured on 2 shared cores); the driver plays references on its clock,
-    so on the wall clock franky-sim's arm would see them sped up. On this clock both arms
-    get the references at the rate their physics runs, as a real FR3 would. Reads the
-    driver's robot (no public accessor for the robot's time)."""
-
-    def __init__(self) -> None:
-        self.driver: FrankyDriver | None = None
-
-    def __call__(self) -> float:
-        robot = None if self.driver is None else self.driver._robot
-        return 0.0 if robot is None else float(robot.state.time.to_sec())
+    return Run(commands, np.array(q_sim), float(lowest))
 
 
 def replay(core: BridgeCore, commands: list[Command], period_s: float) -> np.ndarray:
@@ -225,8 +195,6 @@ def report(run: Run, q_franky: np.ndarray, config: GapConfig) -> dict:
         "max_gap_rad": np.abs(gap).max(axis=0).tolist(),
         "rms_tracking_sim_rad": rms(run.q_sim - held).tolist(),
         "rms_tracking_franky_rad": rms(q_franky - held).tolist(),
-        "rms_gap_feedforward_rad": rms(run.q_feedforward - q_franky).tolist(),
-        "rms_tracking_feedforward_rad": rms(run.q_feedforward - held).tolist(),
         "range_sim_rad": np.ptp(run.q_sim, axis=0).tolist(),
         "range_franky_rad": np.ptp(q_franky, axis=0).tolist(),
         "lowest_body_z_m": run.lowest_z,
@@ -236,15 +204,12 @@ def report(run: Run, q_franky: np.ndarray, config: GapConfig) -> dict:
 
 
 def table(numbers: dict) -> str:
-    """The per-joint numbers as a text table, mrad (ff: our sim with franky's velocity
-    feedforward)."""
-    columns = ("rms_gap_rad", "max_gap_rad", "rms_tracking_sim_rad", "rms_tracking_franky_rad",
-               "rms_gap_feedforward_rad")  # fmt: skip
-    lines = ["joint       rms gap  max gap  rms track sim  rms track franky  rms gap ff  (mrad)"]
+    """The per-joint numbers as a text table, mrad."""
+    columns = ("rms_gap_rad", "max_gap_rad", "rms_tracking_sim_rad", "rms_tracking_franky_rad")
+    lines = ["joint       rms gap  max gap  rms track sim  rms track franky  (mrad)"]
     for j, name in enumerate(numbers["joints"]):
         row = [numbers[k][j] * 1e3 for k in columns]
-        lines.append(f"{name:<10} {row[0]:8.2f} {row[1]:8.2f} {row[2]:14.2f} {row[3]:17.2f}"
-                     f" {row[4]:11.2f}")  # fmt: skip
+        lines.append(f"{name:<10} {row[0]:8.2f} {row[1]:8.2f} {row[2]:14.2f} {row[3]:17.2f}")
     return "\n".join(lines)
 
 
@@ -274,16 +239,14 @@ def measure(config: GapConfig) -> tuple[Run, np.ndarray, dict]:
     """Start franky-sim, plan on our sim from its posture, replay on it; the run, franky's
     positions (N, J) and the numbers."""
     with franky_sim() as (host, _):
-        clock = RobotClock()
-        driver = FrankyDriver(FrankyDriverConfig(host=host, realtime="ignore"), clock)
-        clock.driver = driver
+        driver = FrankyDriver(FrankyDriverConfig(host=host, realtime="ignore"))
         core = BridgeCore(driver, config.policy_period_s)
         try:
             q0 = core.read().q
             run = plan(q0, config)
-            started = clock(), time.monotonic()
+            started = driver.clock(), time.monotonic()
             q_franky = replay(core, run.commands, config.policy_period_s)
-            rate = (clock() - started[0]) / (time.monotonic() - started[1])
+            rate = (driver.clock() - started[0]) / (time.monotonic() - started[1])
         finally:
             driver.close()
     numbers = report(run, q_franky, config)

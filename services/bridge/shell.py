@@ -6,8 +6,8 @@ policy period: the sim's fields for B = 1, no privileged block, no object pose e
 `bridge/<w>/event` (SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the
 stream resumes). Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the
 e-stop's latch of `hamnet.safety.estop`): after an error the stream stays stopped until a
-`reset`. Free-running: state k+1 goes out one policy period after state k, whatever the
-commands do; each command is executed when it arrives if it is newer than the last one and
+`reset`. Free-running: state k+1 goes out one policy period of the robot's clock
+(`Driver.clock`) after state k, whatever the commands do; each command is executed when it arrives if it is newer than the last one and
 planned for the current episode (`hamnet.bridge.core`). A command the transport cannot
 decode (non-finite, another sample period or batch) is dropped and counted in health.
 Each executed command is timed from its state's publication: the median and p99 of the
@@ -100,7 +100,8 @@ class BridgeShell:
         )
         log.info("%.0f ms policy period, %d samples per command, reset on %s",
                  1e3 * self.loop.policy_period_s, self.core.samples, self.reset_key)  # fmt: skip
-        last_report = tick = time.monotonic()
+        clock = self.core.driver.clock
+        last_report, tick = time.monotonic(), clock()
         try:
             while self.service.running and not 0 < self.loop.max_steps <= self.step:
                 self._apply_requests()
@@ -108,12 +109,12 @@ class BridgeShell:
                 self._publish_state()
                 self._report_errors()
                 tick += self.loop.policy_period_s
-                while self.service.running and (remaining := tick - time.monotonic()) > 0:
-                    received = self.service.receive(timeout=min(remaining, 0.05))
+                while self.service.running and (remaining := tick - clock()) > 0:
+                    received = self.service.receive(timeout=min(remaining, 0.01))
                     if received is not None:
                         self._execute(received.value)
-                if time.monotonic() - tick > self.loop.policy_period_s:
-                    tick = time.monotonic()  # fell a period behind: do not burst to catch up
+                if clock() - tick > self.loop.policy_period_s:
+                    tick = clock()  # fell a period behind: do not burst to catch up
                 if time.monotonic() - last_report >= self.loop.report_period_s:
                     self._report_latency()
                     log.info("step %d, commands %s, stopped by %s", self.step, self.core.counts,

@@ -18,8 +18,8 @@ from hamnet.sim.commands import hold_command
 def drive(
     core: BridgeCore, steps: int, seed: int = 0, first: int = 0, paced: bool = False
 ) -> list[RobotError]:
-    """`steps` commands from step `first`; `paced`: one per policy period of wall clock (a
-    real-time robot), else as fast as they are made (the fake's virtual time)."""
+    """`steps` commands from step `first`; `paced`: one per policy period of the robot's
+    clock (a real-time robot), else as fast as they are made (the fake's virtual time)."""
     period = core.samples * core.driver.control_period_s
     trajectory = TrajectoryConfig(
         control_rate_hz=1.0 / core.driver.control_period_s, policy_period_s=period
@@ -28,7 +28,8 @@ def drive(
     reading = core.read()
     safety = SafetyFilter(reading.q[None], trajectory=trajectory)
     errors = []
-    tick = time.monotonic()
+    clock = core.driver.clock
+    tick = clock()
     for step in range(first, first + steps):
         reading = core.read()
         action = np.clip(0.7 * rng.standard_normal((1, 21)), -1, 1)
@@ -38,6 +39,7 @@ def drive(
         errors += core.execute(BridgeCommand(step, core.episode_id, command))
         if paced:
             tick += period
-            time.sleep(max(tick - time.monotonic(), 0.0))
+            while clock() < tick:
+                time.sleep(core.driver.control_period_s)
             errors += core.poll()
     return errors

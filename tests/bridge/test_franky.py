@@ -120,10 +120,8 @@ def test_the_check_passes_on_franky_sim(robot: str, capsys) -> None:
 
 def test_samples_play_on_the_robots_clock_and_the_last_is_held() -> None:
     q_ref = np.arange(5.0)[:, None] * np.ones((1, 7))  # (S=5, J): 1 rad per ms
-    q, dq = play_sample(q_ref, 0.0025)
-    assert q[0] == 2.0 and dq[0] == pytest.approx(1000.0)
-    q, dq = play_sample(q_ref, 0.05)
-    assert q[0] == 4.0 and dq[0] == 0.0
+    assert play_sample(q_ref, 0.0025)[0] == 2.0
+    assert play_sample(q_ref, 0.05)[0] == 4.0
 
 
 def test_the_reference_keeps_the_spring_torque_within_the_limit() -> None:
