@@ -22,11 +22,13 @@ with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 `overlap_speedup`, `shares`, `workers_vs_inprocess` (the faster of 1 and 2 workers, both
 reported) and `services_vs_inprocess` (goal >= 0.8).
 
-    .venv/bin/python benchmarks/training.py --quick     # 3 iterations a setup: 4-5 min on 2 cores
-    .venv/bin/python benchmarks/training.py             # 20 iterations a setup: 8-10 min
+    .venv/bin/python benchmarks/training.py --quick     # 16 envs, 2 iterations, 1 worker: under a minute
+    .venv/bin/python benchmarks/training.py             # 64 envs, 20 iterations a setup: 8-10 min
 
-`--quick` is not under a minute: the rollout workers and the four chain services start as
-processes (torch and the networks load in each), which alone takes most of it.
+`--quick` is a smoke run of every setup: 16 environments (rates are lower than with 64, and
+the ratios noisier), 2 measured iterations a setup, and one rollout worker (its
+`workers_2_env_steps_per_s` is null). The process setups' start (torch and the networks
+load in each) is in their unmeasured warm-up iteration.
 """
 
 from __future__ import annotations
@@ -159,10 +161,8 @@ def chain_rate(sim: SimConfig, iterations: int, run_dir: Path, deadline_s: float
     return remote_rate(sim, commands, 1, CHAIN_LAG, iterations, run_dir, deadline_s)
 
 
-def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
-    """Share of a sequential step's wall time in each component."""
-    runner = Runner(config)
-    runner.iterate()
+def component_shares(runner: Runner, iterations: int) -> dict[str, float]:
+    """Share of a sequential step's wall time in each component (`runner`: one group)."""
     seconds: dict[str, float] = defaultdict(float)
     (worker,) = runner.source.workers
     worker.env.step = timed(worker.env.step, seconds, "sim")
@@ -182,9 +182,9 @@ def component_shares(config: RunConfig, iterations: int) -> dict[str, float]:
     return shares
 
 
-def physics_ceiling(config: RunConfig, steps: int) -> float:
+def physics_ceiling(runner: Runner, steps: int) -> float:
     """Env steps/s of raw MuJoCo on the run's world (40 physics steps per policy step)."""
-    env = Runner(config).source.workers[0].env
+    env = runner.source.workers[0].env
     raw = raw_copy(env, nthread=0)
     nstep = env.config.physics_steps_per_sample * env.config.control_samples
     raw.step(nstep=nstep)
@@ -196,26 +196,41 @@ def physics_ceiling(config: RunConfig, steps: int) -> float:
 
 def main() -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="3 iterations a setup (4-5 min)")
-    parser.add_argument("--num-envs", type=int, default=64)
-    parser.add_argument("--chain-deadline-s", type=float, default=180.0,
-                        help="give up on the service chain if its first update takes longer")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="16 environments, 2 iterations a setup, 1 worker (under a minute)",
+    )
+    parser.add_argument(
+        "--num-envs",
+        type=int,
+        default=None,
+        help="environments of a setup (default 64; 16 with --quick)",
+    )
+    parser.add_argument(
+        "--chain-deadline-s",
+        type=float,
+        default=180.0,
+        help="give up on the service chain if its first update takes longer",
+    )
     args = parser.parse_args()
-    iterations = 3 if args.quick else 20
+    num_envs = args.num_envs or (16 if args.quick else 64)
+    iterations = 2 if args.quick else 20
+    worker_counts = (1,) if args.quick else (1, 2)
     with TemporaryDirectory() as run_dir:
-        sim = stage_config("easy", num_envs=args.num_envs)
+        sim = stage_config("easy", num_envs=num_envs)
         config = RunConfig(sim=sim, run_dir=Path(run_dir))
         inprocess, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
         sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False)
-        sequential, _ = loop_rate(sequential_config, iterations)
+        sequential, runner = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
-        shares = component_shares(sequential_config, iterations)
+        shares = component_shares(runner, iterations)
         progress(f"shares of a sequential step: {shares}")
-        ceiling = physics_ceiling(sequential_config, 5 if args.quick else 30)
+        ceiling = physics_ceiling(runner, 5 if args.quick else 30)
         progress(f"physics ceiling: {ceiling:.0f} env steps/s")
         streamed = {}
-        for workers in (1, 2):
+        for workers in worker_counts:
             streamed[workers] = streamed_rate(
                 sim, workers, iterations, Path(run_dir) / f"workers{workers}"
             )
@@ -230,7 +245,7 @@ def main() -> dict:
     return {
         "benchmark": "training",
         "mode": "quick" if args.quick else "full",
-        "num_envs": args.num_envs,
+        "num_envs": num_envs,
         "stage": config.stage,
         "architecture": config.architecture,
         "inprocess_env_steps_per_s": round(inprocess, 1),
@@ -240,14 +255,15 @@ def main() -> dict:
         "inprocess_vs_physics_ceiling": round(inprocess / ceiling, 3),
         "shares": shares,
         "workers_1_env_steps_per_s": round(streamed[1], 1),
-        "workers_2_env_steps_per_s": round(streamed[2], 1),
+        "workers_2_env_steps_per_s": round(streamed[2], 1) if 2 in streamed else None,
         "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),
         "services_env_steps_per_s": None if chain is None else round(chain, 1),
         "services_vs_inprocess": None if services is None else round(services, 3),
         "services_note": f"the chain steps on while the trainer learns: its chunks lag up to "
-                         f"{CHAIN_LAG} versions (the other setups are synchronous)",
-        "not_measured": None if chain is not None else (
-            f"the service chain: no update within {args.chain_deadline_s:.0f} s"),
+        f"{CHAIN_LAG} versions (the other setups are synchronous)",
+        "not_measured": None
+        if chain is not None
+        else (f"the service chain: no update within {args.chain_deadline_s:.0f} s"),
         "goals": {
             "inprocess_vs_physics_ceiling_at_least_0.33": inprocess / ceiling >= 0.33,
             "workers_vs_inprocess_at_least_0.9": max(streamed.values()) / inprocess >= 0.9,

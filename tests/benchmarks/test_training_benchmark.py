@@ -10,8 +10,15 @@ from tests.benchmarks.quick import run_quick
 
 @pytest.mark.slow
 def test_quick_run_ends_with_one_json_line_of_figures() -> None:
-    figures = run_quick("training.py", timeout=300)
+    figures = run_quick("training.py", timeout=120)
     assert figures["benchmark"] == "training" and figures["inprocess_env_steps_per_s"] > 0
-    assert 0 < figures["inprocess_vs_physics_ceiling"] and set(figures["shares"]) >= {"sim", "perception", "policy", "safety", "learner"}
-    assert figures["workers_vs_inprocess"] > 0 and figures["workers_2_env_steps_per_s"] > 0
-    assert figures["services_vs_inprocess"] is None  # not built yet: said, not faked
+    assert 0 < figures["inprocess_vs_physics_ceiling"] and set(figures["shares"]) >= {
+        "sim",
+        "perception",
+        "policy",
+        "safety",
+        "learner",
+    }
+    assert figures["workers_vs_inprocess"] > 0 and figures["workers_1_env_steps_per_s"] > 0
+    assert figures["workers_2_env_steps_per_s"] is None  # --quick measures one worker
+    assert figures["services_vs_inprocess"] > 0 or figures["not_measured"]
