@@ -14,8 +14,8 @@ scene arrives (Zenoh orders messages per key, not across keys, so a scene may fo
 state); meanwhile the sim is asked for its scenes (a service started late missed them). A
 state sent again gets the same answer.
 A state without the privileged object pose (the real bridge) is dropped and counted: the
-object cloud must then come from the depth cameras (`hamnet.perception.cameras`), which have
-no topic in the contract yet.
+object cloud must then come from the depth cameras (`--clouds-from cameras`,
+`hamnet.perception.camera_shell`).
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
         raise PayloadError(
             "missing",
             "RobotState.privileged.object_pose is not set: without the sim's object pose the "
-            "object cloud must come from depth cameras, which have no topic yet",
+            "object cloud must come from depth cameras (hamnet perception --clouds-from cameras)",
         )
     pose = field_array(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
     return StateIn(message.header.run, message.header.step, episode_ids.copy(), pose.copy())
