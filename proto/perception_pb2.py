@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from hamnet.proto import common_pb2 as hamnet_dot_proto_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1dhamnet/proto/perception.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\xda\x02\n\x10PerceptionTokens\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12#\n\x0b\x65pisode_ids\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor\x12$\n\x0cobject_cloud\x18\x03 \x01(\x0b\x32\x0e.hamnet.Tensor\x12)\n\x11\x65nvironment_cloud\x18\x04 \x01(\x0b\x32\x0e.hamnet.Tensor\x12#\n\x0blocal_cloud\x18\x05 \x01(\x0b\x32\x0e.hamnet.Tensor\x12%\n\robject_tokens\x18\x06 \x01(\x0b\x32\x0e.hamnet.Tensor\x12$\n\x0clocal_tokens\x18\x07 \x01(\x0b\x32\x0e.hamnet.Tensor\x12%\n\rglobal_tokens\x18\x08 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x17\n\x0f\x65ncoder_version\x18\t \x01(\x04\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1dhamnet/proto/perception.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\xda\x02\n\x10PerceptionTokens\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12#\n\x0b\x65pisode_ids\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor\x12$\n\x0cobject_cloud\x18\x03 \x01(\x0b\x32\x0e.hamnet.Tensor\x12)\n\x11\x65nvironment_cloud\x18\x04 \x01(\x0b\x32\x0e.hamnet.Tensor\x12#\n\x0blocal_cloud\x18\x05 \x01(\x0b\x32\x0e.hamnet.Tensor\x12%\n\robject_tokens\x18\x06 \x01(\x0b\x32\x0e.hamnet.Tensor\x12$\n\x0clocal_tokens\x18\x07 \x01(\x0b\x32\x0e.hamnet.Tensor\x12%\n\rglobal_tokens\x18\x08 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x17\n\x0f\x65ncoder_version\x18\t \x01(\x04\"R\n\x12ObjectPoseEstimate\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x1c\n\x04pose\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensorb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -34,4 +34,6 @@ if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_PERCEPTIONTOKENS']._serialized_start=69
   _globals['_PERCEPTIONTOKENS']._serialized_end=415
+  _globals['_OBJECTPOSEESTIMATE']._serialized_start=417
+  _globals['_OBJECTPOSEESTIMATE']._serialized_end=499
 # @@protoc_insertion_point(module_scope)

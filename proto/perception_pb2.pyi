@@ -27,3 +27,11 @@ class PerceptionTokens(_message.Message):
     global_tokens: _common_pb2.Tensor
     encoder_version: int
     def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_cloud: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., environment_cloud: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., local_cloud: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_tokens: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., local_tokens: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., global_tokens: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., encoder_version: _Optional[int] = ...) -> None: ...
+
+class ObjectPoseEstimate(_message.Message):
+    __slots__ = ("header", "pose")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    POSE_FIELD_NUMBER: _ClassVar[int]
+    header: _common_pb2.Header
+    pose: _common_pb2.Tensor
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...

@@ -182,13 +182,15 @@ def encode_state(
     episode_id: int,
     episode_step: int,
     goal_pose: np.ndarray,
+    object_pose: np.ndarray | None = None,
 ) -> RobotState:
-    """RobotState k of one robot, as the sim publishes it but with no privileged block and
-    no object pose estimate (no estimator runs yet).
+    """RobotState k of one robot, as the sim publishes it but with no privileged block.
 
     Args:
         reading: the measured state; step: k; episode_id, episode_step: the episode's.
         goal_pose: (7,) the object's goal: position (m) and quaternion wxyz.
+        object_pose: (7,) the object pose estimate, the same layout; None leaves the field
+            out (a student policy then answers nothing, and safety holds the arm).
     """
     message = RobotState(header=Header(step=step))
     to_tensor(np.array([episode_id], dtype=np.int64), message.episode_ids)  # (1,)
@@ -198,4 +200,6 @@ def encode_state(
     ee_pose = ee_pose_9d(reading.ee_position, reading.ee_rotation)[None]  # (1, 9)
     to_tensor(ee_pose.astype(np.float32), message.ee_pose)
     to_tensor(np.asarray(goal_pose, dtype=np.float32)[None], message.goal_pose)  # (1, 7)
+    if object_pose is not None:
+        to_tensor(np.asarray(object_pose, dtype=np.float32)[None], message.object_pose_estimate)
     return message

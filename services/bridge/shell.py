@@ -4,7 +4,10 @@ Consumes `safety/<w>/command` (SafeCommand k: references at the driver's control
 one policy period long, for one robot). Produces `sim/<w>/state` (RobotState, once per
 policy period: the sim's fields for B = 1, no privileged block, no object pose estimate) and
 `bridge/<w>/event` (SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the
-stream resumes). Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the
+stream resumes). Consumes `perception/<w>/object_pose` too (ObjectPoseEstimate from the
+depth-camera path): the newest estimate at most `--pose-max-age-steps` states old goes into
+each state's `object_pose_estimate`; without one the field is left out, a student policy
+answers nothing and safety holds the arm. Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the
 e-stop's latch of `hamnet.safety.estop`): after an error the stream stays stopped until a
 `reset`. Free-running: state k+1 goes out one policy period of the robot's clock
 (`Driver.clock`) after state k, whatever the commands do; each command is executed when it arrives if it is newer than the last one and
@@ -26,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.proto.perception_pb2 import ObjectPoseEstimate
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
@@ -47,6 +51,7 @@ STATE = contract.topic("sim/<w>/state")
 COMMAND = contract.topic("safety/<w>/command")
 EVENT = contract.topic("bridge/<w>/event")
 RESET = contract.topic("bridge/<w>/reset")
+POSE = contract.topic("perception/<w>/object_pose")
 
 
 @dataclass(frozen=True)
@@ -60,6 +65,8 @@ class LoopConfig:
     goal_pose: tuple[float, float, float, float, float, float, float] = (
         0.5, 0.0, 0.05, 1.0, 0.0, 0.0, 0.0)  # fmt: skip
     """The object's goal published in every state: position (m), quaternion wxyz."""
+    pose_max_age_steps: int = 5
+    """Oldest object pose estimate put in a state, in states (its frames' state to this one)."""
     max_steps: int = 0
     """Exit after this many states (0: run until stopped)."""
     report_period_s: float = 10.0
@@ -68,6 +75,8 @@ class LoopConfig:
     def __post_init__(self) -> None:
         if self.max_steps < 0:
             raise ConfigError(f"--max-steps must be >= 0, got {self.max_steps}")
+        if self.pose_max_age_steps < 1:
+            raise ConfigError(f"--pose-max-age-steps must be >= 1, got {self.pose_max_age_steps}")
 
 
 class BridgeShell:
@@ -79,6 +88,7 @@ class BridgeShell:
         decoder = functools.partial(_decode_command_payload, samples=core.samples,
                                     control_dt=core.driver.control_period_s)  # fmt: skip
         service.inbox.subscribe("command", COMMAND.key(ns, w=w), decoder=decoder)
+        service.inbox.subscribe("pose", POSE.key(ns, w=w), decoder=_decode_pose)
         self.state = service.publisher(STATE.key(ns, w=w))
         self.event = service.publisher(EVENT.key(ns, w=w))
         self.reset_key = RESET.key(ns, w=w)
@@ -87,6 +97,8 @@ class BridgeShell:
         self.episode_step = 0
         self.reported: tuple = ()
         """The errors already published as events."""
+        self.object_pose: tuple[int, np.ndarray] | None = None
+        """The newest object pose estimate: (step of its frames, (7,) pose)."""
         self.published: dict[int, float] = {}
         """When each recent state went out (step -> monotonic s), to time its command."""
         self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
@@ -111,7 +123,9 @@ class BridgeShell:
                 tick += self.loop.policy_period_s
                 while self.service.running and (remaining := tick - clock()) > 0:
                     received = self.service.receive(timeout=min(remaining, 0.01))
-                    if received is not None:
+                    if received is not None and received.name == "pose":
+                        self.object_pose = received.value
+                    elif received is not None:
                         self._execute(received.value)
                 if clock() - tick > self.loop.policy_period_s:
                     tick = clock()  # fell a period behind: do not burst to catch up
@@ -132,7 +146,15 @@ class BridgeShell:
         if reading is None:
             return  # no link: no state (safety holds its last answer)
         goal = np.array(self.loop.goal_pose)
-        message = encode_state(reading, self.step, self.core.episode_id, self.episode_step, goal)
+        pose = None
+        if (
+            self.object_pose is not None
+            and self.step - self.object_pose[0] <= self.loop.pose_max_age_steps
+        ):
+            pose = self.object_pose[1]
+        message = encode_state(
+            reading, self.step, self.core.episode_id, self.episode_step, goal, pose
+        )
         self.state.put(message)
         self.published[self.step] = time.monotonic()
         self.published.pop(self.step - LATENCY_HORIZON, None)
@@ -189,3 +211,8 @@ def _decode_command_payload(
     if message.HasField("episode_ids"):
         episode = int(from_tensor(message.episode_ids, np.int64, (1,))[0])
     return BridgeCommand(step, episode, command)
+
+
+def _decode_pose(key: str, payload: bytes) -> tuple[int, np.ndarray]:
+    message = parse(ObjectPoseEstimate, payload)
+    return message.header.step, from_tensor(message.pose, np.float32, (1, 7))[0].copy()

@@ -9,10 +9,11 @@ pool points nearest 64 FPS keypoints of the object cloud, `clouds.local_cloud`);
 cloud is resampled to P. Everything is re-encoded each frame: the cameras see the scene
 change as the arm moves and the object as it is pushed.
 
-What cameras cannot give (docs/cameras.md): the object's own frame. The sim path encodes
-the object cloud in the object's frame; here it is centred on its centroid, axes of the
-world, since no pose estimate exists on the real setup yet (the paper uses FoundationPose).
-No noise or dropout is added: the cameras bring their own.
+The object's frame: the sim path encodes the object cloud in the object's frame; here the
+frame is the pose estimated from the object cloud itself (`object_pose.estimate_pose`: the
+centroid and a yaw from the cloud's principal axis; the paper tracks the pose with
+FoundationPose), which also goes to the robot's state through the bridge. No noise or
+dropout is added: the cameras bring their own.
 """
 
 from __future__ import annotations
@@ -24,8 +25,10 @@ from hamnet.perception.cameras import DepthView, resample
 from hamnet.perception.clouds import farthest_point_sample, gather, local_cloud
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Percepts
+from hamnet.perception.object_pose import estimate_pose
 from hamnet.perception.segmenters import Segmenter
 from hamnet.perception.unicorn import UniCORN
+from hamnet.sim.quaternion import to_matrix
 
 
 class NothingSeen(ValueError):
@@ -54,8 +57,9 @@ class CameraPerception:
         self.rng = np.random.default_rng(seed)
 
     @torch.no_grad()
-    def percepts(self, views: list[DepthView]) -> Percepts:
-        """The clouds (1, P, 3), world frame, m, and tokens (1, 1 + K, D) of one frame time.
+    def percepts(self, views: list[DepthView]) -> tuple[Percepts, np.ndarray]:
+        """The clouds (1, P, 3), world frame, m, and tokens (1, 1 + K, D) of one frame time,
+        and the object's estimated pose (7,): position (m), quaternion wxyz.
 
         Raises:
             NothingSeen: the segmenter found no object or no scene points.
@@ -72,8 +76,11 @@ class CameraPerception:
         environment = pool[:, : config.num_points]
         keypoints = gather(obj, farthest_point_sample(obj, config.num_keypoints))  # (1, K, 3)
         local = local_cloud(pool, keypoints, config.num_points)
-        centred = obj - obj.mean(1, keepdim=True)  # no pose estimate: the centroid's frame
+        pose = estimate_pose(object_points)
+        rotation = tensor(to_matrix(pose[3:]))  # (1, 3, 3)
+        in_object_frame = (obj - tensor(pose[None, :3])) @ rotation  # R^T (p - c), row-wise
         object_tokens, local_tokens, global_tokens = self.encoder(
-            torch.cat([centred, local, environment])
+            torch.cat([in_object_frame, local, environment])
         ).split(1)
-        return Percepts(obj, environment, local, object_tokens, local_tokens, global_tokens)
+        percepts = Percepts(obj, environment, local, object_tokens, local_tokens, global_tokens)
+        return percepts, pose

@@ -5,7 +5,9 @@ Consumes `camera/<w>/frames` (DepthFrames of the robot's cameras, `hamnet camera
 `sim/<w>/state` (RobotState of one robot, B = 1: the bridge, or a one-environment sim;
 only its step, run and episode id are read, so no privileged block is needed). Produces
 `perception/<w>/tokens` (PerceptionTokens with the state's step and episode id), the
-message the policy pairs with the state, as the sim path (`shell.PerceptionShell`) does.
+message the policy pairs with the state, as the sim path (`shell.PerceptionShell`) does,
+and `perception/<w>/object_pose` (ObjectPoseEstimate with the state's step: the object pose
+estimated from the same frames, which the bridge puts in its next states).
 
 Each state is answered from the newest frames received (frames come at the cameras' rate,
 states at the policy's); frames are processed only when a state needs them and newer ones
@@ -28,18 +30,19 @@ from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
 from hamnet.perception.shell import ShellConfig, encode_tokens
 from hamnet.proto.camera_pb2 import DepthFrames
-from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.proto.perception_pb2 import ObjectPoseEstimate, PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import field_array
+from hamnet.runtime.tensor import field_array, to_tensor
 
 log = logging.getLogger(__name__)
 
 STATE = contract.topic("sim/<w>/state")
 FRAMES = contract.topic("camera/<w>/frames")
 TOKENS = contract.topic("perception/<w>/tokens")
+POSE = contract.topic("perception/<w>/object_pose")
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,14 @@ def decode_step(message: RobotState) -> StepIn:
     return StepIn(message.header.run, message.header.step, episode_ids.copy())
 
 
+def encode_pose(pose: np.ndarray, step: int) -> ObjectPoseEstimate:
+    """ObjectPoseEstimate of one robot's object (pose (7,)) for state `step`."""
+    message = ObjectPoseEstimate()
+    message.header.step = step
+    to_tensor(pose.astype(np.float32)[None], message.pose)  # (1, 7)
+    return message
+
+
 class CameraPerceptionShell:
     """One perception worker answering states from depth frames."""
 
@@ -73,10 +84,11 @@ class CameraPerceptionShell:
         service.inbox.subscribe("frames", FRAMES.key(ns, w=w), decoder=self._decode_frames)
         service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
         self.tokens = service.publisher(TOKENS.key(ns, w=w))
+        self.pose = service.publisher(POSE.key(ns, w=w))
         self.frames: list[DepthView] | None = None
         """The newest frames not processed yet."""
-        self.percepts: Percepts | None = None
-        """Clouds and tokens of the newest frames that showed an object."""
+        self.percepts: tuple[Percepts, np.ndarray] | None = None
+        """Clouds, tokens and object pose (7,) of the newest frames that showed an object."""
         self.waiting: StepIn | None = None
         self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
         self.counts = dict.fromkeys(
@@ -120,8 +132,10 @@ class CameraPerceptionShell:
             self.counts["waiting_for_frames"] += 1
             self.waiting = state
             return
-        message = encode_tokens(self.percepts, state.step, state.episode_ids, self.version)
+        percepts, pose = self.percepts
+        message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
+        self.pose.put(encode_pose(pose, state.step))
         self.answered = ((state.run, state.step), message)
         self.counts["published"] += 1
         self.seconds.append(time.perf_counter() - started)

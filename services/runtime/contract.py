@@ -13,7 +13,15 @@ from functools import lru_cache
 
 from google.protobuf.message import Message
 
-from hamnet.proto import camera_pb2, health_pb2, perception_pb2, policy_pb2, safety_pb2, sim_pb2, trainer_pb2
+from hamnet.proto import (
+    camera_pb2,
+    health_pb2,
+    perception_pb2,
+    policy_pb2,
+    safety_pb2,
+    sim_pb2,
+    trainer_pb2,
+)
 from hamnet.runtime import keys
 
 _PLACEHOLDER = re.compile(r"<(\w+)>")
@@ -90,6 +98,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("sim/<w>/transition", sim_pb2.Transition, "sim or bridge", "every policy step"),
     Topic("camera/<w>/frames", camera_pb2.DepthFrames, "camera", "every camera frame"),
     Topic("perception/<w>/tokens", perception_pb2.PerceptionTokens, "perception", "every policy step"),
+    Topic("perception/<w>/object_pose", perception_pb2.ObjectPoseEstimate, "perception (--clouds-from cameras)",
+          "every policy step"),
     Topic("policy/<w>/action", policy_pb2.PolicyAction, "policy", "every policy step", finite=False),
     Topic("safety/<w>/command", safety_pb2.SafeCommand, "safety", "every policy step"),
     Topic("safety/<w>/event", safety_pb2.SafetyEvent, "safety", "when a stage clips, rejects or stops"),

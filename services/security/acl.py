@@ -4,10 +4,10 @@ contract: who may publish (or answer for) which keys, by certificate common name
 Every identity named after a `hamnet` command (and `operator`) may subscribe to everything
 and publish the open topics; only `safety` may publish commands, only `trainer` weights and
 the step counter (schedule), only `camera` depth frames (perception's view of the
-world), and only `operator` may use the e-stop (which `safety` serves)
+world), only `perception` the object pose estimate, and only `operator` may use the e-stop (which `safety` serves)
 and the bridge's reset. The real robot's `bridge` may only publish the robot's topics
 (state, scene, transition) and its own events, serve its reset, and subscribe to safety's
-commands; any other name gets nothing. Zenoh applies the rules where
+commands and perception's object pose estimate; any other name gets nothing. Zenoh applies the rules where
 a link ends, so they belong on the router every service joins as a client
 (`compose/secure/`, docs/security.md). `python -m hamnet.security.acl` prints the router's
 JSON5 config.
@@ -37,6 +37,7 @@ OWNERS: dict[str, str] = {
     "trainer/schedule": "trainer",
     "bridge/<w>/event": "bridge",
     "camera/<w>/frames": "camera",
+    "perception/<w>/object_pose": "perception",
 }
 """Topics one identity alone may publish; everyone may still read (and query) them."""
 
@@ -53,8 +54,9 @@ BRIDGE = "bridge"
 ROBOT = ("sim/<w>/state", "sim/<w>/scene", "sim/<w>/transition")
 """What the real robot's bridge (issue 17) may publish, or answer queries on: the robot's
 topics, which it publishes in place of the sim; and its own health and liveliness token."""
-BRIDGE_HEARS = "safety/<w>/command"
-"""The one topic the bridge may subscribe to: the commands only safety may publish."""
+BRIDGE_HEARS = ("safety/<w>/command", "perception/<w>/object_pose")
+"""What the bridge may subscribe to: the commands only safety may publish, and the object
+pose estimate only perception may publish (it goes into the robot's state)."""
 BOOKKEEPING = ("health/<service>/<w>", "alive/<service>/<w>")
 """Every service's own health reports and liveliness token."""
 
@@ -77,7 +79,7 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
     Returns:
         A dict for the `access_control` key of a Zenoh config (default deny).
     """
-    for path in (*OWNERS, *SERVED, *ROBOT, BRIDGE_HEARS, *BOOKKEEPING):
+    for path in (*OWNERS, *SERVED, *ROBOT, *BRIDGE_HEARS, *BOOKKEEPING):
         contract.topic(path)  # a renamed topic must fail here, not open a hole
     open_keys = [t.pattern_in(namespace) for t in contract.TOPICS
                  if t.path not in OWNERS and t.path not in SERVED]  # fmt: skip
@@ -96,7 +98,7 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
         _rule("publish the robot", PUBLISH,
               [*(contract.topic(path).pattern_in(namespace) for path in ROBOT), health]),
         _rule("hear safety", ("declare_subscriber",),
-              [contract.topic(BRIDGE_HEARS).pattern_in(namespace)]),
+              [contract.topic(path).pattern_in(namespace) for path in BRIDGE_HEARS]),
         _rule("announce the bridge", ("liveliness_token",), [alive]),
     ]  # fmt: skip
     identities = sorted({*OWNERS.values(), *SERVED.values(), REQUESTER, BRIDGE})

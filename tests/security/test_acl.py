@@ -55,7 +55,8 @@ def test_secure_stack_file_is_valid() -> None:
 
 def test_the_bridge_publishes_the_robot_and_hears_only_safety() -> None:
     """The real robot's bridge (issue 17) may publish the robot's topics, its own health and
-    events, serve its reset, and subscribe to safety's commands only; it is not a member, which may do more. (A real
+    events, serve its reset, and subscribe to safety's commands and perception's object pose
+    estimate only (each published by its owner alone); it is not a member, which may do more. (A real
     router with these rules: tests/security/test_secure_stack.py.)"""
     acl = stack_acl()
     rules = {rule["id"]: rule for rule in acl["rules"]}
@@ -71,7 +72,8 @@ def test_the_bridge_publishes_the_robot_and_hears_only_safety() -> None:
         "hamnet/*/sim/*/state", "hamnet/*/sim/*/scene", "hamnet/*/sim/*/transition",
         "hamnet/*/health/bridge/*", "hamnet/*/bridge/*/event", "hamnet/*/bridge/*/reset"}  # fmt: skip
     assert keys_of({"declare_subscriber", "declare_liveliness_subscriber", "query",
-                    "liveliness_query"}) == {"hamnet/*/safety/*/command"}  # fmt: skip
+                    "liveliness_query"}) == {"hamnet/*/safety/*/command",
+                                             "hamnet/*/perception/*/object_pose"}  # fmt: skip
     assert keys_of({"liveliness_token"}) == {"hamnet/*/alive/bridge/*"}
     member = next(s for s in acl["subjects"] if s["id"] == MEMBER)["cert_common_names"]
     assert "bridge" not in member and {"sim", "safety", "trainer", "up", "operator"} <= set(member)
