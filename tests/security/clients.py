@@ -3,12 +3,16 @@ the legitimate parties and the intruders of the attack tests."""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import zenoh
 
 from hamnet.runtime import contract
+from hamnet.runtime.codec import decode
 from hamnet.runtime.transport import TransportConfig, open_session
+from tests.stack.up import Up
 
 
 class Clients:
@@ -37,3 +41,31 @@ class Clients:
     def close(self) -> None:
         for session in self.sessions:
             session.close()
+
+
+class Running(Clients):
+    """A secure stack under `hamnet up`, and clients of its router."""
+
+    def __init__(
+        self, run: Up, certs: Path, namespace: str, endpoint: str, deadline_s: float = 60.0
+    ) -> None:
+        super().__init__(certs, namespace, endpoint)
+        self.run = run
+        self.deadline_s = deadline_s
+        """Generous bound for anything to happen (the machine is shared with training runs)."""
+
+    def collect(self, path: str, kind: type, identity: str = "monitor") -> list:
+        """Every message published on topic `path` from now on, decoded, as it arrives."""
+        received: list = []
+        session = self.client(identity)
+        session.declare_subscriber(self.key(path),
+                                   lambda s: received.append(decode(kind, s.payload.to_bytes())))  # fmt: skip
+        return received
+
+    def wait(self, condition: Callable[[], bool], what: str) -> None:
+        """Wait until `condition()` holds, while the stack runs."""
+        deadline = time.monotonic() + self.deadline_s
+        while not condition():
+            assert self.run.process.poll() is None, f"hamnet up ended:\n{self.run.output[-3000:]}"
+            assert time.monotonic() < deadline, f"never: {what}\n{self.run.output[-3000:]}"
+            time.sleep(0.1)

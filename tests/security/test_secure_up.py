@@ -16,9 +16,8 @@ from __future__ import annotations
 import os
 import signal
 import threading
-import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -38,13 +37,10 @@ from hamnet.security.certs import issue
 from hamnet.security.certs_cli import main as certs
 from hamnet.sim.config import SimConfig
 from tests.policy.wire import announcement
-from tests.security.clients import Clients
-from tests.stack.up import Up, up
+from tests.security.clients import Running
+from tests.stack.up import up
 
 SECURE = Path(__file__).resolve().parents[2] / "compose" / "secure"
-DEADLINE_S = 60.0
-"""Generous bound for anything to happen (the machine is shared with training runs)."""
-
 NUM_ENVS = 2
 SERVICES = {
     "sim": {"args": {"num-envs": NUM_ENVS, "report-period-s": 5}},
@@ -56,30 +52,6 @@ SERVICES = {
 are left out: the test plays the trainer)."""
 
 FORGED_VERSION = 10**18
-
-
-class Running(Clients):
-    """The secure stack under `hamnet up`, and clients of its router."""
-
-    def __init__(self, run: Up, certs: Path, namespace: str, endpoint: str) -> None:
-        super().__init__(certs, namespace, endpoint)
-        self.run = run
-
-    def collect(self, path: str, kind: type, identity: str = "monitor") -> list:
-        """Every message published on topic `path` from now on, decoded, as it arrives."""
-        received: list = []
-        session = self.client(identity)
-        session.declare_subscriber(self.key(path),
-                                   lambda s: received.append(decode(kind, s.payload.to_bytes())))  # fmt: skip
-        return received
-
-    def wait(self, condition: Callable[[], bool], what: str) -> None:
-        """Wait until `condition()` holds, while the stack runs."""
-        deadline = time.monotonic() + DEADLINE_S
-        while not condition():
-            assert self.run.process.poll() is None, f"hamnet up ended:\n{self.run.output[-3000:]}"
-            assert time.monotonic() < deadline, f"never: {what}\n{self.run.output[-3000:]}"
-            time.sleep(0.1)
 
 
 @pytest.fixture(scope="module")
