@@ -43,6 +43,11 @@ class Topic:
     """Whether every floating-point tensor must be finite (receivers drop it otherwise)."""
     queryable: bool = False
     """Served by a Zenoh queryable (asked with `get`, answered in JSON text), not published."""
+    lossless: bool = False
+    """Publishers block instead of dropping when the link is congested: large messages that
+    must arrive (weights, rollouts). Control topics drop: a late state or command is stale.
+    (With eclipse-zenoh 1.10.2 a 13 MB put under congestion control `drop` was lost while
+    another client flooded the router.)"""
 
     @property
     def template(self) -> str:
@@ -106,11 +111,13 @@ TOPICS: tuple[Topic, ...] = (
     Topic("safety/<w>/estop", None, "safety", "queryable: stop, reset, status", queryable=True),
     Topic("bridge/<w>/event", safety_pb2.SafetyEvent, "bridge", "when the robot raises an error or is reset"),
     Topic("bridge/<w>/reset", None, "bridge", "queryable: stop, reset, status", queryable=True),
-    Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, "trainer", "after each update"),
+    Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, "trainer", "after each update", lossless=True),
     Topic("trainer/schedule", trainer_pb2.Schedule, "trainer", "after each update"),
     Topic("trainer/metrics", trainer_pb2.Metrics, "trainer", "after each update"),
-    Topic("trainer/<w>/rollout", trainer_pb2.RolloutChunk, "rollout worker or policy (service chain)", "every rollout"),
-    Topic("trainer/<w>/demonstrations", trainer_pb2.RolloutChunk, "rollout worker (--algo dagger)", "every rollout"),
+    Topic("trainer/<w>/rollout", trainer_pb2.RolloutChunk, "rollout worker or policy (service chain)", "every rollout",
+          lossless=True),
+    Topic("trainer/<w>/demonstrations", trainer_pb2.RolloutChunk, "rollout worker (--algo dagger)", "every rollout",
+          lossless=True),
     Topic("health/<service>/<w>", health_pb2.Health, "every service", "every second"),
     Topic("alive/<service>/<w>", None, "every service", "while running"),
 )

@@ -27,6 +27,7 @@ from typing import Any, Generic, TypeVar
 import zenoh
 from google.protobuf.message import Message
 
+from hamnet.runtime import contract
 from hamnet.runtime.codec import decode, encode
 from hamnet.runtime.tensor import PayloadError
 
@@ -127,7 +128,7 @@ class Inbox:
         if decoder is None:
             if message_type is None:
                 raise ValueError("subscribe needs a message_type or a decoder")
-            decoder = lambda key, payload, mt=message_type: decode(mt, payload, finite)  # noqa: E731
+            decoder = lambda key, payload, mt=message_type: decode(mt, payload, finite)
         subscription = _Subscription(name, decoder)
         origin = zenoh.Locality.REMOTE if remote_only else zenoh.Locality.ANY
         subscription.handle = self._session.declare_subscriber(
@@ -229,10 +230,15 @@ class Publisher:
     """Publishes protobuf messages on one key, stamping their header."""
 
     def __init__(self, session: zenoh.Session, key: str, source: str) -> None:
+        """A publisher of `key`; it blocks rather than drops under congestion when the
+        contract says the topic is lossless."""
         self.key = key
         self.source = source
         self.published = 0
-        self._publisher = session.declare_publisher(key)
+        topic = contract.match_key(key)
+        block = topic is not None and topic.lossless
+        congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+        self._publisher = session.declare_publisher(key, congestion_control=congestion)
 
     def put(self, message: Message) -> None:
         """Encode and publish; fills `header.source`, `header.stamp_ns` and `header.run`

@@ -180,3 +180,13 @@ def test_watched_tokens_come_and_go_in_order_with_the_messages(sessions, transpo
     assert sorted(names) == [("alive", False), ("state", None)]
     with pytest.raises(ValueError, match="catch_up"):
         inbox.catch_up("alive", key)
+
+
+def test_publishers_of_lossless_topics_block_and_the_others_drop(sessions, transport) -> None:
+    """Weights and rollouts must arrive whole; a late state or command is stale anyway."""
+    session, _ = sessions
+    ns = transport.namespace
+    weights = Publisher(session, contract.topic("trainer/weights").key(ns), "trainer")
+    state = Publisher(session, contract.topic("sim/<w>/state").key(ns, w="0"), "sim/0")
+    assert weights._publisher.congestion_control == zenoh.CongestionControl.BLOCK
+    assert state._publisher.congestion_control == zenoh.CongestionControl.DROP

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+import zenoh
 
 from hamnet.fr3.limits import FR3
 from hamnet.policy.registry import build
@@ -132,7 +133,8 @@ def test_forged_weights_are_never_served_and_the_trainer_is_still_heard(stack: R
         intruder.put(weights, forged)
         seen = len(actions)
         stack.wait(lambda: len(actions) >= seen + 100, "100 actions while the intruder forges")
-        trainer.put(weights, genuine)
+        # blocking, as the trainer's publisher of this lossless topic does (contract.Topic)
+        trainer.put(weights, genuine, congestion_control=zenoh.CongestionControl.BLOCK)
         stack.wait(lambda: actions[-1].header.policy_version == 1, "the trainer's version served")
         seen = len(actions)
         stack.wait(lambda: len(actions) >= seen + 20, "20 actions more")
