@@ -9,16 +9,18 @@ message the policy pairs with the state, as the sim path (`shell.PerceptionShell
 and `perception/<w>/object_pose` (ObjectPoseEstimate with the state's step: the object pose
 estimated from the same frames, which the bridge puts in its next states).
 
-Each state is answered from the newest frames received (frames come at the cameras' rate,
-states at the policy's); frames are processed only when a state needs them and newer ones
-arrived. A state that comes before any usable frame waits (counted as `waiting_for_frames`)
-and is answered when one arrives. Frames that show no object are counted (`nothing_seen`)
-and skipped: the state waits for the next frames. A state sent again gets the same answer.
+Frames are processed as they arrive, on a thread of their own (at the cameras' rate; a
+backlog is skipped to the newest; open3d and torch release the GIL), so that a state (at
+the policy's rate) is answered at once from the newest percepts: the fusion and the encoder
+stay off the path from state to command. A state that comes before any usable frame waits
+(counted as `waiting_for_frames`) and is answered when one is processed. Frames that show
+no object are counted (`nothing_seen`) and skipped. A state sent again gets the same answer.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from dataclasses import dataclass
 
@@ -86,9 +88,11 @@ class CameraPerceptionShell:
         self.tokens = service.publisher(TOKENS.key(ns, w=w))
         self.pose = service.publisher(POSE.key(ns, w=w))
         self.frames: list[DepthView] | None = None
-        """The newest frames not processed yet."""
+        """The newest frames not processed yet (guarded by `changed`)."""
         self.percepts: tuple[Percepts, np.ndarray] | None = None
-        """Clouds, tokens and object pose (7,) of the newest frames that showed an object."""
+        """Clouds, tokens and object pose (7,) of the newest frames that showed an object
+        (guarded by `changed`)."""
+        self.changed = threading.Condition()
         self.waiting: StepIn | None = None
         self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
         self.counts = dict.fromkeys(
@@ -102,43 +106,63 @@ class CameraPerceptionShell:
         log.info(
             "clouds from camera frames; encoder version %d on %s", self.version, self.core.device
         )
-        while self.service.running:
-            received = self.service.receive(timeout=0.1)
-            if received is not None:
-                if received.name == "frames":
-                    self.frames = received.value
-                    if self.waiting is not None:
-                        state, self.waiting = self.waiting, None
-                        self._on_state(state)
-                else:
+        worker = threading.Thread(target=self._process_frames, name="frames", daemon=True)
+        worker.start()
+        try:
+            while self.service.running:
+                received = self.service.receive(timeout=0.01)
+                if received is not None and received.name == "frames":
+                    with self.changed:
+                        self.frames = received.value
+                        self.changed.notify()
+                elif received is not None:
                     self._on_state(received.value)
-            self._report()
+                elif self.waiting is not None and self.percepts is not None:
+                    state, self.waiting = self.waiting, None
+                    self._on_state(state)
+                self._report()
+        finally:
+            with self.changed:
+                self.changed.notify()
+            worker.join()
         return 0
+
+    def _process_frames(self) -> None:
+        """Percepts of the newest frames, one frame set after the other, until stopped."""
+        while self.service.running:
+            with self.changed:
+                self.changed.wait_for(lambda: self.frames is not None or not self.service.running)
+                frames, self.frames = self.frames, None
+            if frames is None:
+                continue
+            started = time.perf_counter()
+            try:
+                percepts = self.core.percepts(frames)
+            except NothingSeen as error:
+                self.counts["nothing_seen"] += 1
+                log.debug("frames skipped: %s", error)
+                continue
+            with self.changed:
+                self.percepts = percepts
+            self.seconds.append(time.perf_counter() - started)
 
     def _on_state(self, state: StepIn) -> None:
         if self.answered is not None and self.answered[0] == (state.run, state.step):
             self.tokens.put(self.answered[1])
             self.counts["repeated"] += 1
             return
-        started = time.perf_counter()
-        if self.frames is not None:
-            frames, self.frames = self.frames, None
-            try:
-                self.percepts = self.core.percepts(frames)
-            except NothingSeen as error:
-                self.counts["nothing_seen"] += 1
-                log.debug("frames skipped: %s", error)
-        if self.percepts is None:
+        with self.changed:
+            latest = self.percepts
+        if latest is None:
             self.counts["waiting_for_frames"] += 1
             self.waiting = state
             return
-        percepts, pose = self.percepts
+        percepts, pose = latest
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
         self.pose.put(encode_pose(pose, state.step))
         self.answered = ((state.run, state.step), message)
         self.counts["published"] += 1
-        self.seconds.append(time.perf_counter() - started)
 
     def _report(self) -> None:
         now = time.monotonic()
@@ -147,7 +171,7 @@ class CameraPerceptionShell:
             return
         c = self.counts
         median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
-        log.info("%.1f token messages/s, median %.1f ms per step, %d repeated, %d states waiting for "
+        log.info("%.1f token messages/s, median %.1f ms per frame set, %d repeated, %d states waiting for "
                  "frames, %d frames without an object", c["published"] / elapsed, median, c["repeated"],
                  c["waiting_for_frames"], c["nothing_seen"])  # fmt: skip
         self.counts = dict.fromkeys(self.counts, 0)
