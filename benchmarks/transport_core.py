@@ -85,7 +85,9 @@ class _LoopbackSession:
         self.callback = callback
         return SimpleNamespace(undeclare=lambda: None)
 
-    def declare_publisher(self, key_expr: str) -> SimpleNamespace:
+    def declare_publisher(
+        self, key_expr: str, congestion_control: zenoh.CongestionControl | None = None
+    ) -> SimpleNamespace:
         return SimpleNamespace(put=lambda payload: None, undeclare=lambda: None)
 
 

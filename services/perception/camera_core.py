@@ -24,7 +24,7 @@ import torch
 from hamnet.perception.cameras import DepthView, resample
 from hamnet.perception.clouds import farthest_point_sample, gather, local_cloud
 from hamnet.perception.config import CloudConfig
-from hamnet.perception.core import Percepts
+from hamnet.perception.core import Percepts, encoder_for
 from hamnet.perception.object_pose import estimate_pose
 from hamnet.perception.segmenters import Segmenter
 from hamnet.perception.unicorn import UniCORN
@@ -47,12 +47,8 @@ class CameraPerception:
         seed: int = 0,
     ) -> None:
         self.config = config = config if config is not None else CloudConfig()
-        if encoder.config.num_points != config.num_points:
-            raise ValueError(
-                f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}"
-            )
         self.device = torch.device(device)
-        self.encoder = encoder.to(self.device).eval()
+        self.encoder = encoder_for(encoder, config, self.device)
         self.segmenter = segmenter
         self.rng = np.random.default_rng(seed)
 

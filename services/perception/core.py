@@ -110,6 +110,13 @@ class Percepts:
     global_tokens: torch.Tensor  # (B, 1 + K, D)
 
 
+def encoder_for(encoder: UniCORN, config: CloudConfig, device: torch.device) -> UniCORN:
+    """`encoder` on `device` for inference, checked to take clouds of `config`'s size."""
+    if encoder.config.num_points != config.num_points:
+        raise ValueError(f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}")
+    return encoder.to(device).eval()
+
+
 class Perception:
     """Clouds and UniCORN tokens for B environments, with per-episode caches."""
 
@@ -122,10 +129,8 @@ class Perception:
         seed: int = 0,
     ) -> None:
         self.config = config = config if config is not None else CloudConfig()
-        if encoder.config.num_points != config.num_points:
-            raise ValueError(f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}")
         self.device = torch.device(device)
-        self.encoder = encoder.to(self.device).eval()
+        self.encoder = encoder_for(encoder, config, self.device)
         self.generator = torch.Generator(self.device).manual_seed(seed)
         b, p, s, d = num_envs, config.num_points, config.scene_pool, encoder.config.width
         n, k = encoder.config.num_tokens, config.num_keypoints
