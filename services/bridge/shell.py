@@ -37,7 +37,7 @@ from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import from_tensor
 from hamnet.safety.estop import EStop, on_query
-from hamnet.safety.shell import encode_event
+from hamnet.safety.messages import encode_event
 from hamnet.sim.shell import decode_command
 
 log = logging.getLogger(__name__)

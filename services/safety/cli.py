@@ -1,5 +1,6 @@
 """`hamnet safety`: the safety filter between policy and robot over Zenoh, with the watchdog
-and the e-stop queryable (see `hamnet.safety.shell` for the topics and the timing).
+and the e-stop queryable (see `hamnet.safety.shell` for the topics, `hamnet.safety.supervisor`
+for the timing).
 
 `--profile` picks the stage switches for a use (training, finetune, deploy: see
 `hamnet.safety.config.with_profile`; deploy, the full chain with Ruckig, by default). Stages
@@ -17,7 +18,8 @@ from typing import Annotated
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.safety.config import Profile, SafetyConfig, with_profile
-from hamnet.safety.shell import SafetyShell, ShellConfig
+from hamnet.safety.shell import SafetyShell
+from hamnet.safety.supervisor import ShellConfig
 from hamnet.safety.trajectory import TrajectoryConfig
 
 

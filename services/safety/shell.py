@@ -9,64 +9,33 @@ requires) and `safety/<w>/event` (SafetyEvent: rejections, rate-limited clip eve
 watchdog and e-stop events, and per-stage statistics every `stats_period_s` with kind
 SAFETY_EVENT_KIND_UNSPECIFIED). Serves the queryable `safety/<w>/estop`: `stop` latches a
 stop, `reset` releases it, `status` reports; each answer is a JSON object.
-
-State k waits for action k (an action is used only for the state it answers) up to
-`watchdog_s` after the oldest state still unanswered (a real-time executor sends newer
-states meanwhile; each replaces the one waiting). Without it the watchdog brakes every
-environment (one WATCHDOG_STOP event) and every later state is answered at once with the
-brake, until an action arrives again (any step: the policy is alive), when the filter
-resumes from the measured joint positions and the next state waits for its action again.
-While the e-stop is latched, actions are ignored and every state gets the brake. Braking
-commands are paced at about the policy period (`BRAKE_PACE`), so a lock-step sim stays near
-real time while no policy drives it.
 One mode per message: STOP when every environment is stopping, else TRACK.
-A state of another run of the sim (`Header.run`: the sim restarted) starts every
-environment's episode afresh in the filter (a new sim may reuse the old episode ids) and
-forgets the old run's answer and action; a state implausibly far ahead of the newest one
-(`hamnet.runtime.freshness`) is dropped, so a forged step cannot supersede the real one.
+
+Which state waits for which action, the watchdog, braking pace, the e-stop's effect and a
+restarted sim are the supervisor's (`hamnet.safety.supervisor`); this shell only decodes,
+hands over and publishes, on the wall clock.
 """
 
 from __future__ import annotations
 
 import logging
-import time
-from dataclasses import dataclass
 
-import numpy as np
-
-from hamnet.fr3.limits import ACTION_DIM
-from hamnet.fr3.limits import NUM_JOINTS as J
-from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
-from hamnet.proto.safety_pb2 import (
-    CommandMode,
-    SafeCommand,
-    SafetyEvent,
-    SafetyEventKind,
-)
-from hamnet.proto.safety_pb2 import (
-    StageStats as StageStatsMessage,
-)
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
-from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop, on_query
-from hamnet.safety.filter import SafeOutput, SafetyFilter
-from hamnet.safety.pipeline import FilterResult
-from hamnet.safety.stages import Rejection
-from hamnet.safety.stats import (
-    StageReport,
-    StageStats,
-    StatsAccumulator,
-    empty_stats,
-    merge,
-    summarize,
+from hamnet.safety.messages import (
+    decode_action,
+    decode_schedule,
+    decode_state,
+    encode_command,
+    encode_notice,
 )
+from hamnet.safety.supervisor import ActionIn, Command, Notice, ShellConfig, StateIn, Supervisor
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
@@ -78,200 +47,9 @@ COMMAND = contract.topic("safety/<w>/command")
 EVENT = contract.topic("safety/<w>/event")
 ESTOP = contract.topic("safety/<w>/estop")
 
-CLIP_KINDS = {
-    "action_magnitude": SafetyEventKind.CLIPPED_MAGNITUDE,
-    "cartesian_clip": SafetyEventKind.CLIPPED_CARTESIAN,
-    "joint_limits": SafetyEventKind.CLIPPED_JOINT_LIMIT,
-    "torque_preclip": SafetyEventKind.CLIPPED_TORQUE,
-}
-"""Stages whose clipping becomes an event (the EMA smooths every step: statistics only)."""
-
-REJECTIONS = {
-    Rejection.NONFINITE: (SafetyEventKind.REJECTED_NONFINITE, "the action holds NaN or Inf"),
-    Rejection.SHAPE: (SafetyEventKind.REJECTED_SHAPE, f"the action is not (B, {ACTION_DIM})"),
-    Rejection.STATE: (SafetyEventKind.REJECTED_NONFINITE, "the robot state holds NaN or Inf"),
-    Rejection.EPISODE: (SafetyEventKind.REJECTED_EPISODE, "the action was computed for an "
-                        "episode that has ended (the environment was reset)"),
-}
-"""Event kind and reason of each rejection code of stage 1."""
-
-BRAKE_PACE = 0.9
-"""While stopped, states are answered at once but at most one per this share of the policy
-period: a lock-step sim would otherwise run flat out while the arm is held, and a real-time
-executor sends one state per period anyway (the 10% absorbs its jitter)."""
-
-
-# --- decode / encode: pure functions, tested without a session -------------------------
-
-
-@dataclass(frozen=True)
-class StateIn:
-    """What the filter needs of RobotState k."""
-
-    run: int
-    """The sim's run, `header.run`."""
-    step: int
-    """k, `header.step`."""
-    q: np.ndarray
-    """(B, J) measured joint positions, rad."""
-    dq: np.ndarray
-    """(B, J) measured joint velocities, rad/s."""
-    episode_ids: np.ndarray
-    """(B,) int64."""
-    episode_step: np.ndarray
-    """(B,) policy steps since each episode started (0: it starts in this state)."""
-
-
-def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
-    """RobotState k as arrays; `num_envs` None accepts any batch size.
-
-    Raises:
-        PayloadError: `missing`, `dtype`, `shape` (batch or joint count), `nonfinite`.
-    """
-    q = field_array(message, "q", None, (num_envs, J)).astype(np.float64)  # (B, J)
-    b = len(q)
-    dq = field_array(message, "dq", None, (b, J)).astype(np.float64)  # (B, J)
-    for name in ("episode_ids", "episode_step"):
-        if not message.HasField(name):
-            raise PayloadError("missing", f"RobotState.{name} is not set")
-    episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
-    episode_step = from_tensor(message.episode_step, np.int32, (b,))
-    return StateIn(
-        message.header.run, message.header.step, q, dq, episode_ids.copy(), episode_step.copy()
-    )
-
-
-@dataclass(frozen=True)
-class ActionIn:
-    """What the filter needs of PolicyAction k."""
-
-    step: int
-    """k: the state step the action was computed for."""
-    action: np.ndarray
-    """Raw action, (B, 21) expected; NaN, Inf and any shape pass (stage 1 rejects them)."""
-    episode_ids: np.ndarray | None
-    """(N,) int64 episodes the action was computed for; None when the policy sent none."""
-
-    def stale(self, state: StateIn) -> np.ndarray | None:
-        """(B,) rows computed for another episode than the state's, or None (unchecked)."""
-        if self.episode_ids is None or self.episode_ids.shape != state.episode_ids.shape:
-            return None  # a wrong batch is rejected whole by stage 1 (shape)
-        return self.episode_ids != state.episode_ids
-
-
-def decode_action(message: PolicyAction) -> ActionIn:
-    """The step, raw action and episode ids of a PolicyAction. NaN, Inf and any shape of
-    the action pass: stage 1 of the core rejects them and the rejection becomes an event.
-
-    Raises:
-        PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
-    """
-    if not message.HasField("action"):
-        raise PayloadError("missing", "PolicyAction.action is not set")
-    action = from_tensor(message.action, np.float32, None, finite=False)  # (B, 21) expected
-    episode_ids = None
-    if message.HasField("episode_ids"):
-        episode_ids = from_tensor(message.episode_ids, np.int64, (None,))  # (B,)
-    return ActionIn(message.header.step, action, episode_ids)
-
-
-def decode_schedule(message: Schedule) -> int:
-    """The trainer's env_transitions counter, which the annealing of xi and eps_x follows."""
-    return int(message.env_transitions)
-
-
-def command_mode(output: SafeOutput) -> CommandMode.ValueType:
-    """STOP when every environment is braking or holding (watchdog, e-stop); HOLD when every
-    environment's action was rejected (each holds its last safe target); else TRACK. The
-    mode sums up the batch: per-environment rejections and stops are in the events."""
-    if output.stopping.all():
-        return CommandMode.STOP
-    if output.filtered is not None and (output.filtered.reason != Rejection.ACCEPTED).all():
-        return CommandMode.HOLD
-    return CommandMode.TRACK
-
-
-def encode_command(
-    output: SafeOutput, step: int, episode_ids: np.ndarray, control_dt: float
-) -> SafeCommand:
-    """SafeCommand k: references (B, S, J) and gains (B, J) in float64, control_dt in s."""
-    message = SafeCommand(
-        header=Header(step=step), mode=command_mode(output), control_dt=control_dt
-    )
-    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
-    for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):  # (B, S, J) x2, (B, J) x3
-        to_tensor(np.asarray(getattr(output, name), dtype=np.float64), getattr(message, name))
-    return message
-
-
-def encode_event(
-    kind: SafetyEventKind.ValueType,
-    step: int,
-    env_ids: np.ndarray | None = None,
-    stage: str = "",
-    reason: str = "",
-    stats: tuple[StageStats, ...] = (),
-) -> SafetyEvent:
-    """One SafetyEvent at state step `step`, about environments `env_ids` (K,)."""
-    message = SafetyEvent(header=Header(step=step), kind=kind, stage=stage, reason=reason)
-    if env_ids is not None:
-        to_tensor(np.asarray(env_ids, dtype=np.int32), message.env_ids)  # (K,)
-    message.stages.extend(
-        StageStatsMessage(stage=s.stage, commands=s.commands, clipped=s.clipped,
-                          mean_excess=s.mean_excess, max_excess=s.max_excess)
-        for s in stats
-    )  # fmt: skip
-    return message
-
-
-def rejection_events(filtered: FilterResult, step: int) -> list[SafetyEvent]:
-    """One event per rejection reason present in a filter call."""
-    events = []
-    for code, (kind, reason) in REJECTIONS.items():
-        env_ids = np.flatnonzero(filtered.reason == code)  # (K,)
-        if len(env_ids):
-            events.append(encode_event(kind, step, env_ids, "nonfinite_guard", reason))
-    return events
-
-
-def episode_starts(state: StateIn, previous_ids: np.ndarray | None) -> np.ndarray:
-    """(K,) environments whose episode starts in this state: step 0 or a new episode id."""
-    new = state.episode_step == 0  # (B,)
-    if previous_ids is not None:
-        new |= state.episode_ids != previous_ids
-    return np.flatnonzero(new)
-
-
-# --- the e-stop ----------------------------------------------------------------------------
-
-
-# --- the loop ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ShellConfig:
-    """Batch size, watchdog and reporting of the shell."""
-
-    num_envs: int = 0
-    """B, environments per state; 0 takes it from the first state."""
-    watchdog_s: float = 0.3
-    """Longest wait for the action of a state, s; then every environment brakes to rest."""
-    clip_event_period_s: float = 1.0
-    """At most one clip event per stage this often, s (it counts what happened since)."""
-    stats_period_s: float = 5.0
-    """Seconds between per-stage statistics events."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
-
-    def __post_init__(self) -> None:
-        if self.num_envs < 0:
-            raise ValueError(f"num_envs must be >= 0, got {self.num_envs}")
-        if not self.watchdog_s > 0.0:
-            raise ValueError(f"watchdog_s must be > 0, got {self.watchdog_s}")
-
 
 class SafetyShell:
-    """One safety worker on the network: the filter, the pending state, watchdog and e-stop."""
+    """One safety worker on the network: the supervisor between its topics and the e-stop."""
 
     def __init__(
         self,
@@ -280,11 +58,10 @@ class SafetyShell:
         safety: SafetyConfig | None = None,
         trajectory: TrajectoryConfig | None = None,
     ) -> None:
-        self.service, self.config = service, config if config is not None else ShellConfig()
-        self.safety = safety if safety is not None else SafetyConfig()
-        self.trajectory = trajectory if trajectory is not None else TrajectoryConfig()
+        self.service = service
+        self.estop = EStop()
+        self.core = Supervisor(self._put, config, safety, trajectory, self.estop)
         ns, w = service.namespace, service.identity.worker
-        self.num_envs: int | None = self.config.num_envs or None
         inbox = service.inbox
         inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state_payload)
         inbox.subscribe("action", ACTION.key(ns, w=w), decoder=_decode_action_payload)
@@ -292,296 +69,56 @@ class SafetyShell:
         self.command = service.publisher(COMMAND.key(ns, w=w))
         self.event = service.publisher(EVENT.key(ns, w=w))
         self.estop_key = ESTOP.key(ns, w=w)
-        self.estop = EStop()
-        self.filter: SafetyFilter | None = None
-        self.env_transitions = 0
-        self.latest: StateIn | None = None
-        """The newest state received."""
-        self.pending: StateIn | None = None
-        """A state waiting for its action, with `deadline` (time.monotonic())."""
-        self.deadline = 0.0
-        self.received_at = 0.0
-        """When the pending state arrived (time.monotonic())."""
-        self.brake_at = 0.0
-        """While stopped: when the pending state gets its brake (paced, see BRAKE_PACE)."""
-        self.last_command_at = -np.inf
-        """When the last command was published (time.monotonic())."""
-        self.action: ActionIn | None = None
-        self.policy_heard = False
-        """Whether any action has arrived yet (before that, a stop is the expected wait for
-        a policy still starting, not a policy gone silent)."""
-        """The newest action not used yet."""
-        self.stopped_by: str | None = None
-        """None (following the policy), "watchdog" or "estop"."""
-        self.answered: tuple[int, SafeCommand] | None = None
-        """The last command sent, republished when the sim sends its state again."""
-        self.stats = StatsAccumulator()
-        self.clips: dict[str, tuple[StageStats, np.ndarray]] = {}
-        """Per clip stage: stats and (B,) clipped environments since its last event."""
-        self.last_clip_event: dict[str, float] = {}
-        self.counts: dict[str, int] = dict.fromkeys(
-            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog",
-             "restarts", "implausible"), 0
-        )
-        self.watermark = Watermark()
-        """The sim's run and its newest state: a restart is followed, a step implausibly
-        far ahead is dropped."""
-        self.latencies: list[float] = []
-        """State received -> command published, s, since the last rate line."""
-        now = time.monotonic()
-        self._last_stats = self._last_report = now
 
     @property
-    def period(self) -> float:
-        """The policy period, s."""
-        return self.trajectory.policy_period_s
+    def env_transitions(self) -> int:
+        """The trainer's newest env_transitions, which the annealing follows."""
+        return self.core.env_transitions
 
     @property
     def control_dt(self) -> float:
         """Duration of one reference sample, s."""
-        return self.trajectory.control_period_s
+        return self.core.trajectory.control_period_s
 
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
+        core = self.core
         queryable = self.service.session.declare_queryable(
             self.estop_key, lambda query: on_query(self.estop, query)
         )
         log.info("watchdog %.2f s, %d samples of %.4f s per policy period, e-stop on %s",
-                 self.config.watchdog_s, self.trajectory.samples_per_period, self.control_dt,
+                 core.config.watchdog_s, core.trajectory.samples_per_period, self.control_dt,
                  self.estop_key)  # fmt: skip
         try:
             while self.service.running:
-                self._apply_estop()
-                due = self._due()
-                timeout = 0.05 if due is None else min(0.05, max(due - time.monotonic(), 0.0))
+                core.apply_estop()
+                due = core.due()
+                timeout = 0.05 if due is None else min(0.05, max(due - core.clock(), 0.0))
                 received = self.service.receive(timeout=timeout)
                 if received is not None:
                     self._handle(received.name, received.value, received.received_ns)
-                self._check_watchdog()
-                self._answer()
-                self._periodic()
+                core.tick()
         finally:
             queryable.undeclare()
         return 0
 
     def _handle(self, name: str, value, received_ns: int) -> None:
         if name == "schedule":
-            self.env_transitions = value
+            self.core.env_transitions = value
         elif name == "action":
-            self._on_action(value)
+            self.core.on_action(value)
+        else:  # received_ns is time.monotonic_ns(), the supervisor's clock; 0 when unknown
+            self.core.on_state(value, received_ns / 1e9 if received_ns else None)
+
+    def _put(self, item: Command | Notice) -> None:
+        if isinstance(item, Command):
+            message = encode_command(item.output, item.step, item.episode_ids, self.control_dt)
+            self.command.put(message)
         else:
-            self._on_state(value, received_ns)
-
-    # --- inputs ---------------------------------------------------------------------------
-
-    def _due(self) -> float | None:
-        """When the pending state must be acted on (time.monotonic()): the watchdog's
-        deadline, or the next brake while stopped; None without a pending state."""
-        if self.pending is None:
-            return None
-        return self.deadline if self.stopped_by is None else self.brake_at
-
-    def _on_state(self, state: StateIn, received_ns: int) -> None:
-        verdict = self.watermark.judge(state.run, state.step)
-        if verdict is Verdict.IMPLAUSIBLE:
-            self.counts["implausible"] += 1  # a forged or corrupt step must not supersede
-            return
-        if verdict is Verdict.RESTART and self.watermark.restart(state.run):
-            self._follow_new_run(state)
-        self.watermark.advance(state.step)
-        # The sim sends a state again while it waits for its command.
-        if self.pending is not None and self.pending.step == state.step:
-            return  # still waiting: the first arrival's deadline holds
-        if self.answered is not None and self.answered[0] == state.step and self.pending is None:
-            self.command.put(self.answered[1])  # answered already: the same answer again
-            return
-        if self.filter is None:
-            self.num_envs = len(state.q)
-            self.filter = SafetyFilter(state.q, self.safety, self.trajectory)
-            log.info("%d environments, first state %d", self.num_envs, state.step)
-            if self.stopped_by is not None:  # e-stop latched before the first state
-                self.filter.stop(np.arange(self.num_envs))
-        else:
-            self._start_episodes(state)
-        now = time.monotonic()
-        received = min(received_ns / 1e9 if received_ns else now, now)
-        if self.pending is None:
-            self.deadline = received + self.config.watchdog_s
-        else:  # a real-time executor moved on: the wait runs from the oldest unanswered state
-            self.counts["superseded"] += 1
-        self.latest, self.pending, self.received_at = state, state, received
-        self.brake_at = max(self.received_at, self.last_command_at + BRAKE_PACE * self.period)
-        self._answer()
-
-    def _follow_new_run(self, state: StateIn) -> None:
-        """The sim restarted: nothing of its old run applies to the new one."""
-        log.warning("the sim restarted (another run) at step %d: every episode starts afresh",
-                    state.step)  # fmt: skip
-        self.counts["restarts"] += 1
-        self.answered, self.pending, self.action = None, None, None
-        if self.filter is not None and len(state.q) == self.num_envs:
-            every = np.arange(self.num_envs)
-            self.filter.start_episodes(every, state.q)
-            if self.stopped_by is not None:  # a restart does not lift a stop
-                self.filter.stop(every)
-
-    def _start_episodes(self, state: StateIn) -> None:
-        previous = self.latest.episode_ids if self.latest is not None else None
-        env_ids = episode_starts(state, previous)  # (K,)
-        if len(env_ids):
-            self.filter.start_episodes(env_ids, state.q[env_ids])
-            if self.stopped_by is not None:  # a new episode does not lift a stop
-                self.filter.stop(env_ids)
-
-    def _on_action(self, action: ActionIn) -> None:
-        self.policy_heard = True
-        if self.estop.latched:
-            self.counts["ignored"] += 1
-            return
-        if self.latest is not None and action.step < self.latest.step:
-            self.counts["stale"] += 1
-        if self.stopped_by == "watchdog" and self.latest is not None:
-            self._resume("actions arrive again")
-        self.action = action
-        self._answer()
-
-    def _apply_estop(self) -> None:
-        for request in self.estop.take():
-            step = self.latest.step if self.latest is not None else 0
-            if request == "stop":
-                log.warning("e-stop latched at step %d: braking every environment", step)
-                self.stopped_by = "estop"
-                if self.filter is not None:
-                    self.filter.stop(np.arange(self.num_envs))
-                self._event(SafetyEventKind.ESTOP_LATCHED, step, "e-stop", "stop requested")
-            elif request == "reset" and self.stopped_by == "estop":
-                self._resume("e-stop reset")
-                self._event(SafetyEventKind.ESTOP_RESET, step, "e-stop", "reset requested")
-        self.estop.status = {"step": self.latest.step if self.latest is not None else None,
-                             "stopped_by": self.stopped_by}  # fmt: skip
-        self._answer()
-
-    def _resume(self, why: str) -> None:
-        """Follow the policy again, from rest at the latest measured joint positions."""
-        log.info("%s at step %d: resuming from the measured joint positions", why,
-                 self.latest.step if self.latest is not None else 0)  # fmt: skip
-        self.stopped_by = None
-        if self.filter is not None:
-            self.filter.resume(np.arange(self.num_envs), self.latest.q)
-        if self.pending is not None:  # its wait starts now
-            self.deadline = time.monotonic() + self.config.watchdog_s
-
-    # --- outputs --------------------------------------------------------------------------
-
-    def _answer(self) -> None:
-        """Answer the pending state if its action is here, or brake if stopped."""
-        state = self.pending
-        if state is None:
-            return
-        if self.stopped_by is not None:
-            if time.monotonic() >= self.brake_at:
-                self._publish(self.filter.brake(state.q, state.dq), state)
-            return
-        if self.action is None or self.action.step != state.step:
-            return
-        action, self.action = self.action, None
-        output = self.filter.command(
-            action.action, state.q, state.dq, self.env_transitions, action.stale(state)
-        )
-        self._publish(output, state)
-        self._account(output.filtered, state.step)
-
-    def _check_watchdog(self) -> None:
-        if self.pending is None or self.stopped_by is not None:
-            return
-        if time.monotonic() < self.deadline:
-            return
-        step = self.pending.step
-        if self.policy_heard:
-            log.warning("no action for state %d within %.2f s: braking every environment", step,
-                        self.config.watchdog_s)  # fmt: skip
-        else:
-            log.info("no action from the policy yet (state %d): holding every environment until "
-                     "its first action", step)  # fmt: skip
-        self.stopped_by = "watchdog"
-        self.counts["watchdog"] += 1
-        self.filter.stop(np.arange(self.num_envs))
-        reason = f"no action within {self.config.watchdog_s} s of state {step}"
-        self._event(SafetyEventKind.WATCHDOG_STOP, step, "watchdog", reason)
-        self.brake_at = time.monotonic()  # this state waited long enough
-        self._answer()
-
-    def _publish(self, output: SafeOutput, state: StateIn) -> None:
-        message = encode_command(output, state.step, state.episode_ids, self.control_dt)
-        self.command.put(message)
-        self.answered, self.pending = (state.step, message), None
-        self.last_command_at = time.monotonic()
-        self.counts["braked" if output.filtered is None else "tracked"] += 1
-        self.latencies.append(time.monotonic() - self.received_at)
-
-    def _event(self, kind, step: int, stage: str, reason: str, env_ids=None, stats=()) -> None:
-        if env_ids is None:
-            env_ids = np.arange(self.num_envs or 0)
-        self.event.put(encode_event(kind, step, env_ids, stage, reason, tuple(stats)))
-
-    def _account(self, filtered: FilterResult, step: int) -> None:
-        """Statistics, rejection events and (rate-limited) clip events of one command."""
-        self.stats.add(filtered.reports)
-        for event in rejection_events(filtered, step):
-            self.event.put(event)
-        self.counts["rejected"] += int(filtered.rejected.sum())
-        for report in filtered.reports:
-            if report.stage in CLIP_KINDS:
-                self._clip_event(report, step)
-
-    def _clip_event(self, report: StageReport, step: int) -> None:
-        """Count one clip stage's report; publish its event when it clipped and one is due."""
-        stage = report.stage
-        stats, envs = self.clips.get(stage, (empty_stats(stage), report.clipped))
-        stats, envs = merge(stats, summarize(report)), envs | report.clipped  # (B,)
-        self.clips[stage] = (stats, envs)
-        now = time.monotonic()
-        last = self.last_clip_event.get(stage, -np.inf)
-        if not stats.clipped or now - last < self.config.clip_event_period_s:
-            return
-        reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
-                  f"largest excess {stats.max_excess:.4g}")  # fmt: skip
-        self._event(CLIP_KINDS[stage], step, stage, reason, np.flatnonzero(envs), (stats,))
-        self.last_clip_event[stage] = now
-        del self.clips[stage]
-
-    def _periodic(self) -> None:
-        """Statistics event and rate line when due."""
-        now = time.monotonic()
-        step = self.latest.step if self.latest is not None else 0
-        if now - self._last_stats >= self.config.stats_period_s:
-            summary = self.stats.summary()
-            if any(s.commands for s in summary):
-                reason = f"statistics over {now - self._last_stats:.1f} s"
-                self._event(SafetyEventKind.SAFETY_EVENT_KIND_UNSPECIFIED, step, "", reason,
-                            stats=summary)  # fmt: skip
-            self.stats.reset()
-            self._last_stats = now
-        elapsed = now - self._last_report
-        if elapsed >= self.config.report_period_s:
-            c = self.counts
-            latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
-            log.info(
-                "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
-                "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, %d sim restarts, %d implausible states, stopped by %s, "
-                "%d env transitions",
-                (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
-                c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                c["restarts"], c["implausible"], self.stopped_by or "nothing",
-                self.env_transitions,
-            )  # fmt: skip
-            self.counts = dict.fromkeys(self.counts, 0)
-            self.latencies.clear()
-            self._last_report = now
+            self.event.put(encode_notice(item))
 
     def _decode_state_payload(self, key: str, payload: bytes) -> StateIn:
-        return decode_state(parse(RobotState, payload), self.num_envs)
+        return decode_state(parse(RobotState, payload), self.core.num_envs)
 
 
 def _decode_action_payload(key: str, payload: bytes) -> ActionIn:

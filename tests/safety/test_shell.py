@@ -22,20 +22,19 @@ from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode, parse
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafetyFilter
-from hamnet.safety.shell import (
-    EStop,
-    SafetyShell,
-    ShellConfig,
+from hamnet.safety.messages import (
     decode_action,
     decode_schedule,
     decode_state,
     encode_command,
     encode_event,
-    episode_starts,
     rejection_events,
 )
+from hamnet.safety.shell import SafetyShell
 from hamnet.safety.stats import StageStats
+from hamnet.safety.supervisor import ShellConfig, episode_starts
 from hamnet.sim.shell import decode_command
 from tests.scripted import ScriptedService, wire
 
@@ -61,7 +60,6 @@ def policy_action(step: int, action: np.ndarray) -> PolicyAction:
     message = PolicyAction(header=Header(step=step))
     to_tensor(np.asarray(action, np.float32), message.action)  # (B, 21)
     return message
-
 
 
 # --- decode / encode ---------------------------------------------------------------------
@@ -334,7 +332,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
         return lambda: holder[0].estop.request(command) and None
 
     hooks = {2: request("stop"), 5: request("reset")}
-    act = lambda step: np.zeros((B, 21), np.float32)  # noqa: E731
+    act = lambda step: np.zeros((B, 21), np.float32)
     service = scripted(sim_script(act, last=6, hooks=hooks))
     shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
     holder.append(shell)
@@ -351,7 +349,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
 
 
 def test_statistics_event_carries_every_stage() -> None:
-    act = lambda step: np.full((B, 21), 5.0, np.float32)  # noqa: E731  saturating actions
+    act = lambda step: np.full((B, 21), 5.0, np.float32)
     service = scripted(sim_script(act, last=3))
     config = ShellConfig(num_envs=B, watchdog_s=5.0, stats_period_s=0.0)
     SafetyShell(service, config).run()

@@ -1,0 +1,121 @@
+"""The safety service's messages and the supervisor's inputs and outputs: pure decode and
+encode functions, tested without a session.
+
+Decodes RobotState (`StateIn`), PolicyAction (`ActionIn`: non-finite values pass, so that
+the filter's stage 1 rejects them and the rejection becomes an event) and Schedule; encodes
+the supervisor's commands as SafeCommand and its notices as SafetyEvent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEvent, SafetyEventKind
+from hamnet.proto.safety_pb2 import StageStats as StageStatsMessage
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.proto.trainer_pb2 import Schedule
+from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
+from hamnet.safety.filter import SafeOutput
+from hamnet.safety.pipeline import FilterResult
+from hamnet.safety.stages import Rejection
+from hamnet.safety.stats import StageStats
+from hamnet.safety.supervisor import ActionIn, Notice, StateIn, rejections
+
+
+def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
+    """RobotState k as arrays; `num_envs` None accepts any batch size.
+
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (batch or joint count), `nonfinite`.
+    """
+    q = field_array(message, "q", None, (num_envs, J)).astype(np.float64)  # (B, J)
+    b = len(q)
+    dq = field_array(message, "dq", None, (b, J)).astype(np.float64)  # (B, J)
+    for name in ("episode_ids", "episode_step"):
+        if not message.HasField(name):
+            raise PayloadError("missing", f"RobotState.{name} is not set")
+    episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
+    episode_step = from_tensor(message.episode_step, np.int32, (b,))
+    return StateIn(
+        message.header.run, message.header.step, q, dq, episode_ids.copy(), episode_step.copy()
+    )
+
+
+def decode_action(message: PolicyAction) -> ActionIn:
+    """The step, raw action and episode ids of a PolicyAction. NaN, Inf and any shape of
+    the action pass: stage 1 of the core rejects them and the rejection becomes an event.
+
+    Raises:
+        PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
+    """
+    if not message.HasField("action"):
+        raise PayloadError("missing", "PolicyAction.action is not set")
+    action = from_tensor(message.action, np.float32, None, finite=False)  # (B, 21) expected
+    episode_ids = None
+    if message.HasField("episode_ids"):
+        episode_ids = from_tensor(message.episode_ids, np.int64, (None,))  # (B,)
+    return ActionIn(message.header.step, action, episode_ids)
+
+
+def decode_schedule(message: Schedule) -> int:
+    """The trainer's env_transitions counter, which the annealing of xi and eps_x follows."""
+    return int(message.env_transitions)
+
+
+def command_mode(output: SafeOutput) -> CommandMode.ValueType:
+    """STOP when every environment is braking or holding (watchdog, e-stop); HOLD when every
+    environment's action was rejected (each holds its last safe target); else TRACK. The
+    mode sums up the batch: per-environment rejections and stops are in the events."""
+    if output.stopping.all():
+        return CommandMode.STOP
+    if output.filtered is not None and (output.filtered.reason != Rejection.ACCEPTED).all():
+        return CommandMode.HOLD
+    return CommandMode.TRACK
+
+
+def encode_command(
+    output: SafeOutput, step: int, episode_ids: np.ndarray, control_dt: float
+) -> SafeCommand:
+    """SafeCommand k: references (B, S, J) and gains (B, J) in float64, control_dt in s."""
+    message = SafeCommand(
+        header=Header(step=step), mode=command_mode(output), control_dt=control_dt
+    )
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
+    for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):  # (B, S, J) x2, (B, J) x3
+        to_tensor(np.asarray(getattr(output, name), dtype=np.float64), getattr(message, name))
+    return message
+
+
+def encode_event(
+    kind: SafetyEventKind.ValueType,
+    step: int,
+    env_ids: np.ndarray | None = None,
+    stage: str = "",
+    reason: str = "",
+    stats: tuple[StageStats, ...] = (),
+) -> SafetyEvent:
+    """One SafetyEvent at state step `step`, about environments `env_ids` (K,)."""
+    message = SafetyEvent(header=Header(step=step), kind=kind, stage=stage, reason=reason)
+    if env_ids is not None:
+        to_tensor(np.asarray(env_ids, dtype=np.int32), message.env_ids)  # (K,)
+    message.stages.extend(
+        StageStatsMessage(stage=s.stage, commands=s.commands, clipped=s.clipped,
+                          mean_excess=s.mean_excess, max_excess=s.max_excess)
+        for s in stats
+    )  # fmt: skip
+    return message
+
+
+def encode_notice(notice: Notice) -> SafetyEvent:
+    """The supervisor's notice as its SafetyEvent."""
+    kind = SafetyEventKind.Value(notice.kind)
+    return encode_event(kind, notice.step, notice.env_ids, notice.stage, notice.reason,
+                        notice.stats)  # fmt: skip
+
+
+def rejection_events(filtered: FilterResult, step: int) -> list[SafetyEvent]:
+    """One event per rejection reason present in a filter call."""
+    return [encode_notice(notice) for notice in rejections(filtered, step)]
