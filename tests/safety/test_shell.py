@@ -349,7 +349,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
 
 
 def test_statistics_event_carries_every_stage() -> None:
-    act = lambda step: np.full((B, 21), 5.0, np.float32)
+    act = lambda step: np.full((B, 21), 5.0, np.float32)  # saturating actions
     service = scripted(sim_script(act, last=3))
     config = ShellConfig(num_envs=B, watchdog_s=5.0, stats_period_s=0.0)
     SafetyShell(service, config).run()
