@@ -10,10 +10,11 @@ import pytest
 import torch
 
 from hamnet.policy.chunking import ChunkAssembler
+from hamnet.policy.messages import decode_transition
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import Observation
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyShell, ShellConfig, decode_transition
+from hamnet.policy.shell import PolicyShell, ShellConfig
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import torch
 
+from hamnet.policy.messages import decode_state, decode_tokens
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import assemble
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyShell, ShellConfig, decode_state, decode_tokens
+from hamnet.policy.shell import PolicyShell, ShellConfig
 from hamnet.policy.weights import to_bytes
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
@@ -194,6 +195,6 @@ def test_a_student_against_the_sim_sees_a_noisy_pose_unless_told_otherwise() -> 
     messages = [("state", state_message(0, B)), ("tokens", tokens_message(0, B))]
     exact, _ = run(policy, messages)
     noisy, _ = run(policy, messages, pose_noise=True)
-    action = lambda m: np.frombuffer(m.action.data, np.float32).reshape(B, 21)  # noqa: E731
+    action = lambda m: np.frombuffer(m.action.data, np.float32).reshape(B, 21)
     np.testing.assert_allclose(action(exact[0]), expected(policy, 0).numpy(), atol=1e-5)
     assert not np.allclose(action(noisy[0]), action(exact[0]), atol=1e-4)
