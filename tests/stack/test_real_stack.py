@@ -62,7 +62,9 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
     return path, endpoint
 
 
-@pytest.mark.parametrize("steps", [150, pytest.param(2000, marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "steps", [150, pytest.param(2000, marks=[pytest.mark.slow, pytest.mark.timeout(900)])]
+)
 def test_the_real_stack_drives_franky_sim_safely(tmp_path: Path, steps: int) -> None:
     with franky_sim() as (host, _):
         path, endpoint = real_stack(tmp_path, host)
