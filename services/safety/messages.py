@@ -20,9 +20,10 @@ from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
+from hamnet.safety.reports import Notice, rejections
 from hamnet.safety.stages import Rejection
 from hamnet.safety.stats import StageStats
-from hamnet.safety.supervisor import ActionIn, Notice, StateIn, rejections
+from hamnet.safety.supervisor import ActionIn, StateIn
 
 
 def decode_state(message: RobotState, num_envs: int | None) -> StateIn:

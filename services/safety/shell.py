@@ -35,7 +35,8 @@ from hamnet.safety.messages import (
     encode_command,
     encode_notice,
 )
-from hamnet.safety.supervisor import ActionIn, Command, Notice, ShellConfig, StateIn, Supervisor
+from hamnet.safety.reports import Notice
+from hamnet.safety.supervisor import ActionIn, Command, ShellConfig, StateIn, Supervisor
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)

@@ -2,9 +2,10 @@
 
 Consumes decoded robot states (`StateIn`), policy actions (`ActionIn`), the trainer's
 env_transitions and the e-stop latch's requests; produces `Command`s (state k's safe
-command, step k, as the sim's lock-step requires) and `Notice`s (the events: rejections,
-rate-limited clip events, watchdog and e-stop events, and per-stage statistics every
-`stats_period_s`), handed to an injected `emit` in the order they happen. Time comes from an
+command, step k, as the sim's lock-step requires) and `Notice`s (the events: watchdog and
+e-stop events here; rejections, rate-limited clip events and per-stage statistics every
+`stats_period_s` from `hamnet.safety.reports`), handed to an injected `emit` in the order
+they happen. Time comes from an
 injected `clock` (time.monotonic in the service), so a test drives every wait with a fake
 clock and no Zenoh.
 
@@ -32,45 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.fr3.limits import ACTION_DIM
 from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafeOutput, SafetyFilter
-from hamnet.safety.pipeline import FilterResult
-from hamnet.safety.stages import Rejection
-from hamnet.safety.stats import (
-    StageReport,
-    StageStats,
-    StatsAccumulator,
-    empty_stats,
-    merge,
-    summarize,
-)
+from hamnet.safety.reports import Notice, Reports
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
-
-CLIP_KINDS = {
-    "action_magnitude": "CLIPPED_MAGNITUDE",
-    "cartesian_clip": "CLIPPED_CARTESIAN",
-    "joint_limits": "CLIPPED_JOINT_LIMIT",
-    "torque_preclip": "CLIPPED_TORQUE",
-}
-"""Stages whose clipping becomes an event, with its kind (a `SafetyEventKind` name; the EMA
-smooths every step: statistics only)."""
-
-REJECTIONS = {
-    Rejection.NONFINITE: ("REJECTED_NONFINITE", "the action holds NaN or Inf"),
-    Rejection.SHAPE: ("REJECTED_SHAPE", f"the action is not (B, {ACTION_DIM})"),
-    Rejection.STATE: ("REJECTED_NONFINITE", "the robot state holds NaN or Inf"),
-    Rejection.EPISODE: ("REJECTED_EPISODE", ("the action was computed for an episode that "
-                                             "has ended (the environment was reset)")),
-}  # fmt: skip
-"""Event kind and reason of each rejection code of stage 1."""
-
-STATISTICS = "SAFETY_EVENT_KIND_UNSPECIFIED"
-"""The kind of the periodic per-stage statistics event."""
 
 BRAKE_PACE = 0.9
 """While stopped, states are answered at once but at most one per this share of the policy
@@ -122,30 +92,6 @@ class Command:
     step: int
     episode_ids: np.ndarray
     """(B,) the state's episodes, echoed so the executor can match the command to them."""
-
-
-@dataclass(frozen=True)
-class Notice:
-    """One safety event at state step `step`."""
-
-    kind: str
-    """A `SafetyEventKind` name."""
-    step: int
-    env_ids: np.ndarray
-    """(K,) environments concerned."""
-    stage: str = ""
-    reason: str = ""
-    stats: tuple[StageStats, ...] = ()
-
-
-def rejections(filtered: FilterResult, step: int) -> list[Notice]:
-    """One notice per rejection reason present in a filter call."""
-    notices = []
-    for code, (kind, reason) in REJECTIONS.items():
-        env_ids = np.flatnonzero(filtered.reason == code)  # (K,)
-        if len(env_ids):
-            notices.append(Notice(kind, step, env_ids, "nonfinite_guard", reason))
-    return notices
 
 
 def episode_starts(state: StateIn, previous_ids: np.ndarray | None) -> np.ndarray:
@@ -219,20 +165,11 @@ class Supervisor:
         """None (following the policy), "watchdog" or "estop"."""
         self.answered: Command | None = None
         """The last command sent, sent again when the sim sends its state again."""
-        self.stats = StatsAccumulator()
-        self.clips: dict[str, tuple[StageStats, np.ndarray]] = {}
-        """Per clip stage: stats and (B,) clipped environments since its last event."""
-        self.last_clip_event: dict[str, float] = {}
-        self.counts: dict[str, int] = dict.fromkeys(
-            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog",
-             "restarts", "implausible"), 0
-        )  # fmt: skip
+        self.reports = Reports(emit, clock, self.config.clip_event_period_s,
+                               self.config.stats_period_s, self.config.report_period_s)  # fmt: skip
         self.watermark = Watermark()
         """The sim's run and its newest state: a restart is followed, a step implausibly
         far ahead is dropped."""
-        self.latencies: list[float] = []
-        """State received -> command emitted, s, since the last rate line."""
-        self._last_stats = self._last_report = clock()
 
     @property
     def period(self) -> float:
@@ -250,7 +187,9 @@ class Supervisor:
         """What is due by now: the watchdog, a paced brake, statistics and the rate line."""
         self._check_watchdog()
         self._answer()
-        self._periodic()
+        step = self.latest.step if self.latest is not None else 0
+        every = np.arange(self.num_envs or 0)
+        self.reports.periodic(step, every, self.stopped_by, self.env_transitions)
 
     # --- inputs ---------------------------------------------------------------------------
 
@@ -258,7 +197,7 @@ class Supervisor:
         """State k, `received` when it arrived (on `clock`; None: now)."""
         verdict = self.watermark.judge(state.run, state.step)
         if verdict is Verdict.IMPLAUSIBLE:
-            self.counts["implausible"] += 1  # a forged or corrupt step must not supersede
+            self.reports.counts["implausible"] += 1  # a forged or corrupt step must not supersede
             return
         if verdict is Verdict.RESTART and self.watermark.restart(state.run):
             self._follow_new_run(state)
@@ -282,7 +221,7 @@ class Supervisor:
         if self.pending is None:
             self.deadline = received + self.config.watchdog_s
         else:  # a real-time executor moved on: the wait runs from the oldest unanswered state
-            self.counts["superseded"] += 1
+            self.reports.counts["superseded"] += 1
         self.latest, self.pending, self.received_at = state, state, received
         self.brake_at = max(self.received_at, self.last_command_at + BRAKE_PACE * self.period)
         self._answer()
@@ -291,10 +230,10 @@ class Supervisor:
         """The policy's action for state `action.step`."""
         self.policy_heard = True
         if self.estop.latched:
-            self.counts["ignored"] += 1
+            self.reports.counts["ignored"] += 1
             return
         if self.latest is not None and action.step < self.latest.step:
-            self.counts["stale"] += 1
+            self.reports.counts["stale"] += 1
         if self.stopped_by == "watchdog" and self.latest is not None:
             self._resume("actions arrive again")
         self.action = action
@@ -321,7 +260,7 @@ class Supervisor:
         """The sim restarted: nothing of its old run applies to the new one."""
         log.warning("the sim restarted (another run) at step %d: every episode starts afresh",
                     state.step)  # fmt: skip
-        self.counts["restarts"] += 1
+        self.reports.counts["restarts"] += 1
         self.answered, self.pending, self.action = None, None, None
         if self.filter is not None and len(state.q) == self.num_envs:
             every = np.arange(self.num_envs)
@@ -365,7 +304,7 @@ class Supervisor:
             action.action, state.q, state.dq, self.env_transitions, action.stale(state)
         )
         self._command(output, state)
-        self._account(output.filtered, state.step)
+        self.reports.account(output.filtered, state.step)
 
     def _check_watchdog(self) -> None:
         if self.pending is None or self.stopped_by is not None:
@@ -380,7 +319,7 @@ class Supervisor:
             log.info("no action from the policy yet (state %d): holding every environment until "
                      "its first action", step)  # fmt: skip
         self.stopped_by = "watchdog"
-        self.counts["watchdog"] += 1
+        self.reports.counts["watchdog"] += 1
         self.filter.stop(np.arange(self.num_envs))
         reason = f"no action within {self.config.watchdog_s} s of state {step}"
         self._notice("WATCHDOG_STOP", step, "watchdog", reason)
@@ -392,65 +331,8 @@ class Supervisor:
         self.emit(self.answered)
         self.pending = None
         self.last_command_at = self.clock()
-        self.counts["braked" if output.filtered is None else "tracked"] += 1
-        self.latencies.append(self.clock() - self.received_at)
+        self.reports.command(output, self.clock() - self.received_at)
 
-    def _notice(self, kind: str, step: int, stage: str, reason: str, env_ids=None, stats=()):
-        if env_ids is None:
-            env_ids = np.arange(self.num_envs or 0)
-        self.emit(Notice(kind, step, env_ids, stage, reason, tuple(stats)))
-
-    def _account(self, filtered: FilterResult, step: int) -> None:
-        """Statistics, rejection events and (rate-limited) clip events of one command."""
-        self.stats.add(filtered.reports)
-        for notice in rejections(filtered, step):
-            self.emit(notice)
-        self.counts["rejected"] += int(filtered.rejected.sum())
-        for report in filtered.reports:
-            if report.stage in CLIP_KINDS:
-                self._clip_event(report, step)
-
-    def _clip_event(self, report: StageReport, step: int) -> None:
-        """Count one clip stage's report; emit its event when it clipped and one is due."""
-        stage = report.stage
-        stats, envs = self.clips.get(stage, (empty_stats(stage), report.clipped))
-        stats, envs = merge(stats, summarize(report)), envs | report.clipped  # (B,)
-        self.clips[stage] = (stats, envs)
-        now = self.clock()
-        last = self.last_clip_event.get(stage, -np.inf)
-        if not stats.clipped or now - last < self.config.clip_event_period_s:
-            return
-        reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
-                  f"largest excess {stats.max_excess:.4g}")  # fmt: skip
-        self._notice(CLIP_KINDS[stage], step, stage, reason, np.flatnonzero(envs), (stats,))
-        self.last_clip_event[stage] = now
-        del self.clips[stage]
-
-    def _periodic(self) -> None:
-        """Statistics event and rate line when due."""
-        now = self.clock()
-        step = self.latest.step if self.latest is not None else 0
-        if now - self._last_stats >= self.config.stats_period_s:
-            summary = self.stats.summary()
-            if any(s.commands for s in summary):
-                reason = f"statistics over {now - self._last_stats:.1f} s"
-                self._notice(STATISTICS, step, "", reason, stats=summary)
-            self.stats.reset()
-            self._last_stats = now
-        elapsed = now - self._last_report
-        if elapsed >= self.config.report_period_s:
-            c = self.counts
-            latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
-            log.info(
-                "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
-                "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, %d sim restarts, %d implausible states, stopped by %s, "
-                "%d env transitions",
-                (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
-                c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                c["restarts"], c["implausible"], self.stopped_by or "nothing",
-                self.env_transitions,
-            )  # fmt: skip
-            self.counts = dict.fromkeys(self.counts, 0)
-            self.latencies.clear()
-            self._last_report = now
+    def _notice(self, kind: str, step: int, stage: str, reason: str) -> None:
+        """An event about every environment."""
+        self.emit(Notice(kind, step, np.arange(self.num_envs or 0), stage, reason))

@@ -13,12 +13,11 @@ import pytest
 from hamnet.fr3.limits import Q_HOME
 from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafetyFilter
+from hamnet.safety.reports import STATISTICS, Notice
 from hamnet.safety.supervisor import (
     BRAKE_PACE,
-    STATISTICS,
     ActionIn,
     Command,
-    Notice,
     ShellConfig,
     StateIn,
     Supervisor,
@@ -117,7 +116,7 @@ def test_watchdog_waits_from_the_oldest_unanswered_state() -> None:
     clock.now += 0.2
     core.on_state(state(0))  # the sim sends its state again
     core.on_state(state(1))  # an executor moved on
-    assert core.counts["superseded"] == 1
+    assert core.reports.counts["superseded"] == 1
     clock.now += WATCHDOG_S - 0.2
     core.tick()
     assert [n.step for n in notices(emitted, "WATCHDOG_STOP")] == [1]
@@ -157,7 +156,7 @@ def test_an_action_of_any_step_resumes_tracking() -> None:
     core.on_state(state(1))  # its brake is not due yet (paced)
     clock.now += PERIOD_S / 2
     core.on_action(action(0))  # late
-    assert core.stopped_by is None and core.counts["stale"] == 1
+    assert core.stopped_by is None and core.reports.counts["stale"] == 1
     assert core.due() == pytest.approx(clock.now + WATCHDOG_S)  # state 1 waits afresh
     core.on_action(action(1))
     tracked = commands(emitted)[-1]
@@ -177,7 +176,7 @@ def test_estop_ignores_actions_until_reset() -> None:
     clock.now += 10 * WATCHDOG_S
     core.tick()
     assert [braking(c) for c in commands(emitted)] == [True]
-    assert core.counts["ignored"] == 1 and not notices(emitted, "WATCHDOG_STOP")
+    assert core.reports.counts["ignored"] == 1 and not notices(emitted, "WATCHDOG_STOP")
     core.apply_estop()  # the loop does at every turn: the status its answers report
     assert core.estop.status == {"step": 0, "stopped_by": "estop"}
     core.estop.request("reset")
@@ -208,7 +207,7 @@ def test_a_restarted_sim_starts_every_episode_afresh() -> None:
     core.on_state(state(0, run=2, q=q, episode_step=4))
     core.on_action(action(0, 0.5))
     assert [c.step for c in commands(emitted)] == [0, 1, 2, 3, 0]
-    assert core.counts["restarts"] == 1
+    assert core.reports.counts["restarts"] == 1
     fresh = SafetyFilter(q).command(np.full((B, 21), 0.5), q, np.zeros((B, J)), 0)
     np.testing.assert_allclose(commands(emitted)[-1].output.q_ref, fresh.q_ref, atol=1e-9)
 
@@ -220,7 +219,7 @@ def test_an_implausible_step_is_dropped() -> None:
     core.on_state(state(0))
     core.on_action(action(0))
     core.on_state(state(10**12))
-    assert core.counts["implausible"] == 1 and core.pending is None
+    assert core.reports.counts["implausible"] == 1 and core.pending is None
     core.on_state(state(1))
     core.on_action(action(1))
     assert [c.step for c in commands(emitted)] == [0, 1]
@@ -234,7 +233,7 @@ def test_a_nan_row_becomes_a_rejection_event_for_that_row() -> None:
     core.on_action(nan)
     [rejection] = notices(emitted, "REJECTED_NONFINITE")
     assert rejection.env_ids.tolist() == [1] and rejection.stage == "nonfinite_guard"
-    assert core.counts["rejected"] == 1
+    assert core.reports.counts["rejected"] == 1
 
 
 def test_clip_events_are_rate_limited_and_statistics_are_periodic() -> None:
