@@ -27,15 +27,15 @@ with `median_latency_ms`, `p99_latency_ms`, `p99_latency_fraction_of_period` (go
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import header, loopback_transport, progress, report, spawn, stop, summary
 
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.health_pb2 import Health
@@ -45,7 +45,7 @@ from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import to_tensor
-from hamnet.runtime.transport import TransportConfig, free_port, open_session
+from hamnet.runtime.transport import open_session
 
 PERIOD_S = 0.1
 """The paper's policy period, s."""
@@ -56,10 +56,6 @@ NICE = {"camera": ["nice", "-n", "19"]}
 own hardware: they run at the lowest priority, so that they take what the stack leaves."""
 START_DEADLINE_S = 120.0
 """Longest wait for a stack's first command (the processes load torch, MuJoCo, open3d)."""
-
-
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 def stack_commands(full: bool) -> list[list[str]]:
@@ -81,18 +77,12 @@ def stack_commands(full: bool) -> list[list[str]]:
 
 def measure(full: bool, states: int) -> dict:
     """Latency figures of one stack over `states` measured states."""
-    transport = TransportConfig(
-        namespace=f"benchbridge{os.getpid()}n{time.monotonic_ns()}",
-        rendezvous=f"tcp/127.0.0.1:{free_port()}",
-    )
-    network = ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
+    transport = loopback_transport("benchbridge")
     logs = tempfile.TemporaryDirectory()
     processes = [
-        subprocess.Popen([*NICE.get(command[0], []), sys.executable, "-m", "hamnet", *command, *network],
-                         stdout=(Path(logs.name) / f"{command[0]}.log").open("w"),
-                         stderr=subprocess.STDOUT)
+        spawn(command, transport, Path(logs.name) / f"{command[0]}.log", NICE.get(command[0], ()))
         for command in stack_commands(full)
-    ]  # fmt: skip
+    ]
     session = open_session(transport)
     ns = transport.namespace
     inbox = Inbox(session, DropCounter())
@@ -142,14 +132,10 @@ def measure(full: bool, states: int) -> dict:
                 bridge_p99 = message.figures["command_latency_p99_ms"]
     finally:
         session.close()
-        for process in processes:
-            process.terminate()
-        for process in processes:
-            process.wait(timeout=30)
+        stop(processes)
         logs.cleanup()
-    median, p99 = 1e3 * np.percentile(latencies, [50, 99])
-    return {"median_ms": round(float(median), 2), "p99_ms": round(float(p99), 2),
-            "bridge_reported_p99_ms": bridge_p99, "reflexes": reflexes}  # fmt: skip
+    return {**summary(latencies, "ms", 1e3, digits=2), "bridge_reported_p99_ms": bridge_p99,
+            "reflexes": reflexes}  # fmt: skip
 
 
 def main() -> dict:
@@ -165,8 +151,7 @@ def main() -> dict:
     progress(f"full (bridge, camera, perception, policy, safety): {full}")
     fraction = full["p99_ms"] / (1e3 * PERIOD_S)
     return {
-        "benchmark": "bridge",
-        "mode": "quick" if args.quick else "full",
+        **header("bridge", args.quick),
         "policy_period_ms": 1e3 * PERIOD_S,
         "measured_states": states,
         "median_latency_ms": full["median_ms"],
@@ -186,4 +171,4 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(main()))
+    report(main())

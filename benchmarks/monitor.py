@@ -19,13 +19,14 @@ The last stdout line is one JSON object of figures. `--quick` runs in under a mi
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import report, summary, timer
 
 from hamnet.fr3.limits import Q_HOME
 from hamnet.monitor.decode import decode_action, decode_state, decode_tokens, decode_transition
@@ -99,15 +100,11 @@ def timed(function, steps: list[dict[str, bytes]], warmup: int) -> dict[str, flo
     """Median and p99 of `function(step)` over `steps` after `warmup` calls, ms."""
     for step in steps[:warmup]:
         function(step)
-    times = []
-    for step in steps[warmup:]:
-        started = time.perf_counter()
-        function(step)
-        times.append(1e3 * (time.perf_counter() - started))
-    return {"median_ms": float(np.median(times)), "p99_ms": float(np.percentile(times, 99))}
+    call = timer(function)
+    return summary([call(step) for step in steps[warmup:]], "ms", 1e3)
 
 
-def main() -> None:
+def main() -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="small sizes, under a minute")
     args = parser.parse_args()
@@ -138,7 +135,7 @@ def main() -> None:
                 f"{name} {row[name]['median_ms']:.2f}/{row[name]['p99_ms']:.2f} ms"
                 for name in ("parse only (baseline)", "skip", "decode", "draw")))  # fmt: skip
     largest = results[-1]
-    figures = {
+    return {
         "results": results,
         "draw_median_ms_4": results[0]["draw"]["median_ms"],
         "max_drawn_steps_per_s_4": 1e3 / results[0]["draw"]["median_ms"],
@@ -146,8 +143,7 @@ def main() -> None:
         "skip_vs_draw_largest": largest["skip"]["median_ms"] / largest["draw"]["median_ms"],
         "largest_num_envs": largest["num_envs"],
     }
-    print(json.dumps(figures))
 
 
 if __name__ == "__main__":
-    main()
+    report(main())

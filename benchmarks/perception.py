@@ -14,12 +14,13 @@ vectorize), against `sample_surface` for all scenes at once. Last line: one JSON
 from __future__ import annotations
 
 import argparse
-import json
-import time
 
 import numpy as np
 import torch
 import trimesh
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import durations, report, summary
 
 from hamnet.perception.clouds import sample_surface
 from hamnet.perception.config import CloudConfig
@@ -28,17 +29,6 @@ from hamnet.perception.unicorn import UniCORN
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.quaternion import to_matrix
-
-
-def timed(fn, repeats: int) -> np.ndarray:
-    """Seconds of each of `repeats` calls after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - started)
-    return np.array(times)
 
 
 def union_sample(scene: dict[str, np.ndarray], num_points: int) -> np.ndarray:
@@ -53,11 +43,7 @@ def union_sample(scene: dict[str, np.ndarray], num_points: int) -> np.ndarray:
     return points
 
 
-def stats(seconds: np.ndarray) -> dict[str, float]:
-    return {"median_ms": 1e3 * float(np.median(seconds)), "p99_ms": 1e3 * float(np.percentile(seconds, 99))}
-
-
-def main() -> None:
+def main() -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="few repeats (under a minute)")
     parser.add_argument("--num-envs", type=int, default=64)
@@ -79,27 +65,29 @@ def main() -> None:
         core.start_episodes(scenes)
         core.step(pose)
 
-    cached_s = timed(lambda: core.step(pose), repeats)
-    uncached_s = timed(uncached, repeats)
+    cached_s = durations(lambda: core.step(pose), repeats)
+    uncached_s = durations(uncached, repeats)
     cuboids = scenes.cuboids
-    culling_s = timed(lambda: sample_surface(cuboids, config.num_points, config.grid), repeats)
+    culling_s = durations(lambda: sample_surface(cuboids, config.num_points, config.grid), repeats)
     union_envs = min(b, 8 if args.quick else b)
     rows = [{"centre": s.cuboid_centre[i][s.cuboid_active[i]], "quat": s.cuboid_quat[i][s.cuboid_active[i]],
              "half_extent": s.cuboid_half_extent[i][s.cuboid_active[i]]} for i in range(union_envs)]  # fmt: skip
-    union_s = timed(lambda: [union_sample(row, config.num_points) for row in rows], max(1, repeats // 3))
+    union_s = durations(
+        lambda: [union_sample(row, config.num_points) for row in rows], max(1, repeats // 3)
+    )
     union_per_env = union_s / union_envs
     culling_per_env = culling_s / b
     figures = {
         "num_envs": b,
         "device": "cpu",
         "torch_threads": torch.get_num_threads(),
-        "cached_step": stats(cached_s),
-        "uncached_step": stats(uncached_s),
+        "cached_step": summary(cached_s, "ms", 1e3),
+        "uncached_step": summary(uncached_s, "ms", 1e3),
         "cached_steps_per_s": 1.0 / float(np.median(cached_s)),
         "uncached_steps_per_s": 1.0 / float(np.median(uncached_s)),
         "cached_env_steps_per_s": b / float(np.median(cached_s)),
         "cache_speedup": float(np.median(uncached_s) / np.median(cached_s)),
-        "culling_sample_512": stats(culling_s),
+        "culling_sample_512": summary(culling_s, "ms", 1e3),
         "union_sample_512_per_env_ms": 1e3 * float(np.median(union_per_env)),
         "culling_sample_512_per_env_ms": 1e3 * float(np.median(culling_per_env)),
         "union_envs_timed": union_envs,
@@ -108,8 +96,8 @@ def main() -> None:
     print(f"{b} environments: cached step {figures['cached_step']['median_ms']:.1f} ms, uncached "
           f"{figures['uncached_step']['median_ms']:.1f} ms ({figures['cache_speedup']:.1f}x); culling sampler "
           f"{figures['culling_sample_512_per_env_ms']:.2f} ms/env vs union {figures['union_sample_512_per_env_ms']:.2f} ms/env")  # fmt: skip
-    print(json.dumps(figures))
+    return figures
 
 
 if __name__ == "__main__":
-    main()
+    report(main())

@@ -18,11 +18,11 @@ batch 1024, and every row.
 from __future__ import annotations
 
 import argparse
-import json
-import time
 
-import numpy as np
 import torch
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import median_p99, report, timer
 
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import RobotObservation, assemble
@@ -59,7 +59,9 @@ def inputs(policy: Policy, batch: int) -> PolicyInputs:
 def timers(policy: Policy, batch: int):
     """(infer, train) closures for one architecture at one batch size."""
     batch_inputs = inputs(policy, batch)
-    actions = torch.randn(batch, policy.config.action_dim, generator=torch.Generator().manual_seed(1))
+    actions = torch.randn(
+        batch, policy.config.action_dim, generator=torch.Generator().manual_seed(1)
+    )
 
     def infer() -> None:
         with torch.inference_mode():
@@ -85,30 +87,30 @@ def measure(names: list[str], batch: int, repetitions: int, warmup: int) -> dict
     for repetition in range(warmup + repetitions):
         for name in names:
             for kind, run in zip(("infer", "train"), closures[name]):
-                started = time.perf_counter()
-                run()
+                seconds = timer(run)()
                 if repetition >= warmup:
-                    samples[name][kind].append(time.perf_counter() - started)
+                    samples[name][kind].append(seconds)
     return samples
 
 
 def rows(samples: dict[str, dict], batch: int) -> list[dict]:
     """One row per architecture: medians, p99 and ratios to the MLP."""
-    median = {n: {k: float(np.median(v)) for k, v in s.items()} for n, s in samples.items()}
+    ms = {n: {k: median_p99(v, 1e3) for k, v in s.items()} for n, s in samples.items()}
     out = []
-    for name, kinds in samples.items():
+    for name, kinds in ms.items():
         row = {"architecture": name, "batch": batch}
-        for kind, values in kinds.items():
-            row[f"{kind}_ms"] = 1e3 * median[name][kind]
-            row[f"{kind}_p99_ms"] = 1e3 * float(np.percentile(values, 99))
-            row[f"{kind}_vs_mlp"] = median[name][kind] / median["mlp"][kind]
+        for kind, (median, p99) in kinds.items():
+            row[f"{kind}_ms"], row[f"{kind}_p99_ms"] = median, p99
+            row[f"{kind}_vs_mlp"] = median / ms["mlp"][kind][0]
         row["paper_train_vs_mlp"] = PAPER_TRAIN_VS_MLP.get(name)
         out.append(row)
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main() -> dict:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--quick", action="store_true", help="batches 64 and 1024, few repetitions")
     parser.add_argument("--threads", type=int, default=1,
                         help="torch CPU threads (1: steadier on a shared machine)")  # fmt: skip
@@ -121,12 +123,14 @@ def main() -> None:
         repetitions = 5 if args.quick else (30 if batch < 8192 else 10)
         table = rows(measure(names, batch, repetitions, warmup=2), batch)
         results += table
-        print(f"batch {batch}: {'architecture':<15} {'infer ms':>9} {'x mlp':>6} {'train ms':>9} {'x mlp':>6}")
+        print(
+            f"batch {batch}: {'architecture':<15} {'infer ms':>9} {'x mlp':>6} {'train ms':>9} {'x mlp':>6}"
+        )
         for row in table:
             print(f"{'':>{len(str(batch)) + 8}}{row['architecture']:<15} {row['infer_ms']:>9.2f} "
                   f"{row['infer_vs_mlp']:>6.2f} {row['train_ms']:>9.2f} {row['train_vs_mlp']:>6.2f}")  # fmt: skip
     at_1024 = {row["architecture"]: row for row in results if row["batch"] == 1024}
-    figures = {
+    return {
         "hamnet_vs_mlp_train": at_1024["hamnet"]["train_vs_mlp"],
         "hamnet_vs_mlp_infer": at_1024["hamnet"]["infer_vs_mlp"],
         "hamnet_vs_paper_width_mlp_train": (
@@ -139,8 +143,7 @@ def main() -> None:
         "device": "cpu",
         "results": results,
     }
-    print(json.dumps(figures))
 
 
 if __name__ == "__main__":
-    main()
+    report(main())

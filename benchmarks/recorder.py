@@ -21,19 +21,16 @@ object: `write_mb_s_400k_zstd`, `write_mb_s_400k_lz4`, `baseline_mb_s_400k` (fil
 
 from __future__ import annotations
 
-import json
-import os
-import signal
-import subprocess
-import sys
 import tempfile
 import time
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import tyro
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import loopback_transport, progress, report, spawn, stop
 
 from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState
@@ -42,7 +39,7 @@ from hamnet.recorder.reading import read_file
 from hamnet.recorder.writer import RecordingWriter
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import to_tensor
-from hamnet.runtime.transport import TransportConfig, free_port, open_session
+from hamnet.runtime.transport import open_session
 
 KEY = "hamnet/bench/sim/0/state"
 
@@ -119,7 +116,7 @@ def core_rows(config: RecorderBenchConfig, megabytes: float) -> list[dict]:
             assert count == len(data)
             rows.append({"size_kb": size_kb, "row": "read zstd", "mb_s": total_mb / seconds,
                          "us_per_message": seconds / count * 1e6, "ratio": 1.0})  # fmt: skip
-        print(f"core {size_kb} kB done", file=sys.stderr, flush=True)
+        progress(f"core {size_kb} kB done")
     return rows
 
 
@@ -143,16 +140,11 @@ def await_subscription(session, namespace: str) -> None:
 
 def end_to_end(rate_hz: float, seconds: float) -> dict:
     """Fraction of a paced stream of 400 kB messages that `hamnet record` wrote."""
-    transport = TransportConfig(namespace=f"bench{uuid.uuid4().hex[:8]}",
-                                rendezvous=f"tcp/127.0.0.1:{free_port()}")  # fmt: skip
+    transport = loopback_transport()
     key = f"hamnet/{transport.namespace}/sim/0/state"
     with tempfile.TemporaryDirectory() as directory:
         path = Path(directory) / "e2e.mcap"
-        recorder = subprocess.Popen(
-            [sys.executable, "-m", "hamnet", "record", "-o", str(path),
-             "--namespace", transport.namespace, "--rendezvous", transport.rendezvous],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        )  # fmt: skip
+        recorder = spawn(["record", "-o", str(path)], transport)
         session = open_session(transport)
         publisher = Publisher(session, key, "bench/0")
         await_subscription(session, transport.namespace)
@@ -165,16 +157,15 @@ def end_to_end(rate_hz: float, seconds: float) -> dict:
                 time.sleep(delay)
             publisher.put_encoded(data[index % len(data)])
         time.sleep(1.0)
-        os.killpg(recorder.pid, signal.SIGTERM)
-        recorder.wait(timeout=30)
+        stop([recorder])
         session.close()
         recorded = sum(1 for message in read_file(path) if message.key == key)
-    print(f"end to end {rate_hz} Hz done", file=sys.stderr, flush=True)
+    progress(f"end to end {rate_hz} Hz done")
     return {"rate_hz": rate_hz, "mb_s": rate_hz * 0.4, "published": count, "recorded": recorded,
             "recorded_fraction": recorded / count}  # fmt: skip
 
 
-def main() -> None:
+def main() -> dict:
     config = tyro.cli(RecorderBenchConfig)
     megabytes = 20.0 if config.quick else config.megabytes
     rates = config.rates_hz[:2] if config.quick else config.rates_hz
@@ -189,18 +180,19 @@ def main() -> None:
         print(f"hamnet record at {row['rate_hz']:.0f} Hz x 400 kB ({row['mb_s']:.0f} MB/s): "
               f"{row['recorded']}/{row['published']} recorded")  # fmt: skip
     at = {(row["size_kb"], row["row"]): row["mb_s"] for row in rows}
-    figures = {
+    return {
         "mode": "quick" if config.quick else "full",
         "write_mb_s_400k_zstd": at[(400, "write zstd")],
         "write_mb_s_400k_lz4": at[(400, "write lz4")],
         "baseline_mb_s_400k": at[(400, "file.write (baseline)")],
         "read_mb_s_400k_zstd": at[(400, "read zstd")],
-        "e2e_recorded_fraction": {f"{row['rate_hz']:.0f}Hz": row["recorded_fraction"] for row in e2e},
+        "e2e_recorded_fraction": {
+            f"{row['rate_hz']:.0f}Hz": row["recorded_fraction"] for row in e2e
+        },
         "results": rows,
         "end_to_end": e2e,
     }
-    print(json.dumps(figures), flush=True)
 
 
 if __name__ == "__main__":
-    main()
+    report(main())

@@ -35,10 +35,8 @@ policy period; likewise for finetune), and every row under `results`.
 
 from __future__ import annotations
 
-import json
 import os
 import platform
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -47,6 +45,9 @@ from importlib import metadata
 import numpy as np
 import ruckig
 import tyro
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import header, median_p99, print_header, progress, report, timer
 
 from hamnet.fr3.limits import Q_HOME
 from hamnet.safety import stages
@@ -91,10 +92,6 @@ class SafetyBenchConfig:
         return 100 if self.quick else self.samples
 
 
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
-
-
 class Loop:
     """One `SafetyFilter` at one reference rate in closed loop: the robot tracks perfectly."""
 
@@ -120,7 +117,6 @@ class Loop:
         self.q = q_ref[:, -1].copy()
         self.dq = (q_ref[:, -1] - q_ref[:, -2]) / self.config.control_period_s
         self.action = self.next_action()
-
 
 
 class RawRuckig:
@@ -162,17 +158,6 @@ class Row:
     stage: str
     call: Callable[[], float]
     seconds: list[float]
-
-
-def timed(function: Callable[[], object]) -> Callable[[], float]:
-    """A call timing `function` alone."""
-
-    def call() -> float:
-        started = time.perf_counter_ns()
-        function()
-        return (time.perf_counter_ns() - started) * 1e-9
-
-    return call
 
 
 def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
@@ -217,16 +202,17 @@ def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
 
     def bounds() -> tuple[np.ndarray, np.ndarray]:
         return target_bounds(safety)  # as the core computes them every call
+
     rows = [
-        Row("copy (baseline)", "numpy floor", timed(copy), []),
-        Row("1 guard", "1", timed(lambda: stages.nonfinite_guard(sim.action, num_envs)), []),
-        Row("2 scaling+magnitude", "2", timed(stage_2), []),
-        Row("3 cartesian clip", "3", timed(stage_3), []),
-        Row("  of which jacobians", "3", timed(lambda: core.jacobians(q)), []),
-        Row("4 ema", "4", timed(lambda: stages.residual_smoothing(dq_clipped, memory, alpha)), []),
-        Row("5 joint limits", "5", timed(lambda: stages.joint_limits(q + dq_clipped, *bounds())), []),
-        Row("7 torque pre-clip", "7", timed(lambda: stages.torque_preclip(*torque_inputs)), []),
-        Row("1-5,7 core.filter", "1-5,7", timed(lambda: _core_filter(sim, config.step)), []),
+        Row("copy (baseline)", "numpy floor", timer(copy), []),
+        Row("1 guard", "1", timer(lambda: stages.nonfinite_guard(sim.action, num_envs)), []),
+        Row("2 scaling+magnitude", "2", timer(stage_2), []),
+        Row("3 cartesian clip", "3", timer(stage_3), []),
+        Row("  of which jacobians", "3", timer(lambda: core.jacobians(q)), []),
+        Row("4 ema", "4", timer(lambda: stages.residual_smoothing(dq_clipped, memory, alpha)), []),
+        Row("5 joint limits", "5", timer(lambda: stages.joint_limits(q + dq_clipped, *bounds())), []),
+        Row("7 torque pre-clip", "7", timer(lambda: stages.torque_preclip(*torque_inputs)), []),
+        Row("1-5,7 core.filter", "1-5,7", timer(lambda: _core_filter(sim, config.step)), []),
     ]  # fmt: skip
     for rate, loop in loops.items():
         rows += _stage_6_rows(rate, loop, q_target, kp, rho, limit, rng)
@@ -284,7 +270,7 @@ def _stage_6_rows(
     return [
         Row(f"6 ruckig {rate} (S={samples})", "6", ours, []),
         Row(f"  raw ruckig {rate} (baseline)", "ruckig floor", baseline, []),
-        Row(f"7 torque recheck {rate}", "7", timed(recheck), []),
+        Row(f"7 torque recheck {rate}", "7", timer(recheck), []),
     ]
 
 
@@ -319,11 +305,7 @@ def measure_profiles(config: SafetyBenchConfig) -> list[dict]:
             for _ in range(config.warmup):
                 call()
             rows.append(Row(f"{profile} profile", "all", call, []))
-        chunk = max(config.measured_samples // config.rounds, 1)
-        for _ in range(config.rounds):
-            for row in rows:
-                row.seconds += [row.call() for _ in range(chunk)]
-        results += [summary(row, num_envs) for row in rows]
+        results += interleaved(rows, num_envs, config)
         progress(", ".join(f"{num_envs} envs: {r['row']} {r['median_us']:.0f} us" for r in
                            results[-len(rows):]))  # fmt: skip
     return results
@@ -341,7 +323,12 @@ def profile_figures(results: list[dict]) -> dict:
 
 def measure(num_envs: int, config: SafetyBenchConfig) -> list[dict]:
     """Every row for one environment count, interleaved round by round."""
-    rows = make_rows(num_envs, config)
+    return interleaved(make_rows(num_envs, config), num_envs, config)
+
+
+def interleaved(rows: list[Row], num_envs: int, config: SafetyBenchConfig) -> list[dict]:
+    """Summaries of `rows` timed in turn, `config.rounds` rounds sharing the samples, so that
+    load from other processes on a shared machine hits every row alike."""
     chunk = max(config.measured_samples // config.rounds, 1)
     for _ in range(config.rounds):
         for row in rows:
@@ -350,8 +337,7 @@ def measure(num_envs: int, config: SafetyBenchConfig) -> list[dict]:
 
 
 def summary(row: Row, num_envs: int) -> dict:
-    us = np.array(row.seconds) * 1e6
-    median, p99 = float(np.median(us)), float(np.percentile(us, 99))
+    median, p99 = median_p99(row.seconds, 1e6)
 
     def fraction(microseconds: float, period_s: float) -> float:
         return float(f"{microseconds * 1e-6 / period_s:.4g}")
@@ -371,12 +357,10 @@ def summary(row: Row, num_envs: int) -> dict:
 
 
 def print_table(results: list[dict]) -> None:
-    header = (
+    print_header(
         f"{'envs':>4}  {'row':<30} {'median us':>10} {'p99 us':>10} "
         f"{'of 100 ms':>10} {'of 1 ms':>9} {'p99/1 ms':>9}"
     )
-    print(header)
-    print("-" * len(header))
     for r in results:
         print(
             f"{r['num_envs']:>4}  {r['row']:<30} {r['median_us']:>10.1f} {r['p99_us']:>10.1f} "
@@ -408,8 +392,7 @@ def main(config: SafetyBenchConfig) -> dict:
     batch_khz = at[(largest, "whole pipeline 1kHz")]
     one_khz, one_sim = at[(smallest, "whole pipeline 1kHz")], at[(smallest, "whole pipeline 80Hz")]
     figures = {
-        "benchmark": "safety",
-        "mode": "quick" if config.quick else "full",
+        **header("safety", config.quick),
         f"fraction_of_policy_period_{largest}": batch_sim["fraction_of_policy_period"],
         f"fraction_of_policy_period_{largest}_p99": batch_sim["p99_fraction_of_policy_period"],
         f"fraction_of_policy_period_{largest}_1khz": batch_khz["fraction_of_policy_period"],
@@ -443,5 +426,4 @@ def main(config: SafetyBenchConfig) -> dict:
 
 
 if __name__ == "__main__":
-    figures = main(tyro.cli(SafetyBenchConfig, description=__doc__))
-    print(json.dumps(figures), flush=True)
+    report(main(tyro.cli(SafetyBenchConfig, description=__doc__)))

@@ -27,7 +27,7 @@ stops growing with the workers because the CPUs, not the learner, are saturated
 from __future__ import annotations
 
 import argparse
-import json
+import dataclasses
 import os
 import subprocess
 import sys
@@ -35,8 +35,11 @@ import time
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import header, loopback_transport, progress, report, spawn, stop
+
 from hamnet.runtime.service import Service, ServiceIdentity
-from hamnet.runtime.transport import TransportConfig, free_port
+from hamnet.runtime.transport import free_port
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
 from hamnet.trainer.stream import Streamed
@@ -47,16 +50,6 @@ TLS_WORKERS = 2
 """Rollout worker processes of the TLS setup (compared with the plain one of as many)."""
 IDENTITIES = ("router", "trainer", "rollout")
 """Certificates the TLS setup issues (each command presents its own name's)."""
-
-
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
-
-
-def hamnet(*args: str) -> subprocess.Popen:
-    """`python -m hamnet <args>`, its output discarded."""
-    return subprocess.Popen([sys.executable, "-m", "hamnet", *args],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
 
 
 def make_certificates(directory: Path) -> str | None:
@@ -74,19 +67,16 @@ def rate(config: RunConfig, workers: int, iterations: int, tls_dir: Path | None)
     from `workers` rollout processes through a router on loopback (TLS with `tls_dir`)."""
     protocol = "tcp" if tls_dir is None else "tls"
     endpoint = f"{protocol}/127.0.0.1:{free_port()}"
-    namespace = f"scaling{os.getpid()}n{time.monotonic_ns()}"
+    client = loopback_transport("scaling", mode="client", rendezvous="", connect=(endpoint,),
+                                tls_dir=tls_dir)  # fmt: skip
     secure = [] if tls_dir is None else ["--tls-dir", str(tls_dir)]
-    client = ["--namespace", namespace, "--mode", "client", "--rendezvous", "", "--connect",
-              endpoint, *secure]  # fmt: skip
     run = ["--architecture", config.architecture, "--sim.num-envs", str(config.num_envs),
            "--sim.nthread", "1", "--steps-per-rollout", str(config.steps_per_rollout)]  # fmt: skip
     if config.random_encoder:
         run.append("--random-encoder")
-    processes = [hamnet("router", "--listen", endpoint, "--namespace", namespace, *secure)]
-    processes += [hamnet("rollout", "--worker", str(k), *run, *client) for k in range(workers)]
-    transport = TransportConfig(namespace=namespace, mode="client", rendezvous="",
-                                connect=(endpoint,), tls_dir=tls_dir,
-                                identity="" if tls_dir is None else "trainer")  # fmt: skip
+    processes = [spawn(["router", "--listen", endpoint, "--namespace", client.namespace, *secure])]
+    processes += [spawn(["rollout", "--worker", str(k), *run], client) for k in range(workers)]
+    transport = dataclasses.replace(client, identity="" if tls_dir is None else "trainer")
     try:
         with Service(ServiceIdentity("trainer", "bench"), transport) as service:
             runner = Runner(config, lambda policy: Streamed(service, policy, workers,
@@ -96,9 +86,7 @@ def rate(config: RunConfig, workers: int, iterations: int, tls_dir: Path | None)
             rows = [runner.iterate() for _ in range(iterations)]
             elapsed = time.perf_counter() - started
     finally:
-        for process in processes:
-            process.terminate()
-            process.wait(timeout=30)
+        stop(processes)
     steps = iterations * workers * config.num_envs * config.steps_per_rollout
     learning = sum(row["learn_s"] for row in rows)
     return {"env_steps_per_s": steps / elapsed, "learner_share": learning / elapsed}
@@ -150,8 +138,7 @@ def main() -> dict:
         None if tls is None else plain[TLS_WORKERS]["env_steps_per_s"] / tls["env_steps_per_s"] - 1
     )
     return {
-        "benchmark": "scaling",
-        "mode": "quick" if args.quick else "full",
+        **header("scaling", args.quick),
         "architecture": architecture,
         "num_envs_per_worker": args.num_envs,
         "steps_per_rollout": config.steps_per_rollout,
@@ -169,4 +156,4 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(main()), flush=True)
+    report(main())

@@ -29,10 +29,8 @@ last mix) and every row under `results`.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import platform
-import sys
 import time
 from dataclasses import dataclass
 from importlib import metadata
@@ -40,6 +38,9 @@ from importlib import metadata
 import mujoco
 import numpy as np
 import tyro
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import header, median_p99, print_header, progress, report
 from mujoco.batch import Batch
 
 from hamnet.sim.commands import hold_command
@@ -87,10 +88,6 @@ class SimBenchConfig:
         return 2 if self.quick else self.fallback_draws
 
 
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
-
-
 def make_env(config: SimBenchConfig, num_envs: int, nthread: int) -> VectorEnv:
     """A reset env whose episodes are at staggered steps of their `timeout`."""
     sim = SimConfig(
@@ -128,12 +125,12 @@ class Timings:
 
     def summary(self, num_envs: int, physics_steps: int) -> dict[str, float]:
         total = float(np.sum(self.seconds))
-        ms = np.array(self.seconds) * 1e3
+        median_ms, p99_ms = median_p99(self.seconds, 1e3)
         return {
             "env_steps_per_s": round(num_envs * len(self.seconds) / total, 1),
             "physics_steps_per_s": round(num_envs * physics_steps * len(self.seconds) / total, 1),
-            "step_median_ms": round(float(np.median(ms)), 3),
-            "step_p99_ms": round(float(np.percentile(ms, 99)), 3),
+            "step_median_ms": round(median_ms, 3),
+            "step_p99_ms": round(p99_ms, 3),
             "reset_share": round(self.reset_seconds / total, 4),
             "resets": self.resets,
             "reset_ms": round(1e3 * self.reset_seconds / self.resets, 3) if self.resets else None,
@@ -186,13 +183,11 @@ def measure(config: SimBenchConfig, num_envs: int, nthread: int) -> dict:
 
 
 def print_table(rows: list[dict]) -> None:
-    header = (
+    print_header(
         f"{'envs':>4} {'thr':>3} {'raw phys/s':>11} {'our phys/s':>11} {'env steps/s':>11} "
         f"{'ratio':>6} {'w/o reset':>9} {'step med':>9} {'p99':>8} {'resets':>6} "
         f"{'reset %':>7} {'ms/reset':>8}"
     )
-    print(header)
-    print("-" * len(header))
     for row in rows:
         raw, ours = row["raw"], row["ours"]
         per_reset = f"{ours['reset_ms']:.1f}" if ours["reset_ms"] is not None else "-"
@@ -256,8 +251,7 @@ def main(config: SimBenchConfig) -> dict:
         return round(top[path]["physics_steps_per_s"] / single[path]["physics_steps_per_s"], 3)
 
     figures = {
-        "benchmark": "sim",
-        "mode": "quick" if config.quick else "full",
+        **header("sim", config.quick),
         "ratio_vs_raw": top["ratio_vs_raw"],
         "ratio_vs_raw_without_resets": top["ratio_vs_raw_without_resets"],
         "thread_scaling": scaling("ours"),
@@ -291,5 +285,4 @@ def main(config: SimBenchConfig) -> dict:
 
 
 if __name__ == "__main__":
-    figures = main(tyro.cli(SimBenchConfig, description=__doc__))
-    print(json.dumps(figures), flush=True)
+    report(main(tyro.cli(SimBenchConfig, description=__doc__)))

@@ -14,11 +14,13 @@ Consumes the project's FR3 model; produces four tables and one JSON line:
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import mujoco
 import numpy as np
+
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import report
 
 from hamnet.fr3 import model as fr3_model
 from hamnet.fr3.limits import Q_HOME
@@ -105,7 +107,7 @@ QUICK_TIMESTEPS = (0.0025, 0.01)
 """`--quick`: the chosen timestep and one that fails."""
 
 
-def main(timesteps: tuple[float, ...], integrators: dict[str, int]) -> None:
+def main(timesteps: tuple[float, ...], integrators: dict[str, int]) -> dict:
     implicit = INTEGRATORS["implicitfast"]
     print("impedance step: worst error in the last 0.5 s (rad), kp=200")
     loop = {}
@@ -137,7 +139,7 @@ def main(timesteps: tuple[float, ...], integrators: dict[str, int]) -> None:
                 "us_per_step": round(cost, 1),
             }
             print(f"  {key}", sweeps[key])
-    print(json.dumps({"loop": loop, "drop": drops, "sweep": sweeps}))
+    return {"loop": loop, "drop": drops, "sweep": sweeps}
 
 
 if __name__ == "__main__":
@@ -145,6 +147,6 @@ if __name__ == "__main__":
     parser.add_argument("--quick", action="store_true", help="two timesteps, implicitfast only")
     args = parser.parse_args()
     if args.quick:
-        main(QUICK_TIMESTEPS, {"implicitfast": INTEGRATORS["implicitfast"]})
+        report(main(QUICK_TIMESTEPS, {"implicitfast": INTEGRATORS["implicitfast"]}))
     else:
-        main(TIMESTEPS, INTEGRATORS)
+        report(main(TIMESTEPS, INTEGRATORS))

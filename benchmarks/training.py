@@ -35,10 +35,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
-import subprocess
-import sys
 import threading
 import time
 from collections import defaultdict
@@ -46,11 +43,12 @@ from collections.abc import Callable
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
-# Run as a script, so benchmarks/ is on sys.path: the sim benchmark's raw copy of a world.
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares and
+# the sim benchmark's raw copy of a world.
+from common import header, loopback_transport, progress, report, spawn, stop
 from sim import raw_copy
 
 from hamnet.runtime.service import Service, ServiceIdentity
-from hamnet.runtime.transport import TransportConfig, free_port
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
@@ -58,10 +56,6 @@ from hamnet.trainer.stream import Streamed
 
 CHAIN_LAG = 8
 """Versions a chain's chunk may lag the trainer (as tests/stack/test_chain_rollouts.py)."""
-
-
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 def timed(function: Callable, seconds: dict[str, float], name: str) -> Callable:
@@ -101,16 +95,8 @@ def remote_rate(
     started on a loopback network of their own) stream from `workers` sources of
     `sim.num_envs` environments each, after one warm-up iteration that includes their start;
     None when that iteration has not ended within `deadline_s` (None: no deadline)."""
-    transport = TransportConfig(
-        namespace=f"bench{os.getpid()}n{time.monotonic_ns()}",
-        rendezvous=f"tcp/127.0.0.1:{free_port()}",
-    )
-    network = ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
-    processes = [
-        subprocess.Popen([sys.executable, "-m", "hamnet", *command, *network],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        for command in commands
-    ]  # fmt: skip
+    transport = loopback_transport()
+    processes = [spawn(command, transport) for command in commands]
     try:
         with Service(ServiceIdentity("trainer", "bench"), transport) as service:
             config = RunConfig(sim=sim, run_dir=run_dir)
@@ -132,9 +118,7 @@ def remote_rate(
             steps = iterations * workers * sim.num_envs * config.steps_per_rollout
             return steps / (time.perf_counter() - started)
     finally:
-        for process in processes:
-            process.terminate()
-            process.wait(timeout=30)
+        stop(processes)
 
 
 def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) -> float:
@@ -243,8 +227,7 @@ def main() -> dict:
             else f"no update within {args.chain_deadline_s:.0f} s"))  # fmt: skip
     services = None if chain is None else chain / inprocess
     return {
-        "benchmark": "training",
-        "mode": "quick" if args.quick else "full",
+        **header("training", args.quick),
         "num_envs": num_envs,
         "stage": config.stage,
         "architecture": config.architecture,
@@ -274,4 +257,4 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(main()), flush=True)
+    report(main())

@@ -39,14 +39,11 @@ Before the networked runs, `transport_core.py` times the same work in-process.
 from __future__ import annotations
 
 import gc
-import json
 import os
 import platform
 import subprocess
-import sys
 import threading
 import time
-import uuid
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -58,7 +55,17 @@ import numpy as np
 import tyro
 import zenoh
 
-# Run as a script, so benchmarks/ is on sys.path and the core half imports by name.
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares, and
+# the core half by name.
+from common import (
+    header,
+    loopback_transport,
+    print_header,
+    progress,
+    report,
+    spawn,
+    stop,
+)
 from transport_core import (
     BENCH_WORKER,
     ECHO_WORKER,
@@ -75,7 +82,7 @@ from hamnet.runtime.allocator import keep_large_buffers
 from hamnet.runtime.codec import encode
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor
-from hamnet.runtime.transport import TransportConfig, free_port, open_session
+from hamnet.runtime.transport import TransportConfig, open_session
 from hamnet.tools.echo import reflect_key
 
 RAW_ECHO = Path(__file__).with_name("raw_echo.py")
@@ -142,11 +149,6 @@ class TransportBenchConfig:
             stream=full.stream // 3,
             core=max(full.core // 3, 10),
         )
-
-
-def progress(text: str) -> None:
-    """One progress line on stderr."""
-    print(f"[transport] {text}", file=sys.stderr, flush=True)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -396,34 +398,15 @@ def warm_up(
 # Processes: this session holds the rendezvous; the two echoes connect to it.
 
 
-def transport_flags(transport: TransportConfig) -> list[str]:
-    """Flags that give a child process the same transport as `transport`."""
-    return [
-        "--namespace", transport.namespace,
-        "--rendezvous", transport.rendezvous,
-        "--shared-memory" if transport.shared_memory else "--no-shared-memory",
-        "--shm-pool-mb", str(transport.shm_pool_mb),
-        "--shm-threshold", str(transport.shm_threshold),
-    ]  # fmt: skip
-
-
 def start_echoes(
     transport: TransportConfig, runtime: RuntimeEnd, raw: RawEnd
 ) -> list[subprocess.Popen]:
     """Start `hamnet echo --reflect` and the raw echo on `transport`'s namespace and rendezvous."""
-    flags = transport_flags(transport)
-    hamnet_echo = [
-        sys.executable, "-m", "hamnet", "echo", "--reflect", "--worker", ECHO_WORKER,
-        "--key-expr", runtime.ping_key, "--log-level", "warning", *flags,
-    ]  # fmt: skip
-    raw_echo = [
-        sys.executable, str(RAW_ECHO), "--key-in", raw.ping_key, "--key-out", raw.reply_key,
-        "--alive", f"hamnet/{transport.namespace}/alive/raw-echo/0", *flags,
-    ]  # fmt: skip
-    children = []
-    for command in (hamnet_echo, raw_echo):
-        children.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
-    return children
+    hamnet_echo = ["echo", "--reflect", "--worker", ECHO_WORKER, "--key-expr", runtime.ping_key,
+                   "--log-level", "warning"]  # fmt: skip
+    raw_echo = ["--key-in", raw.ping_key, "--key-out", raw.reply_key,
+                "--alive", f"hamnet/{transport.namespace}/alive/raw-echo/0"]  # fmt: skip
+    return [spawn(hamnet_echo, transport), spawn(raw_echo, transport, script=RAW_ECHO)]
 
 
 def await_alive(session: zenoh.Session, namespace: str, children: list[subprocess.Popen]) -> None:
@@ -446,27 +429,12 @@ def await_alive(session: zenoh.Session, namespace: str, children: list[subproces
     raise RuntimeError(f"echo processes not alive after 30 s (missing {sorted(wanted - seen)})")
 
 
-def stop(children: list[subprocess.Popen]) -> None:
-    """Terminate, wait, and kill what does not exit."""
-    for child in children:
-        if child.poll() is None:
-            child.terminate()
-    for child in children:
-        try:
-            child.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            child.kill()
-            child.wait()
-
-
 @contextmanager
 def echo_stack(
     config: TransportBenchConfig, shared_memory: bool
 ) -> Iterator[tuple[RuntimeEnd, RawEnd]]:
     """This process's session and both echo processes, all with `shared_memory` on or off."""
-    transport = TransportConfig(
-        namespace=f"bench{uuid.uuid4().hex[:10]}",
-        rendezvous=f"tcp/127.0.0.1:{free_port()}",
+    transport = loopback_transport(
         shared_memory=shared_memory,
         shm_pool_mb=config.shm_pool_mb,
         shm_threshold=config.shm_threshold,
@@ -480,7 +448,7 @@ def echo_stack(
         await_alive(session, transport.namespace, children)
         yield ends[0], ends[1]
     finally:
-        stop(children)
+        stop(children, timeout=5.0)
         for end in ends:
             end.close()
         session.close()
@@ -512,7 +480,7 @@ def measure_shm_setting(
                 results[end.name][size] = measurement
                 figures = summarize(measurement, messages[size].ByteSize())
                 progress(
-                    f"{label} {size:>4} {end.name:<7} round trip median "
+                    f"[transport] {label} {size:>4} {end.name:<7} round trip median "
                     f"{figures['round_trip_median_us'] / 1e3:7.3f} ms "
                     f"p99 {figures['round_trip_p99_us'] / 1e3:7.3f} ms "
                     f"(n={figures['round_trips']}) | {figures['throughput_msg_s']:8.1f} msg/s "
@@ -565,13 +533,11 @@ def print_profile(profile: dict[str, dict[str, dict[str, float]]]) -> None:
 
 def print_table(results: dict, sizes: tuple[str, ...], payload: dict[str, int]) -> None:
     """Every measurement, runtime beside raw; times in ms (send/remote/recv split the median)."""
-    header = (
+    print_header(
         f"{'size':>5} {'bytes':>9} {'shm':>4} {'path':<8} {'rt median':>9} {'rt p99':>8} "
         f"{'send':>7} {'remote':>7} {'recv':>7} {'msg/s':>8} {'MB/s':>7} {'lost':>4} "
         f"{'via shm':>7} {'vs raw':>6}"
     )
-    print(header)
-    print("-" * len(header))
     for size in sizes:
         for shm in ("on", "off"):
             raw_median = results[f"shm_{shm}"]["raw"][size]["round_trip_median_us"]
@@ -610,7 +576,7 @@ def main(config: TransportBenchConfig) -> dict:
     for size in config.sizes:
         profile[size] = core_profile(messages[size], config.plan(size).core)
         steps = ", ".join(f"{k} {v['median_us']:.1f}" for k, v in profile[size].items())
-        progress(f"core {size} (median us): {steps}")
+        progress(f"[transport] core {size} (median us): {steps}")
 
     results: dict[str, dict[str, dict[str, dict[str, float]]]] = {}
     for shared_memory in (True, False):
@@ -633,8 +599,7 @@ def main(config: TransportBenchConfig) -> dict:
         for size in config.sizes
     }
     figures = {
-        "benchmark": "transport",
-        "mode": "quick" if config.quick else "full",
+        **header("transport", config.quick),
         "overhead_vs_raw_400k": overhead.get("shm_on_400k", float("nan")),
         "shm_speedup_4m": ratio(
             median("shm_off", "runtime", "4m"), median("shm_on", "runtime", "4m")
@@ -666,5 +631,4 @@ def main(config: TransportBenchConfig) -> dict:
 
 if __name__ == "__main__":
     keep_large_buffers()  # as every `hamnet` process and raw_echo.py do
-    figures = main(tyro.cli(TransportBenchConfig, description=__doc__))
-    print(json.dumps(figures), flush=True)
+    report(main(tyro.cli(TransportBenchConfig, description=__doc__)))

@@ -17,6 +17,9 @@ from types import SimpleNamespace
 import numpy as np
 import zenoh
 
+# Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
+from common import durations, summary
+
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.runtime import contract
 from hamnet.runtime.codec import decode, encode, iter_tensors, parse
@@ -49,28 +52,12 @@ def make_message(shape: tuple[int, int, int], seed: int) -> PerceptionTokens:
     return message
 
 
-def stats_us(samples_ns: list[int] | np.ndarray) -> dict[str, float]:
-    """Median and p99 of nanosecond samples, in microseconds."""
-    values = np.asarray(samples_ns, dtype=np.float64) / 1e3
-    if values.size == 0:
+def stats_us(samples: list[int] | np.ndarray, scale: float = 1e-3) -> dict[str, float]:
+    """Median and p99 of `samples` times `scale` (default: nanoseconds) in microseconds, and
+    their count; NaN when there are none (every echo lost)."""
+    if len(samples) == 0:
         return {"median_us": float("nan"), "p99_us": float("nan"), "n": 0}
-    return {
-        "median_us": round(float(np.median(values)), 1),
-        "p99_us": round(float(np.percentile(values, 99)), 1),
-        "n": int(values.size),
-    }
-
-
-def time_ns(function: Callable[[], object], repetitions: int) -> list[int]:
-    """Per-call durations of `function`, after two warm-up calls."""
-    function()
-    function()
-    samples = []
-    for _ in range(repetitions):
-        start = time.perf_counter_ns()
-        function()
-        samples.append(time.perf_counter_ns() - start)
-    return samples
+    return {**summary(samples, "us", scale, digits=1), "n": len(samples)}
 
 
 class _LoopbackSession:
@@ -192,7 +179,10 @@ def core_profile(message: PerceptionTokens, repetitions: int) -> dict[str, dict[
     Per round trip the runtime encodes once, decodes twice and builds one numpy view.
     """
     steps = core_steps(message)
-    profile = {name: stats_us(time_ns(step, repetitions)) for name, step in steps.items()}
+    profile = {
+        name: stats_us(durations(step, repetitions, warmup=2), scale=1e6)
+        for name, step in steps.items()
+    }
     profile["handoff"] = stats_us(handoff_ns(min(repetitions, 200)))
     runtime = sum(profile[f"runtime_{hop}"]["median_us"] for hop in ("send", "echo", "receive"))
     raw = sum(profile[f"raw_{hop}"]["median_us"] for hop in ("echo", "receive"))
