@@ -1,6 +1,6 @@
 """The one input builder of the policy: robot state, tokens and what is carried between
 steps (previous action, recurrent memory, EnvCode) to `PolicyInputs`. Pure, batched torch
-without Zenoh: the policy service (`hamnet.policy.shell`) calls it per message, a trainer
+without Zenoh: the policy service (`hamnet.policy.serving`) calls it per message, a trainer
 calls it in-process on `VectorEnv` observations, and both see the same inputs.
 
 A step is `begin_step` (zero the carry of environments whose episode started), then
