@@ -1,7 +1,7 @@
 """Rollout chunks from the service chain: what the policy service served, step by step,
 joined with the sim's transitions by step and episode ids (no Zenoh).
 
-The policy service (through `hamnet.policy.rollouts`) serves step k of B environments (inputs, raw
+The policy service (via `hamnet.policy.rollouts`) serves step k of B environments (inputs, raw
 action, log-probability, values per reward term, weights version) and later receives the
 sim's transition k (`sim/<w>/transition`: the outcome of the command answering state k,
 with the episode ids before any reset). A chunk of T steps k..k+T-1 is complete when those
