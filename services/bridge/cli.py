@@ -11,6 +11,7 @@ reads the limits and the state, measures the round trip and prints a verdict
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Literal
@@ -65,7 +66,11 @@ def main(argv: Sequence[str]) -> int:
 
         return gap(argv[1:])
     config, identity = parse_service(CONFIG, argv, "bridge", __doc__)
-    core = BridgeCore(make_driver(config), config.loop.policy_period_s)
+    try:
+        core = BridgeCore(make_driver(config), config.loop.policy_period_s)
+    except ConnectionError as error:
+        print(f"hamnet bridge: {error} (`hamnet bridge check` says more)", file=sys.stderr)
+        return 2
     with Service(identity, config.common.transport) as service:
         return BridgeShell(service, core, config.loop).run()
 

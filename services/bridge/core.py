@@ -14,6 +14,7 @@ plan the robot stopped following; commands computed for an older episode are ign
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,6 +85,14 @@ class BridgeCore:
         """Whether commands reach the robot (no error since the last reset)."""
         return not self.errors
 
+    def clock(self) -> float:
+        """The robot's clock, s; once the link is lost (an error), the wall clock."""
+        try:
+            return self.driver.clock()
+        except ConnectionError as error:
+            self._fail([RobotError(CONNECTION_LOST, str(error))])
+            return time.monotonic()
+
     def read(self) -> RobotReading | None:
         """The robot's state, or None when the connection is lost (then an error)."""
         try:
@@ -116,7 +125,12 @@ class BridgeCore:
             return errors
         c = command.command
         q_ref = c.q_ref[0]  # (S, J)
-        self.driver.send(ImpedanceReference(q_ref, c.kp[0], c.kd[0], c.tau_limit[0]))
+        try:
+            self.driver.send(ImpedanceReference(q_ref, c.kp[0], c.kd[0], c.tau_limit[0]))
+        except ConnectionError as error:
+            errors = [RobotError(CONNECTION_LOST, str(error))]
+            self._fail(errors)
+            return errors
         self.last_step = command.step
         self.counts["executed"] += 1
         self._history = q_ref[-3:]

@@ -158,9 +158,7 @@ class FrankyDriver:
 
     def clock(self) -> float:
         """The robot's clock (libfranka's state time), s."""
-        if self._robot is None:
-            raise ConnectionError("not connected to the robot")
-        return float(self._robot.state.time.to_sec())
+        return float(self._state().time.to_sec())
 
     def limits(self) -> FR3Limits:
         """The FR3's datasheet limits (libfranka does not report them)."""
@@ -169,14 +167,21 @@ class FrankyDriver:
     def read(self) -> RobotReading:
         """The robot's latest state; ConnectionError when its clock has stood still for the
         link timeout."""
-        if self._robot is None:
-            raise ConnectionError("not connected to the robot")
-        state = self._robot.state
+        state = self._state()
         self._check_link(float(state.time.to_sec()))
         q = np.asarray(state.q, dtype=np.float64)
         position, rotation = pinocchio_ee_pose(self._model, self._data, q)
         return RobotReading(q, np.asarray(state.dq, dtype=np.float64),
                             np.asarray(state.tau_J, dtype=np.float64), position, rotation)  # fmt: skip
+
+    def _state(self) -> Any:
+        """libfranka's latest robot state; ConnectionError when there is no link."""
+        if self._robot is None:
+            raise ConnectionError("not connected to the robot")
+        try:
+            return self._robot.state
+        except (self._franky.Exception, RuntimeError) as error:  # NetworkException, then
+            raise ConnectionError(f"lost the robot: {error}") from error  # "Net Exception"
 
     def send(self, reference: ImpedanceReference) -> None:
         """Queue one policy period; the first after a connect or reset starts the motion."""
@@ -248,7 +253,7 @@ class FrankyDriver:
             stiffness=reference.kp, damping=reference.kd, compensate_coriolis=False,
             gains_time_constant=self.config.gains_time_constant_s,
         )  # fmt: skip
-        self._motion.set_reference(franky.JointReference(q=np.asarray(self._robot.state.q)))
+        self._motion.set_reference(franky.JointReference(q=np.asarray(self._state().q)))
         self._robot.move(self._motion, asynchronous=True)
         self._streamer = threading.Thread(target=self._stream, name="franky-streamer", daemon=True)
         self._streamer.start()

@@ -112,7 +112,7 @@ class BridgeShell:
         )
         log.info("%.0f ms policy period, %d samples per command, reset on %s",
                  1e3 * self.loop.policy_period_s, self.core.samples, self.reset_key)  # fmt: skip
-        clock = self.core.driver.clock
+        clock = self.core.clock
         last_report, tick = time.monotonic(), clock()
         try:
             while self.service.running and not 0 < self.loop.max_steps <= self.step:
@@ -121,7 +121,14 @@ class BridgeShell:
                 self._publish_state()
                 self._report_errors()
                 tick += self.loop.policy_period_s
-                while self.service.running and (remaining := tick - clock()) > 0:
+                # a robot clock that stands still (a dead link) must not stall the states:
+                # the next read then reports the lost connection
+                wall_limit = time.monotonic() + 2 * self.loop.policy_period_s
+                while (
+                    self.service.running
+                    and (remaining := tick - clock()) > 0
+                    and (time.monotonic() < wall_limit)
+                ):
                     received = self.service.receive(timeout=min(remaining, 0.01))
                     if received is not None and received.name == "pose":
                         self.object_pose = received.value

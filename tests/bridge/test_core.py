@@ -17,18 +17,9 @@ from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.runtime.tensor import from_tensor
 from hamnet.sim.commands import hold_command
 from tests.bridge.driving import drive
+from tests.clock import Clock
 
 PERIOD = 0.1
-
-
-class Clock:
-    """A clock the test moves."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
 
 
 def make(deadline_s: float = 1.0) -> tuple[BridgeCore, FakeDriver, Clock]:

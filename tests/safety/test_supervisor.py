@@ -22,6 +22,7 @@ from hamnet.safety.supervisor import (
     StateIn,
     Supervisor,
 )
+from tests.clock import Clock
 
 B, J = 2, 7
 WATCHDOG_S = 0.3
@@ -29,20 +30,10 @@ PERIOD_S = 0.1
 """The default TrajectoryConfig's policy period."""
 
 
-class FakeClock:
-    """Seconds that pass only when a test says so."""
-
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-def supervisor(**config) -> tuple[Supervisor, list, FakeClock]:
+def supervisor(**config) -> tuple[Supervisor, list, Clock]:
     """A supervisor of B environments, what it emits, and its clock."""
     emitted: list[Command | Notice] = []
-    clock = FakeClock()
+    clock = Clock(100.0)
     config = ShellConfig(**{"num_envs": B, "watchdog_s": WATCHDOG_S, **config})
     return Supervisor(emitted.append, config, estop=EStop(), clock=clock), emitted, clock
 
