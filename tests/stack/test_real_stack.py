@@ -43,9 +43,10 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
     document = yaml.safe_load((COMPOSE / "real.yaml").read_text())
     services = document["services"]
     # franky-sim steps in Python: on 2 loaded cores its clock can stall past the 0.1 s that
-    # means a lost link on a real FR3, so this test allows it a second.
+    # means a lost link on a real FR3, so this test allows it a second (and a command
+    # deadline of 2 s: the whole stack shares those 2 cores).
     services["robot"]["args"].update({"franky.host": host, "franky.realtime": "ignore",
-                                      "franky.link-timeout-s": 1.0})  # fmt: skip
+                                      "franky.link-timeout-s": 1.0, "franky.deadline-s": 2.0})  # fmt: skip
     services["camera"]["args"] = {"source": "sim"}
     services["perception"]["args"].update(segmenter="mask")
     services["policy"]["args"] = {"random-init": "student", "deterministic": True}
@@ -97,13 +98,19 @@ def drive_then_kill(stack: Running, steps: int) -> None:
     stack.wait(
         lambda: any(e.kind == SafetyEventKind.WATCHDOG_STOP for e in safety_events), "the watchdog"
     )
-    nan = PolicyAction(header=Header(step=states[-1].header.step))
-    to_tensor(np.full((1, 21), np.nan, np.float32), nan.action)
-    forger.put(stack.key("policy/<w>/action"), encode(nan))
-    stack.wait(
-        lambda: any(e.kind == SafetyEventKind.REJECTED_NONFINITE for e in safety_events),
-        "the NaN rejected",
-    )
+    answered: set[int] = set()
+
+    def nan_answered_and_rejected() -> bool:
+        """Answer the newest state with a NaN action (once), as a broken policy would."""
+        step = states[-1].header.step
+        if step not in answered:
+            nan = PolicyAction(header=Header(step=step))
+            to_tensor(np.full((1, 21), np.nan, np.float32), nan.action)
+            forger.put(stack.key("policy/<w>/action"), encode(nan))
+            answered.add(step)
+        return any(e.kind == SafetyEventKind.REJECTED_NONFINITE for e in safety_events)
+
+    stack.wait(nan_answered_and_rejected, "the NaN rejected")
     time.sleep(REST_WITHIN_S)
     resting = len(states)
     stack.wait(lambda: len(states) >= resting + 10, "10 states at rest")
