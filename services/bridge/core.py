@@ -5,10 +5,11 @@ Every command is checked before it reaches the driver with the same reflex check
 fake applies (`hamnet.safety.fake_fr3.reflex_flags`: finite, inside the position limits,
 velocity, acceleration and jerk from the samples already sent; an episode's first command
 from rest at its first sample, which must lie within START_TOLERANCE of the measured
-position), plus its gains and torque limits; one that fails is never sent: it becomes a `command_rejected` error, which stops the
-stream like a reflex of the robot would. A reset starts a new episode (new episode id), so
-that the safety filter plans again from the measured joint positions instead of continuing a
-plan the robot stopped following; commands computed for an older episode are ignored.
+position), plus its gains and torque limits; one that fails is never sent: it becomes a
+`command_rejected` error, which stops the stream like a reflex of the robot would. A reset
+starts a new episode (new episode id), so that the safety filter plans again from the
+measured joint positions instead of continuing a plan the robot stopped following; commands
+computed for an older episode are ignored.
 """
 
 from __future__ import annotations

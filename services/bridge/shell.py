@@ -1,20 +1,21 @@
 """The bridge's Zenoh shell: one robot in place of the sim, paced by the robot's clock.
 
 Consumes `safety/<w>/command` (SafeCommand k: references at the driver's control period,
-one policy period long, for one robot). Produces `sim/<w>/state` (RobotState, once per
-policy period: the sim's fields for B = 1, no privileged block, no object pose estimate) and
-`bridge/<w>/event` (SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the
-stream resumes). Consumes `perception/<w>/object_pose` too (ObjectPoseEstimate from the
-depth-camera path): the newest estimate at most `--pose-max-age-steps` states old goes into
-each state's `object_pose_estimate`; without one the field is left out, a student policy
-answers nothing and safety holds the arm. Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the
-e-stop's latch of `hamnet.safety.estop`): after an error the stream stays stopped until a
-`reset`. Free-running: state k+1 goes out one policy period of the robot's clock
-(`Driver.clock`) after state k, whatever the commands do; each command is executed when it arrives if it is newer than the last one and
-planned for the current episode (`hamnet.bridge.core`). A command the transport cannot
-decode (non-finite, another sample period or batch) is dropped and counted in health.
-Each executed command is timed from its state's publication: the median and p99 of the
-last LATENCY_WINDOW go into the rate line and into health as figures
+one policy period long, for one robot) and `perception/<w>/object_pose` (ObjectPoseEstimate
+from the depth-camera path). Produces `sim/<w>/state` (RobotState, once per policy period:
+the sim's fields for B = 1, no privileged block; the newest object pose estimate at most
+`--pose-max-age-steps` states old as `object_pose_estimate`, or no such field, and then a
+student policy answers nothing and safety holds the arm) and `bridge/<w>/event`
+(SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the stream resumes).
+Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the e-stop's latch of
+`hamnet.safety.estop`): after an error the stream stays stopped until a `reset`.
+
+Free-running: state k+1 goes out one policy period of the robot's clock (`Driver.clock`)
+after state k, whatever the commands do; each command is executed when it arrives if it is
+newer than the last one and planned for the current episode (`hamnet.bridge.core`). A
+command the transport cannot decode (non-finite, another sample period or batch) is dropped
+and counted in health. Each executed command is timed from its state's publication: the
+median and p99 of the last LATENCY_WINDOW go into the rate line and into health as figures
 (`command_latency_median_ms`, `command_latency_p99_ms`).
 """
 
