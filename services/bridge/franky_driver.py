@@ -126,8 +126,6 @@ class FrankyDriver:
         self._halt_lock = threading.Lock()
         self._streamer: threading.Thread | None = None
         self._robot_time = (-1.0, wall_clock())  # (robot's clock, s; wall clock when it changed)
-        self.late = 0
-        """Periods that started after the previous one had ended (its last sample held)."""
         self.dropped = 0
         """Periods replaced before they started (a backlog of more than one)."""
         self.refused = 0
@@ -193,8 +191,6 @@ class FrankyDriver:
         with self._lock:
             previous = self._period
             end = self._period_start + (len(previous.q_ref) * CONTROL_PERIOD_S if previous else 0.0)
-            if previous is not None and end < now:
-                self.late += 1
             if previous is not None and end > now + len(reference.q_ref) * CONTROL_PERIOD_S:
                 self.dropped += 1
                 end = now
@@ -240,10 +236,10 @@ class FrankyDriver:
             if motion is None or self._robot is None:
                 return
             try:
-                motion.set_reference(self._franky.JointReference(q=np.asarray(self._robot.state.q)))
+                motion.set_reference(self._franky.JointReference(q=np.asarray(self._state().q)))
                 self._robot.stop()
                 self._robot.join_motion(1.0)
-            except self._franky.Exception as error:  # the expected preemption, or no link
+            except (self._franky.Exception, ConnectionError) as error:  # the preemption, no link
                 log.debug("ending the motion: %s", error)
 
     def _start(self, reference: ImpedanceReference) -> None:
@@ -264,18 +260,22 @@ class FrankyDriver:
         while not self._stopped.is_set():
             with self._lock:
                 period, start = self._period, self._period_start
-            state = robot.state
-            robot_time = float(state.time.to_sec())
-            q = np.asarray(state.q, dtype=np.float64)
-            q_ref = play_sample(period.q_ref, max(robot_time - start, 0.0))
-            q_ref = torque_bounded(q_ref, q, period.kp, np.minimum(period.tau_limit, FR3.tau_max))
-            error = self._problem(robot, robot_time, np.asarray(state.dq), self.wall_clock())
+            try:
+                state = self._state()
+            except ConnectionError as lost:
+                state, error = None, RobotError(CONNECTION_LOST, str(lost))
+            if state is not None:
+                robot_time = float(state.time.to_sec())
+                error = self._problem(robot, robot_time, np.asarray(state.dq), self.wall_clock())
             if error is not None:
                 with self._lock:
                     self._errors.append(error)
                 self._stopped.set()
                 self._halt()
                 return
+            q = np.asarray(state.q, dtype=np.float64)
+            q_ref = play_sample(period.q_ref, max(robot_time - start, 0.0))
+            q_ref = torque_bounded(q_ref, q, period.kp, np.minimum(period.tau_limit, FR3.tau_max))
             motion.set_reference(franky.JointReference(q=q_ref))
             time.sleep(CONTROL_PERIOD_S)
 
