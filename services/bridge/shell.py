@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.messages.safe_command import decode as decode_command
 from hamnet.proto.perception_pb2 import ObjectPoseEstimate
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
 from hamnet.runtime import contract
@@ -39,7 +40,6 @@ from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import from_tensor
 from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.messages import encode_event
-from hamnet.sim.shell import decode_command
 
 log = logging.getLogger(__name__)
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.fr3.model import ee_pose_9d
+from hamnet.messages.robot_state import Observation
+from hamnet.messages.safe_command import Command
 from hamnet.sim import episodes as draw
 from hamnet.sim import quaternion
 from hamnet.sim.config import SimConfig
@@ -37,36 +39,6 @@ _EPISODE_ARRAYS = (
 
 OBJECT_POINTS = 512
 """Surface points per object sent with each scene: the paper's object cloud size."""
-
-
-@dataclass(frozen=True)
-class Command:
-    """What the safety filter sends for one policy period (the SafeCommand message)."""
-
-    q_ref: np.ndarray
-    """(B, S, J) joint references, one per control sample, rad."""
-    kp: np.ndarray
-    """(B, J) stiffness, N m/rad."""
-    kd: np.ndarray
-    """(B, J) damping, N m s/rad."""
-    tau_limit: np.ndarray
-    """(B, J) torque clip, N m."""
-
-
-@dataclass(frozen=True)
-class Observation:
-    """Batched state after a step (the RobotState message; `privileged` fields sim-only)."""
-
-    episode_ids: np.ndarray  # (B,) int64
-    episode_step: np.ndarray  # (B,) int32
-    q: np.ndarray  # (B, J) rad
-    dq: np.ndarray  # (B, J) rad/s
-    tau: np.ndarray  # (B, J) N m, actuator torque (gravity compensation included)
-    ee_pose: np.ndarray  # (B, 9): position (3) + first two rotation columns (6)
-    goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
-    object_pose: np.ndarray  # (B, 7), privileged
-    object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
-    physics_params: np.ndarray  # (B, P), privileged (episodes.PHYSICS_PARAM_NAMES)
 
 
 @dataclass(frozen=True)

@@ -23,22 +23,24 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.messages.robot_state import encode as encode_state
+from hamnet.messages.safe_command import decode as decode_command
+from hamnet.messages.schedule import decode as decode_schedule
+from hamnet.messages.transition import encode as encode_transition
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
-from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
+from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
+from hamnet.runtime.tensor import to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
 from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
@@ -57,20 +59,6 @@ SCHEDULE = contract.topic("trainer/schedule")
 # --- encode / decode: pure functions, tested without a session -------------------------
 
 
-def encode_state(obs: Observation, step: int) -> RobotState:
-    """RobotState k (with the privileged block) from the observation after `step` steps."""
-    message = RobotState(header=Header(step=step))
-    to_tensor(obs.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
-    to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
-    for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
-        to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
-    to_tensor(obs.object_pose.astype(np.float32), message.object_pose_estimate)  # (B, 7), exact
-    privileged = message.privileged
-    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, P)
-        to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))
-    return message
-
-
 def encode_scene(scenes: SceneDescription, step: int) -> Scene:
     """The Scene message of K environments' current episodes, at the state of `step`."""
     message = Scene(header=Header(step=step), object_ids=list(scenes.object_ids))
@@ -86,54 +74,6 @@ def encode_scene(scenes: SceneDescription, step: int) -> Scene:
     to_tensor(scenes.env_code, message.env_code)  # (K, 25)
     to_tensor(scenes.object_points, message.object_points)  # (K, P, 3)
     return message
-
-
-def encode_transition(result: StepResult, reward_names: Sequence[str], step: int) -> Transition:
-    """Transition k: the outcome of command k (episode ids before any auto-reset)."""
-    message = Transition(header=Header(step=step), reward_names=list(reward_names))
-    to_tensor(result.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
-    to_tensor(result.reward_terms.astype(np.float32), message.reward_terms)  # (B, R)
-    to_tensor(result.terminated.astype(bool), message.terminated)  # (B,)
-    to_tensor(result.truncated.astype(bool), message.truncated)  # (B,)
-    to_tensor(result.success.astype(bool), message.success)  # (B,)
-    return message
-
-
-def decode_command(
-    message: SafeCommand, num_envs: int, control_samples: int, control_dt: float
-) -> tuple[int, Command]:
-    """The step a SafeCommand answers and the Command to apply.
-
-    Args:
-        message: the parsed SafeCommand.
-        num_envs: B; control_samples: S; control_dt: the sim's sample period, s.
-    Returns:
-        (header.step, Command with q_ref (B, S, J), kp, kd, tau_limit (B, J)).
-    Raises:
-        PayloadError: `missing`, `dtype`, `shape` (batch size, sample count or joint count
-            differ from the sim's), `nonfinite`, `range` (negative gain or torque limit), or
-            `control_dt` (a sample period other than the sim's).
-    """
-    b, s, j = num_envs, control_samples, NUM_JOINTS
-    q_ref = field_array(message, "q_ref", None, (b, s, j))
-    gains = {name: field_array(message, name, None, (b, j)) for name in ("kp", "kd", "tau_limit")}
-    if message.HasField("dq_ref"):  # checked, unused: the impedance law damps towards rest
-        field_array(message, "dq_ref", None, (b, s, j))
-    if message.HasField("episode_ids"):
-        from_tensor(message.episode_ids, np.int64, (b,))
-    negative = [name for name, value in gains.items() if (value < 0).any()]
-    if negative:
-        raise PayloadError("range", f"SafeCommand.{', '.join(negative)} must be >= 0")
-    if message.control_dt and abs(message.control_dt - control_dt) > 1e-9:
-        raise PayloadError(
-            "control_dt", f"samples of {message.control_dt} s, the sim's are {control_dt} s"
-        )
-    return message.header.step, Command(q_ref=q_ref, **gains)
-
-
-def decode_schedule(message: Schedule) -> int:
-    """The trainer's env_transitions counter, which the curricula follow."""
-    return int(message.env_transitions)
 
 
 # --- the loop ----------------------------------------------------------------------------

@@ -1,0 +1,157 @@
+"""RobotState (sim and bridge -> safety, policy, perception, camera, monitor): the sim's
+`Observation`, its encoder, and the one decoder every consumer reads states with.
+
+A decoded state holds every field the message carries; each consumer names the fields it
+reads (`required`), so a state lacking one is dropped as `missing` where it matters and
+accepted where it does not (a camera needs only `q`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Batched state after a sim step (what RobotState carries; `object_pose`,
+    `object_velocity` and `physics_params` are the sim-only privileged block)."""
+
+    episode_ids: np.ndarray  # (B,) int64
+    episode_step: np.ndarray  # (B,) int32
+    q: np.ndarray  # (B, J) rad
+    dq: np.ndarray  # (B, J) rad/s
+    tau: np.ndarray  # (B, J) N m, actuator torque (gravity compensation included)
+    ee_pose: np.ndarray  # (B, 9): position (3) + first two rotation columns (6)
+    goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
+    object_pose: np.ndarray  # (B, 7), privileged
+    object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
+    physics_params: np.ndarray  # (B, P), privileged (episodes.PHYSICS_PARAM_NAMES)
+
+
+@dataclass(frozen=True)
+class Privileged:
+    """RobotState.privileged: simulation-only quantities (teacher inputs)."""
+
+    object_pose: np.ndarray
+    """(B, 7) float32 object pose: position (m) and quaternion wxyz."""
+    object_velocity: np.ndarray
+    """(B, 6) float32 linear (m/s) and angular (rad/s) velocity, world frame."""
+    physics_params: np.ndarray
+    """(B, P) float32 (episodes.PHYSICS_PARAM_NAMES)."""
+
+
+@dataclass(frozen=True)
+class StateIn:
+    """RobotState k decoded: float32 arrays; a field the message leaves out is None."""
+
+    run: int
+    """The sender's run (`Header.run`): a restarted sim repeats step numbers."""
+    step: int
+    """k, `Header.step`."""
+    stamp_ns: int
+    """`Header.stamp_ns`."""
+    episode_ids: np.ndarray | None
+    """(B,) int64."""
+    episode_step: np.ndarray | None
+    """(B,) int32 policy steps since each episode started (0: it starts in this state)."""
+    q: np.ndarray | None
+    """(B, J) joint positions, rad."""
+    dq: np.ndarray | None
+    """(B, J) joint velocities, rad/s."""
+    tau: np.ndarray | None
+    """(B, J) measured joint torques, N m."""
+    ee_pose: np.ndarray | None
+    """(B, 9) end-effector position (m) and first two rotation columns."""
+    goal_pose: np.ndarray | None
+    """(B, 7) object goal: position (m) and quaternion wxyz."""
+    object_pose_estimate: np.ndarray | None
+    """(B, 7) object pose as a pose estimator reports it (what a student reads)."""
+    privileged: Privileged | None
+    """Present in simulation only."""
+
+
+_FIELDS = {  # name: (dtype, trailing shape)
+    "episode_ids": (np.int64, ()),
+    "episode_step": (np.int32, ()),
+    "q": (np.float32, (J,)),
+    "dq": (np.float32, (J,)),
+    "tau": (np.float32, (J,)),
+    "ee_pose": (np.float32, (9,)),
+    "goal_pose": (np.float32, (7,)),
+    "object_pose_estimate": (np.float32, (7,)),
+}
+_PRIVILEGED = {"object_pose": (7,), "object_velocity": (6,), "physics_params": (None,)}
+
+
+def _batch(message: RobotState, num_envs: int | None) -> int | None:
+    """B: `num_envs`, else the length of the first of episode_ids and q sent."""
+    for name in ("episode_ids", "q"):
+        if num_envs is None and message.HasField(name):
+            dtype, tail = _FIELDS[name]
+            num_envs = len(field_array(message, name, dtype, (None, *tail)))
+    return num_envs
+
+
+def decode(
+    message: RobotState, num_envs: int | None = None, required: Iterable[str] = ()
+) -> StateIn:
+    """RobotState k, every field it carries checked against one batch size B.
+
+    Args:
+        num_envs: B; None takes it from the message.
+        required: fields that must be set (names of `StateIn`'s arrays).
+    Raises:
+        PayloadError: `missing` (a required field), `dtype` (not as documented), `shape`
+            (batch or width), `nonfinite`.
+    """
+    unknown = set(required) - set(_FIELDS)
+    if unknown:
+        raise ValueError(f"RobotState has no field {sorted(unknown)}")
+    b = _batch(message, num_envs)
+    arrays: dict[str, np.ndarray | None] = dict.fromkeys(_FIELDS)
+    for name in (*required, *_FIELDS):
+        if arrays[name] is None and (message.HasField(name) or name in required):
+            dtype, tail = _FIELDS[name]
+            arrays[name] = np.array(field_array(message, name, dtype, (b, *tail)))
+    privileged = None
+    if message.HasField("privileged"):
+        block = message.privileged
+        privileged = Privileged(**{
+            name: np.array(field_array(block, name, np.float32, (b, *tail)))
+            for name, tail in _PRIVILEGED.items()
+        })  # fmt: skip
+    header = message.header
+    return StateIn(header.run, header.step, header.stamp_ns, privileged=privileged, **arrays)
+
+
+def first_row(array: np.ndarray, name: str) -> np.ndarray:
+    """Row 0 of a (B, ...) field, for a consumer of one robot.
+
+    Raises:
+        PayloadError: `shape` when the batch is empty.
+    """
+    if len(array) == 0:
+        raise PayloadError("shape", f"RobotState.{name} holds no environment")
+    return array[0]
+
+
+def encode(obs: Observation, step: int) -> RobotState:
+    """RobotState k (with the privileged block) from the observation after `step` steps."""
+    message = RobotState(header=Header(step=step))
+    to_tensor(obs.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
+    to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
+    for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
+        to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
+    to_tensor(obs.object_pose.astype(np.float32), message.object_pose_estimate)  # (B, 7), exact
+    privileged = message.privileged
+    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, P)
+        to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))
+    return message

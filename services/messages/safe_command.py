@@ -1,0 +1,59 @@
+"""SafeCommand (safety -> sim, bridge): the joint references and gains an executor applies
+for one policy period, decoded into the sim's `Command` with one function.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.proto.safety_pb2 import SafeCommand
+from hamnet.runtime.tensor import PayloadError, field_array, from_tensor
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the safety filter sends for one policy period (the SafeCommand message)."""
+
+    q_ref: np.ndarray
+    """(B, S, J) joint references, one per control sample, rad."""
+    kp: np.ndarray
+    """(B, J) stiffness, N m/rad."""
+    kd: np.ndarray
+    """(B, J) damping, N m s/rad."""
+    tau_limit: np.ndarray
+    """(B, J) torque clip, N m."""
+
+
+def decode(
+    message: SafeCommand, num_envs: int, control_samples: int, control_dt: float
+) -> tuple[int, Command]:
+    """The step a SafeCommand answers and the Command to apply.
+
+    Args:
+        message: the parsed SafeCommand.
+        num_envs: B; control_samples: S; control_dt: the executor's sample period, s.
+    Returns:
+        (header.step, Command with q_ref (B, S, J), kp, kd, tau_limit (B, J)).
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape` (batch size, sample count or joint count
+            differ from the executor's), `nonfinite`, `range` (negative gain or torque
+            limit), or `control_dt` (a sample period other than the executor's).
+    """
+    b, s, j = num_envs, control_samples, NUM_JOINTS
+    q_ref = field_array(message, "q_ref", None, (b, s, j))
+    gains = {name: field_array(message, name, None, (b, j)) for name in ("kp", "kd", "tau_limit")}
+    if message.HasField("dq_ref"):  # checked, unused: the impedance law damps towards rest
+        field_array(message, "dq_ref", None, (b, s, j))
+    if message.HasField("episode_ids"):
+        from_tensor(message.episode_ids, np.int64, (b,))
+    negative = [name for name, value in gains.items() if (value < 0).any()]
+    if negative:
+        raise PayloadError("range", f"SafeCommand.{', '.join(negative)} must be >= 0")
+    if message.control_dt and abs(message.control_dt - control_dt) > 1e-9:
+        raise PayloadError(
+            "control_dt", f"samples of {message.control_dt} s, the sim's are {control_dt} s"
+        )
+    return message.header.step, Command(q_ref=q_ref, **gains)
