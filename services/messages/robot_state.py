@@ -50,32 +50,34 @@ class Privileged:
 
 @dataclass(frozen=True)
 class StateIn:
-    """RobotState k decoded: float32 arrays; a field the message leaves out is None."""
+    """RobotState k decoded: float32 arrays as sent; a field the message leaves out is
+    None. Cores built on one robot's arrays take it as it is (`StateIn(run, step, q, dq,
+    episode_ids, episode_step)`)."""
 
     run: int
     """The sender's run (`Header.run`): a restarted sim repeats step numbers."""
     step: int
     """k, `Header.step`."""
-    stamp_ns: int
-    """`Header.stamp_ns`."""
-    episode_ids: np.ndarray | None
-    """(B,) int64."""
-    episode_step: np.ndarray | None
-    """(B,) int32 policy steps since each episode started (0: it starts in this state)."""
-    q: np.ndarray | None
+    q: np.ndarray | None = None
     """(B, J) joint positions, rad."""
-    dq: np.ndarray | None
+    dq: np.ndarray | None = None
     """(B, J) joint velocities, rad/s."""
-    tau: np.ndarray | None
+    episode_ids: np.ndarray | None = None
+    """(B,) int64."""
+    episode_step: np.ndarray | None = None
+    """(B,) int32 policy steps since each episode started (0: it starts in this state)."""
+    tau: np.ndarray | None = None
     """(B, J) measured joint torques, N m."""
-    ee_pose: np.ndarray | None
+    ee_pose: np.ndarray | None = None
     """(B, 9) end-effector position (m) and first two rotation columns."""
-    goal_pose: np.ndarray | None
+    goal_pose: np.ndarray | None = None
     """(B, 7) object goal: position (m) and quaternion wxyz."""
-    object_pose_estimate: np.ndarray | None
+    object_pose_estimate: np.ndarray | None = None
     """(B, 7) object pose as a pose estimator reports it (what a student reads)."""
-    privileged: Privileged | None
+    privileged: Privileged | None = None
     """Present in simulation only."""
+    stamp_ns: int = 0
+    """`Header.stamp_ns`."""
 
 
 _FIELDS = {  # name: (dtype, trailing shape)
@@ -129,7 +131,7 @@ def decode(
             for name, tail in _PRIVILEGED.items()
         })  # fmt: skip
     header = message.header
-    return StateIn(header.run, header.step, header.stamp_ns, privileged=privileged, **arrays)
+    return StateIn(header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **arrays)
 
 
 def first_row(array: np.ndarray, name: str) -> np.ndarray:

@@ -1,48 +1,46 @@
 """The safety service's messages and the supervisor's inputs and outputs: pure decode and
 encode functions, tested without a session.
 
-Decodes RobotState (`StateIn`), PolicyAction (`ActionIn`: non-finite values pass, so that
-the filter's stage 1 rejects them and the rejection becomes an event) and Schedule; encodes
+Decodes RobotState (`hamnet.messages.robot_state`, in the filter's float64) and PolicyAction
+(`ActionIn`: non-finite values pass, so that the filter's stage 1 rejects them and the
+rejection becomes an event); encodes
 the supervisor's commands as SafeCommand and its notices as SafetyEvent.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.messages import robot_state
+from hamnet.messages.robot_state import StateIn
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEvent, SafetyEventKind
 from hamnet.proto.safety_pb2 import StageStats as StageStatsMessage
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
+from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.reports import Notice, rejections
 from hamnet.safety.stages import Rejection
 from hamnet.safety.stats import StageStats
-from hamnet.safety.supervisor import ActionIn, StateIn
+from hamnet.safety.supervisor import ActionIn
+
+SAFETY_READS = ("q", "dq", "episode_ids", "episode_step")
+"""The RobotState fields the filter reads; a state without one is dropped as `missing`."""
 
 
 def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
-    """RobotState k as arrays; `num_envs` None accepts any batch size.
+    """RobotState k with q and dq in float64, the filter's precision; `num_envs` None
+    accepts any batch size.
 
     Raises:
         PayloadError: `missing`, `dtype`, `shape` (batch or joint count), `nonfinite`.
     """
-    q = field_array(message, "q", None, (num_envs, J)).astype(np.float64)  # (B, J)
-    b = len(q)
-    dq = field_array(message, "dq", None, (b, J)).astype(np.float64)  # (B, J)
-    for name in ("episode_ids", "episode_step"):
-        if not message.HasField(name):
-            raise PayloadError("missing", f"RobotState.{name} is not set")
-    episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
-    episode_step = from_tensor(message.episode_step, np.int32, (b,))
-    return StateIn(
-        message.header.run, message.header.step, q, dq, episode_ids.copy(), episode_step.copy()
-    )
+    state = robot_state.decode(message, num_envs, required=SAFETY_READS)
+    return replace(state, q=state.q.astype(np.float64), dq=state.dq.astype(np.float64))
 
 
 def decode_action(message: PolicyAction) -> ActionIn:
@@ -59,11 +57,6 @@ def decode_action(message: PolicyAction) -> ActionIn:
     if message.HasField("episode_ids"):
         episode_ids = from_tensor(message.episode_ids, np.int64, (None,))  # (B,)
     return ActionIn(message.header.step, action, episode_ids)
-
-
-def decode_schedule(message: Schedule) -> int:
-    """The trainer's env_transitions counter, which the annealing of xi and eps_x follows."""
-    return int(message.env_transitions)
 
 
 def command_mode(output: SafeOutput) -> CommandMode.ValueType:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 
+from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
@@ -30,7 +31,6 @@ from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.messages import (
     decode_action,
-    decode_schedule,
     decode_state,
     encode_command,
     encode_notice,

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.messages.robot_state import StateIn
 from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop
@@ -46,24 +47,6 @@ BRAKE_PACE = 0.9
 """While stopped, states are answered at once but at most one per this share of the policy
 period: a lock-step sim would otherwise run flat out while the arm is held, and a real-time
 executor sends one state per period anyway (the 10% absorbs its jitter)."""
-
-
-@dataclass(frozen=True)
-class StateIn:
-    """What the filter needs of RobotState k."""
-
-    run: int
-    """The sim's run, `header.run`."""
-    step: int
-    """k, `header.step`."""
-    q: np.ndarray
-    """(B, J) measured joint positions, rad."""
-    dq: np.ndarray
-    """(B, J) measured joint velocities, rad/s."""
-    episode_ids: np.ndarray
-    """(B,) int64."""
-    episode_step: np.ndarray
-    """(B,) policy steps since each episode started (0: it starts in this state)."""
 
 
 @dataclass(frozen=True)

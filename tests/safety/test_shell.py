@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 from hamnet.fr3.limits import Q_HOME
+from hamnet.messages.safe_command import decode as decode_command
+from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafetyEvent, SafetyEventKind
@@ -26,7 +28,6 @@ from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.messages import (
     decode_action,
-    decode_schedule,
     decode_state,
     encode_command,
     encode_event,
@@ -35,7 +36,6 @@ from hamnet.safety.messages import (
 from hamnet.safety.shell import SafetyShell
 from hamnet.safety.stats import StageStats
 from hamnet.safety.supervisor import ShellConfig, episode_starts
-from hamnet.sim.shell import decode_command
 from tests.scripted import ScriptedService, wire
 
 B, S, J = 2, 8, 7
