@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hamnet.camera.sources import Frames, RobotPose
+from hamnet.camera.sources import Frames
+from hamnet.messages.robot_state import StateIn
 from hamnet.perception.cameras import DepthView
 from hamnet.runtime.errors import ConfigError
 
@@ -89,7 +90,7 @@ class RealSenseSource:
         self.latest: dict[str, np.ndarray] = {}
         self.count = 0
 
-    def poll(self, robot: RobotPose | None) -> Frames | None:
+    def poll(self, robot: StateIn | None) -> Frames | None:
         for serial, pipeline in self.pipelines.items():
             frameset = pipeline.poll_for_frames()
             if frameset:

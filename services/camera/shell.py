@@ -14,13 +14,14 @@ import time
 import numpy as np
 
 from hamnet.camera.frames import encode_frames
-from hamnet.camera.sources import FrameSource, RobotPose
-from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.camera.sources import FrameSource
+from hamnet.messages import robot_state
+from hamnet.messages.robot_state import StateIn
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import PayloadError, field_array
+from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
@@ -28,16 +29,16 @@ STATE = contract.topic("sim/<w>/state")
 FRAMES = contract.topic("camera/<w>/frames")
 
 
-def decode_pose(message: RobotState) -> RobotPose:
-    """The arm's joint positions in RobotState k (first environment).
+def decode_pose(message: RobotState) -> StateIn:
+    """RobotState k for a source that renders the arm: `q` of at least one environment.
 
     Raises:
         PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
     """
-    q = field_array(message, "q", np.float32, (None, NUM_JOINTS), finite=True)
-    if len(q) == 0:
+    state = robot_state.decode(message, required=("q",))
+    if len(state.q) == 0:
         raise PayloadError("shape", "RobotState.q holds no environment")
-    return RobotPose(message.header.run, message.header.step, q[0].copy())
+    return state
 
 
 class CameraShell:
@@ -55,7 +56,7 @@ class CameraShell:
                 decoder=lambda key, p: decode_pose(parse(RobotState, p)),
             )
         self.frames = service.publisher(FRAMES.key(ns, w=w))
-        self.robot: RobotPose | None = None
+        self.robot: StateIn | None = None
         self.published, self.seconds = 0, []
         self._last_report = time.monotonic()
 

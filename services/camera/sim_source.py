@@ -16,7 +16,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is first imported: it
 
 import numpy as np
 
-from hamnet.camera.sources import Frames, RobotPose, SimSourceConfig
+from hamnet.camera.sources import Frames, SimSourceConfig
+from hamnet.messages.robot_state import StateIn
 from hamnet.perception import render
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
@@ -44,11 +45,11 @@ class SimSource:
         self.names = [f"d435_{i}" for i in range(len(self.renderer.rig))]
         self.last: tuple[int, int] | None = None
 
-    def poll(self, robot: RobotPose | None) -> Frames | None:
+    def poll(self, robot: StateIn | None) -> Frames | None:
         if robot is None or self.last == (robot.run, robot.step):
             return None
         self.last = (robot.run, robot.step)
-        return Frames(robot.step, self.renderer.views(np.asarray(robot.q, np.float64)), self.names)
+        return Frames(robot.step, self.renderer.views(np.asarray(robot.q[0], np.float64)), self.names)
 
     def close(self) -> None:
         self.renderer.close()

@@ -21,9 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-import numpy as np
-
 from hamnet.camera.frames import decode_frames
+from hamnet.messages.robot_state import StateIn
 from hamnet.perception.cameras import DepthView
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.recorder.pacing import ReplayClock
@@ -37,16 +36,6 @@ from hamnet.runtime.tensor import PayloadError
 log = logging.getLogger(__name__)
 
 FRAMES = contract.topic("camera/<w>/frames")
-
-
-@dataclass(frozen=True)
-class RobotPose:
-    """What a source may need of the latest robot state: the arm's joint positions."""
-
-    run: int
-    step: int
-    q: np.ndarray
-    """(J,) rad, of the first environment of the state."""
 
 
 @dataclass(frozen=True)
@@ -68,8 +57,9 @@ class FrameSource(Protocol):
     done: bool
     """True once the source has nothing more (the end of a recording)."""
 
-    def poll(self, robot: RobotPose | None) -> Frames | None:
-        """The next frames if there are new ones, else None."""
+    def poll(self, robot: StateIn | None) -> Frames | None:
+        """The next frames if there are new ones, else None (`robot`: the newest RobotState,
+        whose first environment is the arm the cameras see)."""
         ...
 
     def close(self) -> None:
@@ -134,7 +124,7 @@ class ReplaySource:
                 f"--source replay: no {FRAMES.template} in {', '.join(map(str, config.files))}"
             )
 
-    def poll(self, robot: RobotPose | None) -> Frames | None:
+    def poll(self, robot: StateIn | None) -> Frames | None:
         while self.next is not None:
             message = self.next
             if self.clock is None:

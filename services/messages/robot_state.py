@@ -16,7 +16,7 @@ import numpy as np
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
+from hamnet.runtime.tensor import field_array, to_tensor
 
 
 @dataclass(frozen=True)
@@ -131,18 +131,9 @@ def decode(
             for name, tail in _PRIVILEGED.items()
         })  # fmt: skip
     header = message.header
-    return StateIn(header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **arrays)
-
-
-def first_row(array: np.ndarray, name: str) -> np.ndarray:
-    """Row 0 of a (B, ...) field, for a consumer of one robot.
-
-    Raises:
-        PayloadError: `shape` when the batch is empty.
-    """
-    if len(array) == 0:
-        raise PayloadError("shape", f"RobotState.{name} holds no environment")
-    return array[0]
+    return StateIn(
+        header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **arrays
+    )
 
 
 def encode(obs: Observation, step: int) -> RobotState:

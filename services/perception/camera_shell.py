@@ -22,11 +22,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from hamnet.camera.frames import decode_frames
+from hamnet.messages import robot_state
+from hamnet.messages.robot_state import StateIn
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
 from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
@@ -37,7 +38,7 @@ from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import field_array, to_tensor
+from hamnet.runtime.tensor import to_tensor
 
 log = logging.getLogger(__name__)
 
@@ -47,24 +48,14 @@ TOKENS = contract.topic("perception/<w>/tokens")
 POSE = contract.topic("perception/<w>/object_pose")
 
 
-@dataclass(frozen=True)
-class StepIn:
-    """What the camera path needs of RobotState k: which step and episode to answer."""
-
-    run: int
-    step: int
-    episode_ids: np.ndarray  # (1,) int64
-
-
-def decode_step(message: RobotState) -> StepIn:
-    """RobotState k of one robot.
+def decode_step(message: RobotState) -> StateIn:
+    """RobotState k of one robot: the camera path answers its step and episode id.
 
     Raises:
         PayloadError: `missing`, `dtype`, `shape` (more than one environment: the cameras
             see one robot).
     """
-    episode_ids = field_array(message, "episode_ids", np.int64, (1,))
-    return StepIn(message.header.run, message.header.step, episode_ids.copy())
+    return robot_state.decode(message, 1, required=("episode_ids",))
 
 
 def encode_pose(pose: np.ndarray, step: int) -> ObjectPoseEstimate:
@@ -93,7 +84,7 @@ class CameraPerceptionShell:
         """Clouds, tokens and object pose (7,) of the newest frames that showed an object
         (guarded by `changed`)."""
         self.changed = threading.Condition()
-        self.waiting: StepIn | None = None
+        self.waiting: StateIn | None = None
         self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
         self.counts = dict.fromkeys(
             ("published", "repeated", "waiting_for_frames", "nothing_seen"), 0
@@ -146,7 +137,7 @@ class CameraPerceptionShell:
                 self.percepts = percepts
             self.seconds.append(time.perf_counter() - started)
 
-    def _on_state(self, state: StepIn) -> None:
+    def _on_state(self, state: StateIn) -> None:
         if self.answered is not None and self.answered[0] == (state.run, state.step):
             self.tokens.put(self.answered[1])
             self.counts["repeated"] += 1
@@ -178,7 +169,7 @@ class CameraPerceptionShell:
         self.seconds.clear()
         self._last_report = now
 
-    def _decode_state(self, key: str, payload: bytes) -> StepIn:
+    def _decode_state(self, key: str, payload: bytes) -> StateIn:
         return decode_step(parse(RobotState, payload))
 
     def _decode_frames(self, key: str, payload: bytes) -> list[DepthView]:

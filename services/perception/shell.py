@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from hamnet.messages import robot_state
+from hamnet.messages.robot_state import StateIn
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception, Percepts
 from hamnet.perception.unicorn import UniCORN
@@ -49,33 +51,22 @@ TOKENS = contract.topic("perception/<w>/tokens")
 # --- decode / encode: pure functions, tested without a session -------------------------
 
 
-@dataclass(frozen=True)
-class StateIn:
-    """What perception needs of RobotState k."""
-
-    run: int
-    """The sim's run (`Header.run`): a restarted sim repeats step numbers."""
-    step: int
-    episode_ids: np.ndarray  # (B,) int64
-    object_pose: np.ndarray  # (B, 7) float32: position (m) + quaternion wxyz
-
-
 def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
-    """RobotState k; `num_envs` None accepts any batch size.
+    """RobotState k with its episode ids and privileged block (the sim's object pose);
+    `num_envs` None accepts any batch size.
 
     Raises:
         PayloadError: `missing` (no episode ids, or no privileged object pose: a real robot
             needs the camera path), `dtype`, `shape`, `nonfinite`.
     """
-    episode_ids = field_array(message, "episode_ids", np.int64, (num_envs,))  # (B,)
-    if not message.privileged.HasField("object_pose"):
+    state = robot_state.decode(message, num_envs, required=("episode_ids",))
+    if state.privileged is None:
         raise PayloadError(
             "missing",
             "RobotState.privileged.object_pose is not set: without the sim's object pose the "
             "object cloud must come from depth cameras (hamnet perception --clouds-from cameras)",
         )
-    pose = field_array(message.privileged, "object_pose", np.float32, (len(episode_ids), 7), finite=True)
-    return StateIn(message.header.run, message.header.step, episode_ids.copy(), pose.copy())
+    return state
 
 
 def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> EpisodeScenes:
@@ -215,7 +206,7 @@ class PerceptionShell:
             return
         self.waiting = None
         started = time.perf_counter()
-        percepts = self.core.step(torch.from_numpy(state.object_pose))
+        percepts = self.core.step(torch.from_numpy(state.privileged.object_pose))
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
         self.answered = ((state.run, state.step), message)

@@ -48,7 +48,7 @@ def test_decode_scene_and_state_round_trip(env: VectorEnv) -> None:
     np.testing.assert_allclose(scenes.cuboids.centre.numpy(), env.scene_arrays["centre"][[1, 0]], atol=1e-6)
     assert scenes.object_points.shape == (2, 512, 3)
     state = decode_state(wire(encode_state(env.observe(), 3)), B)
-    assert state.step == 3 and state.object_pose.shape == (B, 7)
+    assert state.step == 3 and state.privileged.object_pose.shape == (B, 7)
     with pytest.raises(PayloadError, match="range"):
         decode_scene(wire(scene_message(env, [1], 3)), 1, 512)
     with pytest.raises(PayloadError, match="shape"):
