@@ -17,7 +17,7 @@ import torch
 from hamnet.fr3.limits import Q_HOME
 from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyShell, ShellConfig
+from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
 from hamnet.runtime.counter import AUTHORS_NUM_ENVS, UNIT
@@ -103,7 +103,8 @@ def test_policy_service_follows_the_counter_across_new_weights() -> None:
         return "end" if item is None else (item[0], encode(item[1]))
 
     service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
-    shell = PolicyShell(service, build("mlp", seed=0), 0, ShellConfig(student_pose_noise=False))
+    config = PolicyLoopConfig(student_pose_noise=False)
+    shell = PolicyShell(service, build("mlp", seed=0), 0, config)
     shell.run()
     assert shell.version == 1 and shell.env_transitions == counter
     want = log_std_at(counter, shell.policy.config.log_std)

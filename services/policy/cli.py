@@ -25,7 +25,7 @@ import tyro
 
 from hamnet.policy.params import parameter_table
 from hamnet.policy.registry import ARCHITECTURES, build
-from hamnet.policy.shell import PolicyShell, ShellConfig
+from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.policy.weights import WeightsError, policy_from, read_checkpoint
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
@@ -47,7 +47,7 @@ class PolicyServiceConfig:
     student."""
     print_params: bool = False
     """Print the parameter counts of every architecture next to the paper's, then exit."""
-    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+    loop: Annotated[PolicyLoopConfig, Flattened] = field(default_factory=PolicyLoopConfig)
 
     def __post_init__(self) -> None:
         if self.checkpoint is not None and self.random_init is not None:
@@ -70,7 +70,7 @@ def main(argv: Sequence[str]) -> int:
         print(parameter_table())
         return 0
     if config.random_init is not None:
-        policy, version = build(config.random_init, seed=config.loop.seed), 0
+        policy, version = build(config.random_init, seed=config.loop.compute.seed), 0
         log.warning("serving RANDOM %s weights (version 0): actions are meaningless until the "
                     "trainer publishes weights", config.random_init)  # fmt: skip
     else:

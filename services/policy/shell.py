@@ -21,10 +21,8 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
+from dataclasses import dataclass, field
+from typing import Annotated, Any
 
 from hamnet.policy import messages as m
 from hamnet.policy.observation import PoseNoiseConfig
@@ -38,10 +36,13 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
 from hamnet.runtime import contract
+from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.freshness import Verdict, Watermark
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 
 log = logging.getLogger(__name__)
 
@@ -56,22 +57,16 @@ ROLLOUT = contract.topic("trainer/<w>/rollout")
 
 
 @dataclass(frozen=True)
-class ShellConfig:
+class PolicyLoopConfig:
     """Inference options of the shell."""
 
     deterministic: bool = False
     """Serve the distribution's mean (evaluation) instead of samples (rollouts)."""
-    device: str = "cpu"
-    """torch device for inference: cpu, cuda, cuda:1, ..."""
-    threads: int = 1
-    """torch CPU threads (1: the services of a stack share the machine's cores)."""
-    seed: int = 0
-    """Seed of the sampling noise."""
+    compute: Annotated[ComputeConfig, Flattened] = field(default_factory=ComputeConfig)
     pending: int = 8
     """Steps that may wait for their other half (state or tokens) before the oldest is
     dropped."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
     student_pose_noise: bool = True
     """Add the pose estimator's error model (`PoseNoiseConfig`) to a student's object pose:
     on against the sim, off where the pose already comes from an estimator."""
@@ -90,10 +85,12 @@ class PolicyShell:
     """One policy worker on the network: pairing, batched inference, hot reload."""
 
     def __init__(
-        self, service: Service, policy: Policy, version: int, config: ShellConfig | None = None
+        self, service: Service, policy: Policy, version: int, config: PolicyLoopConfig | None = None
     ) -> None:
-        self.service, self.config = service, config if config is not None else ShellConfig()
-        self.device = torch_device(self.config.device, self.config.threads)
+        self.service = service
+        self.config = config if config is not None else PolicyLoopConfig()
+        compute = self.config.compute
+        self.device = torch_device(compute.device, compute.threads)
         self.weights = HotReload(policy, version, self.device)
         model = policy.config
         ns, w = service.namespace, service.identity.worker
@@ -118,16 +115,14 @@ class PolicyShell:
             self.rollouts = RolloutFeed(self.config.rollout_horizon, rollout.put)
         self.pairing: Pairing[m.StateIn, m.TokensIn] = Pairing(self.config.pending)
         pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
-        self.serving = Serving(model.env_code_dim, self.device, self.config.seed, pose_noise)
+        self.serving = Serving(model.env_code_dim, self.device, compute.seed, pose_noise)
         self.watermark = Watermark()
         """The sim's run followed and the last step answered in it."""
         self.answered: PolicyAction | None = None
         """The answer to the watermark's step, sent again when the sim repeats that state."""
-        self.counts = dict.fromkeys(
-            ("actions", "resent", "stale", "implausible", "restarts", "mismatch", "rejected"), 0
-        )
-        self.latencies: list[float] = []
-        self._last_report = time.monotonic()
+        self.report = LoopReport(self.config.report.report_period_s, self._line, logger=log)
+        self.counts = self.report.counts
+        """What happened since the last rate line."""
 
     @property
     def policy(self) -> Policy:
@@ -155,7 +150,7 @@ class PolicyShell:
             if self.rollouts is not None and not self.rollouts.trainer_heard:
                 # A trainer announces each version once: ask one that started first (once a second).
                 self.service.inbox.catch_up("weights", WEIGHTS.key(self.service.namespace))
-            self._report()
+            self.report.tick()
         return 0
 
     def _handle(self, name: str, value: Any) -> None:
@@ -221,28 +216,20 @@ class PolicyShell:
         self.watermark.advance(state.step)
         self.answered = message
         self.counts["actions"] += 1
-        self.latencies.append(time.monotonic() - started)
+        self.report.sample("inference_s", time.monotonic() - started)
         if self.rollouts is not None:
             self.rollouts.served(state.step, state.episode_ids, inputs, action, self.version)
 
-    def _report(self) -> None:
-        now = time.monotonic()
-        elapsed = now - self._last_report
-        if elapsed < self.config.report_period_s:
-            return
-        c = self.counts
-        latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
+    def _line(self, w: Window) -> str:
         drops = self.pairing.dropped
-        log.info(
-            "%.1f actions/s, inference median %.1f ms, version %d, %d resent, %d stale, "
-            "%d implausible, %d sim restarts, %d mismatched, %d rejected weights, unpaired "
-            "halves dropped: %d superseded, %d overflow", c["actions"] / elapsed, latency,
-            self.version, c["resent"], c["stale"], c["implausible"], c["restarts"],
-            c["mismatch"], c["rejected"], drops["superseded"], drops["overflow"],
-        )  # fmt: skip
+        line = (f"{w.rate('actions'):.1f} actions/s, inference median "
+                f"{w.median_ms('inference_s'):.1f} ms, version {self.version}, "
+                f"{w.count('resent')} resent, {w.count('stale')} stale, "
+                f"{w.count('implausible')} implausible, {w.count('restarts')} sim restarts, "
+                f"{w.count('mismatch')} mismatched, {w.count('rejected')} rejected weights, "
+                f"unpaired halves dropped: {drops['superseded']} superseded, "
+                f"{drops['overflow']} overflow")  # fmt: skip
         if self.rollouts is not None:
-            log.info("%d rollout chunks sent; partial chunks dropped: %s", self.rollouts.sent,
-                     self.rollouts.assembler.dropped)  # fmt: skip
-        self.counts = dict.fromkeys(self.counts, 0)
-        self.latencies.clear()
-        self._last_report = now
+            line += (f"; {self.rollouts.sent} rollout chunks sent; partial chunks dropped: "
+                     f"{self.rollouts.assembler.dropped}")  # fmt: skip
+        return line

@@ -14,10 +14,11 @@ from hamnet.policy.messages import decode_transition
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import Observation
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyShell, ShellConfig
+from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.shell_config import ComputeConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor
 from hamnet.sim.env import StepResult
 from hamnet.sim.rewards import REWARD_NAMES
@@ -197,7 +198,8 @@ def test_the_shell_publishes_what_it_served_as_a_chunk_the_trainer_decodes() -> 
             return "end" if item is None else (item[0], encode(item[1]))
 
         service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
-        PolicyShell(service, policy, 4, ShellConfig(seed=1, rollout_horizon=horizon)).run()
+        config = PolicyLoopConfig(compute=ComputeConfig(seed=1), rollout_horizon=horizon)
+        PolicyShell(service, policy, 4, config).run()
         return service.published
 
     assert [topic for topic, _ in published(0)] == ["action"] * (T + 2)

@@ -12,7 +12,7 @@ from hamnet.policy.messages import decode_state, decode_tokens
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import assemble
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyShell, ShellConfig
+from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.policy.weights import to_bytes
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
@@ -51,7 +51,7 @@ def run(
         return "end" if item is None else (item[0], encode(item[1]))
 
     service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
-    config = ShellConfig(deterministic=True, student_pose_noise=pose_noise)
+    config = PolicyLoopConfig(deterministic=True, student_pose_noise=pose_noise)
     shell = PolicyShell(service, policy, 0, config)
     shell.run()
     return [message for topic, message in service.published if topic == "action"], shell
