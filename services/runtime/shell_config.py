@@ -17,7 +17,7 @@ class ReportConfig:
 
 
 @dataclass(frozen=True)
-class TorchConfig:
+class ComputeConfig:
     """Where a service that runs a network computes (`hamnet.runtime.compute`)."""
 
     device: str = "cpu"
