@@ -31,12 +31,13 @@ from hamnet.messages.robot_state import StateIn
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
 from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
-from hamnet.perception.shell import ShellConfig, encode_tokens
+from hamnet.perception.shell import PerceptionLoopConfig, encode_tokens
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.proto.perception_pb2 import ObjectPoseEstimate, PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import to_tensor
 
@@ -70,7 +71,7 @@ class CameraPerceptionShell:
     """One perception worker answering states from depth frames."""
 
     def __init__(
-        self, service: Service, core: CameraPerception, version: int, config: ShellConfig
+        self, service: Service, core: CameraPerception, version: int, config: PerceptionLoopConfig
     ) -> None:
         self.service, self.core, self.version, self.config = service, core, version, config
         ns, w = service.namespace, service.identity.worker
@@ -86,11 +87,9 @@ class CameraPerceptionShell:
         self.changed = threading.Condition()
         self.waiting: StateIn | None = None
         self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
-        self.counts = dict.fromkeys(
-            ("published", "repeated", "waiting_for_frames", "nothing_seen"), 0
-        )
-        self.seconds: list[float] = []
-        self._last_report = time.monotonic()
+        self.report = LoopReport(config.report.report_period_s, self._line, logger=log)
+        self.counts = self.report.counts
+        """What happened since the last rate line."""
 
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
@@ -111,7 +110,7 @@ class CameraPerceptionShell:
                 elif self.waiting is not None and self.percepts is not None:
                     state, self.waiting = self.waiting, None
                     self._on_state(state)
-                self._report()
+                self.report.tick()
         finally:
             with self.changed:
                 self.changed.notify()
@@ -135,7 +134,7 @@ class CameraPerceptionShell:
                 continue
             with self.changed:
                 self.percepts = percepts
-            self.seconds.append(time.perf_counter() - started)
+            self.report.sample("frame_set_s", time.perf_counter() - started)
 
     def _on_state(self, state: StateIn) -> None:
         if self.answered is not None and self.answered[0] == (state.run, state.step):
@@ -155,19 +154,11 @@ class CameraPerceptionShell:
         self.answered = ((state.run, state.step), message)
         self.counts["published"] += 1
 
-    def _report(self) -> None:
-        now = time.monotonic()
-        elapsed = now - self._last_report
-        if elapsed < self.config.report_period_s:
-            return
-        c = self.counts
-        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
-        log.info("%.1f token messages/s, median %.1f ms per frame set, %d repeated, %d states waiting for "
-                 "frames, %d frames without an object", c["published"] / elapsed, median, c["repeated"],
-                 c["waiting_for_frames"], c["nothing_seen"])  # fmt: skip
-        self.counts = dict.fromkeys(self.counts, 0)
-        self.seconds.clear()
-        self._last_report = now
+    def _line(self, w: Window) -> str:
+        return (f"{w.rate('published'):.1f} token messages/s, median "
+                f"{w.median_ms('frame_set_s'):.1f} ms per frame set, {w.count('repeated')} "
+                f"repeated, {w.count('waiting_for_frames')} states waiting for frames, "
+                f"{w.count('nothing_seen')} frames without an object")  # fmt: skip
 
     def _decode_state(self, key: str, payload: bytes) -> StateIn:
         return decode_step(parse(RobotState, payload))

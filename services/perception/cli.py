@@ -38,7 +38,7 @@ from hamnet.perception.config import (
     PlaneConfig,
     SegmenterName,
 )
-from hamnet.perception.shell import PerceptionShell, ShellConfig
+from hamnet.perception.shell import PerceptionLoopConfig, PerceptionShell
 from hamnet.perception.unicorn import UniCORN
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.compute import torch_device
@@ -72,7 +72,7 @@ class PerceptionServiceConfig:
     removal and clustering, for a real camera)."""
     plane: PlaneConfig = field(default_factory=PlaneConfig)
     """The plane segmenter's options."""
-    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+    loop: Annotated[PerceptionLoopConfig, Flattened] = field(default_factory=PerceptionLoopConfig)
 
     def __post_init__(self) -> None:
         if self.random_init and self.checkpoint != SHIPPED_ENCODER:
@@ -94,7 +94,7 @@ def encoder_from(config: PerceptionServiceConfig) -> tuple[UniCORN, int]:
         CheckpointError: the checkpoint is unusable.
     """
     if config.random_init:
-        torch.manual_seed(config.loop.seed)
+        torch.manual_seed(config.loop.compute.seed)
         return UniCORN(config.encoder), RANDOM_VERSION
     return load_checkpoint(config.checkpoint, config.encoder)
 
@@ -103,7 +103,8 @@ def main(argv: Sequence[str]) -> int:
     """Run `hamnet perception` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "perception", __doc__)
     if config.write_random_checkpoint is not None:
-        write_random_checkpoint(config.write_random_checkpoint, config.encoder, config.loop.seed)
+        seed = config.loop.compute.seed
+        write_random_checkpoint(config.write_random_checkpoint, config.encoder, seed)
         print(f"wrote random encoder weights (version 0) to {config.write_random_checkpoint}")
         return 0
     try:
@@ -124,6 +125,7 @@ def camera_shell(service: Service, encoder: UniCORN, version: int, config: Perce
     from hamnet.perception.segmenters import make_segmenter
 
     segmenter = make_segmenter(config.segmenter, config.cameras, config.plane)
-    device = torch_device(config.loop.device, config.loop.threads)
-    core = CameraPerception(encoder, segmenter, config.clouds, device, config.loop.seed)
+    compute = config.loop.compute
+    device = torch_device(compute.device, compute.threads)
+    core = CameraPerception(encoder, segmenter, config.clouds, device, compute.seed)
     return CameraPerceptionShell(service, core, version, config.loop)

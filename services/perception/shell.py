@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -36,9 +37,12 @@ from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.runtime import contract
+from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
 
 log = logging.getLogger(__name__)
@@ -106,19 +110,13 @@ def encode_tokens(percepts: Percepts, step: int, episode_ids: np.ndarray, versio
 
 
 @dataclass(frozen=True)
-class ShellConfig:
-    """Batch size, device and reporting of the shell."""
+class PerceptionLoopConfig:
+    """Batch size, device and reporting of the shell (both paths: sim scenes, camera frames)."""
 
     num_envs: int = 0
     """B, environments per state; 0 takes it from the first state."""
-    device: str = "cpu"
-    """Torch device of the clouds and the encoder (cpu, cuda, cuda:1...)."""
-    threads: int = 1
-    """torch CPU threads (1: the services of a stack share the machine's cores)."""
-    seed: int = 0
-    """Seed of the cloud sampling."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    compute: Annotated[ComputeConfig, Flattened] = field(default_factory=ComputeConfig)
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
 
     def __post_init__(self) -> None:
         if self.num_envs < 0:
@@ -133,13 +131,13 @@ class PerceptionShell:
         service: Service,
         encoder: UniCORN,
         version: int,
-        config: ShellConfig | None = None,
+        config: PerceptionLoopConfig | None = None,
         clouds: CloudConfig | None = None,
     ) -> None:
         self.service, self.encoder, self.version = service, encoder, version
-        self.config = config if config is not None else ShellConfig()
+        self.config = config if config is not None else PerceptionLoopConfig()
         self.clouds = clouds if clouds is not None else CloudConfig()
-        self.device = torch_device(self.config.device, self.config.threads)
+        self.device = torch_device(self.config.compute.device, self.config.compute.threads)
         ns, w = service.namespace, service.identity.worker
         self.num_envs: int | None = self.config.num_envs or None
         self.scene_key = SCENE.key(ns, w=w)
@@ -154,9 +152,9 @@ class PerceptionShell:
         does not order messages across keys, so a scene may follow its state)."""
         self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
         """((run, step), tokens) of the last state answered."""
-        self.counts = dict.fromkeys(("published", "repeated", "waiting_for_scene"), 0)
-        self.seconds: list[float] = []
-        self._last_report = time.monotonic()
+        self.report = LoopReport(self.config.report.report_period_s, self._line, logger=log)
+        self.counts = self.report.counts
+        """What happened since the last rate line."""
 
     def run(self) -> int:
         """Answer states until stopped; returns the exit status."""
@@ -169,7 +167,7 @@ class PerceptionShell:
                     self._on_scene(received.value)
                 else:
                     self._on_state(received.value)
-            self._report()
+            self.report.tick()
         return 0
 
     def _on_scene(self, scenes: EpisodeScenes) -> None:
@@ -188,7 +186,9 @@ class PerceptionShell:
             return
         if self.core is None:
             self.num_envs = len(state.episode_ids)
-            self.core = Perception(self.encoder, self.num_envs, self.clouds, self.device, self.config.seed)
+            self.core = Perception(
+                self.encoder, self.num_envs, self.clouds, self.device, self.config.compute.seed
+            )
             log.info("%d environments, first state %d", self.num_envs, state.step)
             for scenes in self.pending:
                 if len(scenes.env_ids) and int(scenes.env_ids.max()) >= self.num_envs:
@@ -211,20 +211,12 @@ class PerceptionShell:
         self.tokens.put(message)
         self.answered = ((state.run, state.step), message)
         self.counts["published"] += 1
-        self.seconds.append(time.perf_counter() - started)
+        self.report.sample("step_s", time.perf_counter() - started)
 
-    def _report(self) -> None:
-        now = time.monotonic()
-        elapsed = now - self._last_report
-        if elapsed < self.config.report_period_s:
-            return
-        c = self.counts
-        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
-        log.info("%.1f token messages/s, median %.1f ms per step, %d repeated, %d states waiting for "
-                 "their scene", c["published"] / elapsed, median, c["repeated"], c["waiting_for_scene"])  # fmt: skip
-        self.counts = dict.fromkeys(self.counts, 0)
-        self.seconds.clear()
-        self._last_report = now
+    def _line(self, w: Window) -> str:
+        return (f"{w.rate('published'):.1f} token messages/s, median {w.median_ms('step_s'):.1f} "
+                f"ms per step, {w.count('repeated')} repeated, {w.count('waiting_for_scene')} "
+                "states waiting for their scene")  # fmt: skip
 
     def _decode_state(self, key: str, payload: bytes) -> StateIn:
         return decode_state(parse(RobotState, payload), self.num_envs)

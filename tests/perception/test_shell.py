@@ -10,8 +10,8 @@ import torch
 from hamnet.perception.config import CloudConfig, EncoderConfig
 from hamnet.perception.core import Percepts
 from hamnet.perception.shell import (
+    PerceptionLoopConfig,
     PerceptionShell,
-    ShellConfig,
     decode_scene,
     decode_state,
     encode_tokens,
@@ -20,6 +20,7 @@ from hamnet.perception.unicorn import UniCORN
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
@@ -101,7 +102,8 @@ def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     service = ScriptedService(lambda published: script.pop(0) if script else None,
                               identity=ServiceIdentity("perception", "0"))  # fmt: skip
     torch.manual_seed(0)
-    shell = PerceptionShell(service, UniCORN(ENCODER), 3, ShellConfig(report_period_s=1e9), CLOUDS)
+    config = PerceptionLoopConfig(report=ReportConfig(report_period_s=1e9))
+    shell = PerceptionShell(service, UniCORN(ENCODER), 3, config, CLOUDS)
     assert shell.run() == 0
     tokens: list[PerceptionTokens] = [m for t, m in service.published if t == "tokens"]
     assert [m.header.step for m in tokens] == [0, 0, 2, 2]  # state 2 answered on its scene
