@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.messages.fields import Spec, arrays, batch_size
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.tensor import field_array, to_tensor
+from hamnet.runtime.tensor import to_tensor
 
 
 @dataclass(frozen=True)
@@ -80,26 +81,21 @@ class StateIn:
     """`Header.stamp_ns`."""
 
 
-_FIELDS = {  # name: (dtype, trailing shape)
-    "episode_ids": (np.int64, ()),
-    "episode_step": (np.int32, ()),
-    "q": (np.float32, (J,)),
-    "dq": (np.float32, (J,)),
-    "tau": (np.float32, (J,)),
-    "ee_pose": (np.float32, (9,)),
-    "goal_pose": (np.float32, (7,)),
-    "object_pose_estimate": (np.float32, (7,)),
+_FIELDS = {
+    "episode_ids": Spec(np.int64),
+    "episode_step": Spec(np.int32),
+    "q": Spec(np.float32, (J,)),
+    "dq": Spec(np.float32, (J,)),
+    "tau": Spec(np.float32, (J,)),
+    "ee_pose": Spec(np.float32, (9,)),
+    "goal_pose": Spec(np.float32, (7,)),
+    "object_pose_estimate": Spec(np.float32, (7,)),
 }
-_PRIVILEGED = {"object_pose": (7,), "object_velocity": (6,), "physics_params": (None,)}
-
-
-def _batch(message: RobotState, num_envs: int | None) -> int | None:
-    """B: `num_envs`, else the length of the first of episode_ids and q sent."""
-    for name in ("episode_ids", "q"):
-        if num_envs is None and message.HasField(name):
-            dtype, tail = _FIELDS[name]
-            num_envs = len(field_array(message, name, dtype, (None, *tail)))
-    return num_envs
+_PRIVILEGED = {
+    "object_pose": Spec(np.float32, (7,)),
+    "object_velocity": Spec(np.float32, (6,)),
+    "physics_params": Spec(np.float32, (None,)),
+}
 
 
 def decode(
@@ -108,31 +104,20 @@ def decode(
     """RobotState k, every field it carries checked against one batch size B.
 
     Args:
-        num_envs: B; None takes it from the message.
+        num_envs: B; None takes it from the message (episode_ids, else q).
         required: fields that must be set (names of `StateIn`'s arrays).
     Raises:
-        PayloadError: `missing` (a required field), `dtype` (not as documented), `shape`
-            (batch or width), `nonfinite`.
+        PayloadError: `missing` (a required field, or a privileged block without all three
+            fields), `dtype` (not as documented), `shape` (batch or width), `nonfinite`.
     """
-    unknown = set(required) - set(_FIELDS)
-    if unknown:
-        raise ValueError(f"RobotState has no field {sorted(unknown)}")
-    b = _batch(message, num_envs)
-    arrays: dict[str, np.ndarray | None] = dict.fromkeys(_FIELDS)
-    for name in (*required, *_FIELDS):
-        if arrays[name] is None and (message.HasField(name) or name in required):
-            dtype, tail = _FIELDS[name]
-            arrays[name] = np.array(field_array(message, name, dtype, (b, *tail)))
+    b = num_envs if num_envs is not None else batch_size(message, _FIELDS, ("episode_ids", "q"))
+    decoded = arrays(message, _FIELDS, b, required)
     privileged = None
     if message.HasField("privileged"):
-        block = message.privileged
-        privileged = Privileged(**{
-            name: np.array(field_array(block, name, np.float32, (b, *tail)))
-            for name, tail in _PRIVILEGED.items()
-        })  # fmt: skip
+        privileged = Privileged(**arrays(message.privileged, _PRIVILEGED, b, _PRIVILEGED))
     header = message.header
     return StateIn(
-        header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **arrays
+        header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **decoded
     )
 
 

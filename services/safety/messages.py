@@ -13,20 +13,20 @@ from dataclasses import replace
 
 import numpy as np
 
-from hamnet.messages import robot_state
+from hamnet.messages import action, robot_state
+from hamnet.messages.action import ActionIn
 from hamnet.messages.robot_state import StateIn
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEvent, SafetyEventKind
 from hamnet.proto.safety_pb2 import StageStats as StageStatsMessage
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
+from hamnet.runtime.tensor import to_tensor
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.reports import Notice, rejections
 from hamnet.safety.stages import Rejection
 from hamnet.safety.stats import StageStats
-from hamnet.safety.supervisor import ActionIn
 
 SAFETY_READS = ("q", "dq", "episode_ids", "episode_step")
 """The RobotState fields the filter reads; a state without one is dropped as `missing`."""
@@ -50,13 +50,7 @@ def decode_action(message: PolicyAction) -> ActionIn:
     Raises:
         PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
     """
-    if not message.HasField("action"):
-        raise PayloadError("missing", "PolicyAction.action is not set")
-    action = from_tensor(message.action, np.float32, None, finite=False)  # (B, 21) expected
-    episode_ids = None
-    if message.HasField("episode_ids"):
-        episode_ids = from_tensor(message.episode_ids, np.int64, (None,))  # (B,)
-    return ActionIn(message.header.step, action, episode_ids)
+    return action.decode(message, required=("action",))
 
 
 def command_mode(output: SafeOutput) -> CommandMode.ValueType:

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hamnet.messages.action import ActionIn
 from hamnet.messages.robot_state import StateIn
 from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.safety.config import SafetyConfig
@@ -47,24 +48,6 @@ BRAKE_PACE = 0.9
 """While stopped, states are answered at once but at most one per this share of the policy
 period: a lock-step sim would otherwise run flat out while the arm is held, and a real-time
 executor sends one state per period anyway (the 10% absorbs its jitter)."""
-
-
-@dataclass(frozen=True)
-class ActionIn:
-    """What the filter needs of PolicyAction k."""
-
-    step: int
-    """k: the state step the action was computed for."""
-    action: np.ndarray
-    """Raw action, (B, 21) expected; NaN, Inf and any shape pass (stage 1 rejects them)."""
-    episode_ids: np.ndarray | None
-    """(N,) int64 episodes the action was computed for; None when the policy sent none."""
-
-    def stale(self, state: StateIn) -> np.ndarray | None:
-        """(B,) rows computed for another episode than the state's, or None (unchecked)."""
-        if self.episode_ids is None or self.episode_ids.shape != state.episode_ids.shape:
-            return None  # a wrong batch is rejected whole by stage 1 (shape)
-        return self.episode_ids != state.episode_ids
 
 
 @dataclass(frozen=True)
