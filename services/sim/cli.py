@@ -19,7 +19,7 @@ from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.shell import LoopConfig, SimShell
+from hamnet.sim.shell import SimLoopConfig, SimShell
 from hamnet.sim.stages import StageName, stage_config, stage_in
 
 OwnPrefix = tyro.conf.arg(name="")
@@ -36,7 +36,7 @@ class SimServiceConfig:
     """Training stage (`hamnet.sim.stages`): full (the paper's domain) or easy. It sets the
     defaults of every other sim flag; those flags change any field on top of it."""
     sim: Annotated[SimConfig, OwnPrefix] = field(default_factory=SimConfig)
-    loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
+    loop: Annotated[SimLoopConfig, Flattened] = field(default_factory=SimLoopConfig)
     show_scene: int | None = None
     """Write a Rerun recording of the procedural scene drawn from this seed, print its path
     and exit (open it with `rerun <file>`)."""

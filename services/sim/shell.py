@@ -23,7 +23,8 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 
@@ -36,14 +37,17 @@ from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
+from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
 from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
+from hamnet.sim.env import Command, Observation, SceneDescription, VectorEnv
 from hamnet.sim.stall import StallWatch
 
 log = logging.getLogger(__name__)
@@ -80,7 +84,7 @@ def encode_scene(scenes: SceneDescription, step: int) -> Scene:
 
 
 @dataclass(frozen=True)
-class LoopConfig:
+class SimLoopConfig:
     """How the shell paces its steps."""
 
     realtime: bool = False
@@ -91,8 +95,7 @@ class LoopConfig:
     resend_s: float = 1.0
     """Lock-step: while waiting for a command, publish the scenes and the state again this
     often, s, so services started after the sim get going."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
     stall_s: float = 2.0
     """Seconds without a command, once the first has come, that make a stall of the closed
     loop (`hamnet.sim.stall`): logged, and counted as a `loop_stalls` event in the health
@@ -108,7 +111,7 @@ class LoopConfig:
 class SimShell:
     """One sim worker on the network: its topics, its step counter and its rates."""
 
-    def __init__(self, service: Service, env: VectorEnv, loop: LoopConfig) -> None:
+    def __init__(self, service: Service, env: VectorEnv, loop: SimLoopConfig) -> None:
         self.service, self.env, self.loop = service, env, loop
         ns, w = service.namespace, service.identity.worker
         config = env.config
@@ -130,12 +133,14 @@ class SimShell:
         self.stale = 0
         """Commands ignored because they answered another step than the current one."""
         self.stall = StallWatch(loop.stall_s)
-        self._rates = _Rates(env)
+        self.late = 0
+        """Free-running ticks that started more than a period late."""
+        self.report = LoopReport(loop.report.report_period_s, self._line, logger=log)
 
     def run(self) -> int:
         """Reset, then step until stopped or `max_steps`; returns the exit status."""
         self.observation = self.env.reset()
-        self._rates = _Rates(self.env)  # rates of the steps, not of the first reset
+        self.report.restart()  # rates of the steps, not of the first reset
         self._publish_all()
         mode = "free-running" if self.loop.realtime else "lock-step"
         log.info("%d environments, %s, %.0f ms policy period", self.env.num_envs, mode,
@@ -156,7 +161,7 @@ class SimShell:
     def _lock_step(self) -> None:
         last_sent = time.monotonic()
         while not self.finished:
-            self._rates.maybe_report(self)
+            self.report.tick()
             self._watch_stall()
             received = self.service.receive(timeout=0.05)
             if received is None:
@@ -180,7 +185,7 @@ class SimShell:
         command: Command | None = None
         tick = time.monotonic()
         while not self.finished:
-            self._rates.maybe_report(self)
+            self.report.tick()
             self._watch_stall()
             tick += period
             while self.service.running and (remaining := tick - time.monotonic()) > 0:
@@ -198,7 +203,7 @@ class SimShell:
             else:
                 self._step(command)
             if time.monotonic() - tick > period:  # fell a period behind: do not burst to catch up
-                self._rates.late += 1
+                self.late += 1
                 tick = time.monotonic()
 
     def _handle(self, received: Received) -> tuple[int, Command] | None:
@@ -214,7 +219,10 @@ class SimShell:
 
     def _step(self, command: Command) -> None:
         """Step every environment; publish transition k, new scenes and state k+1."""
-        result = self._rates.timed_step(command)
+        started, resetting = time.perf_counter(), self.env.reset_seconds
+        result = self.env.step(command)
+        self.report.tick(steps=1, step_s=time.perf_counter() - started, resets=len(result.reset_ids),
+                         reset_s=self.env.reset_seconds - resetting)  # fmt: skip
         self.transition.put(encode_transition(result, self.env.reward_names, self.step))
         self.step += 1
         self.observation = result.observation
@@ -251,51 +259,15 @@ class SimShell:
             log.info("ignoring a command for step %d at step %d (further ones are counted in "
                      "the rate line)", step, self.step)  # fmt: skip
 
-
-class _Rates:
-    """Steps, resets and time shares since the last rate line."""
-
-    def __init__(self, env: VectorEnv) -> None:
-        self.env = env
-        self.steps = 0
-        """Policy steps since the last rate line."""
-        self.late = 0
-        """Free-running ticks that started more than a period late."""
-        self.step_seconds = 0.0
-        """Wall time inside `VectorEnv.step` (resets included), s."""
-        self._last = self._mark()
-
-    def _mark(self) -> tuple[float, float, float, int]:
-        """(now, step seconds, reset seconds, episodes started) so far."""
-        env = self.env
-        return time.monotonic(), self.step_seconds, env.reset_seconds, int(env.episode_ids.max())
-
-    def timed_step(self, command: Command) -> StepResult:
-        """`env.step(command)`, counted and timed."""
-        started = time.perf_counter()
-        result = self.env.step(command)
-        self.step_seconds += time.perf_counter() - started
-        self.steps += 1
-        return result
-
-    def maybe_report(self, shell: SimShell) -> None:
-        """Log the rate line when one is due."""
-        now, stepping, resetting, episodes = self._mark()
-        then, stepping0, resetting0, episodes0 = self._last
-        elapsed = now - then
-        if elapsed < shell.loop.report_period_s:
-            return
+    def _line(self, w: Window) -> str:
+        """The rate line: steps, resets and the shares of the time inside `VectorEnv.step`
+        (resets included) and inside its resets."""
         b = self.env.num_envs
         schedule = ", ".join(f"{k} {v:.2f}" for k, v in self.env.schedule.as_dict().items())
-        log.info(
-            "%.0f env steps/s (%.1f steps/s of %d envs), %.1f resets/s, stepping %.0f%% of the "
-            "time (resets %.0f%%), stale commands %d, late ticks %d; %s",
-            self.steps * b / elapsed, self.steps / elapsed, b, (episodes - episodes0) / elapsed,
-            100 * (stepping - stepping0) / elapsed, 100 * (resetting - resetting0) / elapsed,
-            shell.stale, self.late, schedule,
-        )  # fmt: skip
-        self.steps = 0
-        self._last = (now, stepping, resetting, episodes)
+        return (f"{w.rate('steps') * b:.0f} env steps/s ({w.rate('steps'):.1f} steps/s of {b} "
+                f"envs), {w.rate('resets'):.1f} resets/s, stepping {100 * w.rate('step_s'):.0f}% "
+                f"of the time (resets {100 * w.rate('reset_s'):.0f}%), stale commands "
+                f"{self.stale}, late ticks {self.late}; {schedule}")  # fmt: skip
 
 
 def _decode_command_payload(

@@ -24,7 +24,7 @@ from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.rewards import REWARD_NAMES
-from hamnet.sim.shell import LoopConfig, SimShell
+from hamnet.sim.shell import SimLoopConfig, SimShell
 from hamnet.trainer.ppo import UpdateStats
 from hamnet.trainer.shell import encode_metrics
 from tests.scripted import ScriptedService
@@ -52,7 +52,7 @@ def sim_messages(steps: int, timeout: int = 3) -> list[tuple[str, object]]:
         return "command", encode(safe_command(command, step))
 
     service = ScriptedService(script, identity=ServiceIdentity("sim", "0"))
-    SimShell(service, env, LoopConfig()).run()
+    SimShell(service, env, SimLoopConfig()).run()
     return service.published
 
 

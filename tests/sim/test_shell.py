@@ -16,6 +16,7 @@ from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
+from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
@@ -24,7 +25,7 @@ from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, V
 from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene import NUM_CUBOIDS
 from hamnet.sim.shell import (
-    LoopConfig,
+    SimLoopConfig,
     SimShell,
     decode_command,
     decode_schedule,
@@ -218,7 +219,7 @@ def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: Vecto
         return pending.pop(0) if pending else None
 
     service = ScriptedService(script)
-    shell = SimShell(service, env, LoopConfig(report_period_s=1e9))
+    shell = SimShell(service, env, SimLoopConfig(report=ReportConfig(report_period_s=1e9)))
     assert shell.run() == 0
     assert [topic for topic, _ in service.published][:2] == ["scene", "state"]
     states = [m for t, m in service.published if t == "state"]
@@ -258,7 +259,7 @@ def test_free_running_loop_holds_the_arm_until_a_command_then_reuses_it(caplog) 
 
     service = ScriptedService(script, idle=True)
     started = time.monotonic()
-    SimShell(service, env, LoopConfig(realtime=True, max_steps=6)).run()
+    SimShell(service, env, SimLoopConfig(realtime=True, max_steps=6)).run()
     assert time.monotonic() - started >= 0.5  # 6 periods of 0.1 s
     states = [m for t, m in service.published if t == "state"]
     assert [m.header.step for m in states] == list(range(7))

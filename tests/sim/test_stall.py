@@ -11,11 +11,12 @@ import pytest
 
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.runtime.codec import encode
+from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import from_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.shell import LoopConfig, SimShell
+from hamnet.sim.shell import SimLoopConfig, SimShell
 from hamnet.sim.stall import StallWatch
 from tests.scripted import ScriptedService
 from tests.sim.test_shell import safe_command
@@ -58,7 +59,7 @@ def test_the_sim_counts_a_stall_when_commands_stop_and_logs_its_end(caplog) -> N
         return "command", encode(safe_command(command, step))
 
     service = ScriptedService(script, idle=True)
-    shell = SimShell(service, env, LoopConfig(report_period_s=1e9, stall_s=STALL_S))
+    shell = SimShell(service, env, SimLoopConfig(report=ReportConfig(report_period_s=1e9), stall_s=STALL_S))
     assert shell.run() == 0
     assert service.events == {"loop_stalls": 1} and shell.step == 3
     assert any("after a" in r.message and "stall" in r.message for r in caplog.records)
