@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.messages import action, robot_state, scene, tokens, transition
 from hamnet.monitor.frames import (
     ActionFrame,
     CloudsFrame,
@@ -44,97 +44,83 @@ def focus_row(array: np.ndarray, env: int) -> np.ndarray:
 
 def decode_state(message: RobotState, env: int) -> StateFrame:
     """StateFrame of environment `env` from a RobotState of B environments."""
-    q = field_array(message, "q", np.float32, (None, J))  # (B, J)
-    b = len(q)
-    goal = field_array(message, "goal_pose", np.float32, (b, 7))
-    ids = field_array(message, "episode_ids", np.int64, (b,))
+    state = robot_state.decode(message, required=("q", "goal_pose", "episode_ids"))
     object_pose = None
-    if message.HasField("privileged") and message.privileged.HasField("object_pose"):
-        object_pose = focus_row(field_array(message.privileged, "object_pose", np.float32, (b, 7)), env)
+    if state.privileged is not None:
+        object_pose = focus_row(state.privileged.object_pose, env)
     return StateFrame(
-        step=message.header.step,
-        stamp_ns=message.header.stamp_ns,
-        episode_id=int(focus_row(ids, env)),
-        q=focus_row(q, env),
-        goal_pose=focus_row(goal, env),
+        step=state.step,
+        stamp_ns=state.stamp_ns,
+        episode_id=int(focus_row(state.episode_ids, env)),
+        q=focus_row(state.q, env),
+        goal_pose=focus_row(state.goal_pose, env),
         object_pose=object_pose,
     )
 
 
+_SCENE_READS = ("episode_ids", "object_ids", "object_points", "start_pose", "goal_pose",
+                "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active")  # fmt: skip
+
+
 def decode_scene(message: Scene, env: int) -> SceneFrame | None:
     """SceneFrame of environment `env`, or None when the Scene does not describe it."""
-    env_ids = field_array(message, "env_ids", np.int32, (None,))  # (K,)
-    k = len(env_ids)
-    arrays = {
-        "centre": field_array(message, "cuboid_pos", np.float32, (k, NUM_CUBOIDS, 3)),  # (K, C, 3)
-        "quat": field_array(message, "cuboid_quat", np.float32, (k, NUM_CUBOIDS, 4)),
-        "half_extent": field_array(message, "cuboid_half_size", np.float32, (k, NUM_CUBOIDS, 3)),
-        "active": field_array(message, "cuboid_active", np.bool_, (k, NUM_CUBOIDS)),
-        "object_points": field_array(message, "object_points", np.float32, (k, None, 3)),  # (K, P, 3)
-        "start_pose": field_array(message, "start_pose", np.float32, (k, 7)),
-        "goal_pose": field_array(message, "goal_pose", np.float32, (k, 7)),
-    }
-    ids = field_array(message, "episode_ids", np.int64, (k,))
-    if len(message.object_ids) != k:
-        raise PayloadError("shape", f"Scene.object_ids: {len(message.object_ids)} names for {k} envs")
-    rows = np.flatnonzero(env_ids == env)
+    decoded = scene.decode(message, _SCENE_READS, num_cuboids=NUM_CUBOIDS)
+    rows = np.flatnonzero(decoded.env_ids == env)
     if not len(rows):
         return None
     row = int(rows[0])
     return SceneFrame(
-        step=message.header.step,
-        stamp_ns=message.header.stamp_ns,
-        episode_id=int(ids[row]),
-        object_id=message.object_ids[row],
-        **{name: array[row] for name, array in arrays.items()},
+        step=decoded.step,
+        stamp_ns=decoded.stamp_ns,
+        episode_id=int(decoded.episode_ids[row]),
+        object_id=decoded.object_ids[row],
+        centre=decoded.cuboid_pos[row],
+        quat=decoded.cuboid_quat[row],
+        half_extent=decoded.cuboid_half_size[row],
+        active=decoded.cuboid_active[row],
+        object_points=decoded.object_points[row],
+        start_pose=decoded.start_pose[row],
+        goal_pose=decoded.goal_pose[row],
     )
 
 
 def decode_tokens(message: PerceptionTokens, env: int) -> CloudsFrame:
     """CloudsFrame of environment `env` (the three clouds; the tokens are not drawn)."""
-    clouds = {}
-    b = None
-    for name in ("object", "environment", "local"):
-        cloud = field_array(message, f"{name}_cloud", np.float32, (b, None, 3))  # (B, P, 3)
-        b = len(cloud)
-        clouds[name] = focus_row(cloud, env)
-    return CloudsFrame(step=message.header.step, stamp_ns=message.header.stamp_ns, **clouds)
+    decoded = tokens.decode(message, required=tokens.CLOUDS)
+    return CloudsFrame(
+        step=decoded.step,
+        stamp_ns=decoded.stamp_ns,
+        object=focus_row(decoded.object_cloud, env),
+        environment=focus_row(decoded.environment_cloud, env),
+        local=focus_row(decoded.local_cloud, env),
+    )
 
 
 def decode_action(message: PolicyAction, env: int) -> ActionFrame:
     """ActionFrame of environment `env`. Non-finite values pass, as on the wire (the
     safety service rejects them; the view shows them)."""
-    weights = values = None
-    if message.HasField("module_weights"):
-        weights = focus_row(field_array(message, "module_weights", np.float32, (None, None, None),
-                                   finite=False), env)  # fmt: skip
-    if message.HasField("values"):
-        values = focus_row(field_array(message, "values", np.float32, (None, None), finite=False), env)
+    decoded = action.decode(message)
+    weights, values = decoded.module_weights, decoded.values
     return ActionFrame(
-        step=message.header.step,
-        stamp_ns=message.header.stamp_ns,
-        policy_version=message.header.policy_version,
-        module_weights=weights,
-        values=values,
+        step=decoded.step,
+        stamp_ns=decoded.stamp_ns,
+        policy_version=decoded.policy_version,
+        module_weights=None if weights is None else focus_row(weights, env),
+        values=None if values is None else focus_row(values, env),
     )
 
 
 def decode_transition(message: Transition, env: int, drawn: bool) -> TransitionFrame:
     """TransitionFrame: `env`'s reward terms and every environment's episode ends."""
-    names = tuple(message.reward_names)
-    terms = field_array(message, "reward_terms", np.float32, (None, len(names)))  # (B, R)
-    b = len(terms)
-    terminated, truncated, success = (
-        field_array(message, name, np.bool_, (b,)) for name in ("terminated", "truncated", "success")
-    )
+    decoded = transition.decode(message)
     return TransitionFrame(
-        step=message.header.step,
-        stamp_ns=message.header.stamp_ns,
+        step=decoded.step,
+        stamp_ns=decoded.stamp_ns,
         drawn=drawn,
-        reward_names=names,
-        reward_terms=focus_row(terms, env),
-        done=terminated | truncated,
-        success=success,
+        reward_names=decoded.reward_names,
+        reward_terms=focus_row(decoded.reward_terms, env),
+        done=decoded.terminated | decoded.truncated,
+        success=decoded.success,
     )
 
 

@@ -1,0 +1,69 @@
+"""PerceptionTokens (perception -> policy, monitor): the clouds and UniCORN tokens of state
+k, decoded by every consumer with one function.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hamnet.messages.fields import Spec, arrays, batch_size
+from hamnet.proto.perception_pb2 import PerceptionTokens
+
+CLOUDS = ("object_cloud", "environment_cloud", "local_cloud")
+TOKENS = ("object_tokens", "local_tokens", "global_tokens")
+
+
+@dataclass(frozen=True)
+class TokensIn:
+    """PerceptionTokens k decoded (float32 clouds and tokens); a field the message leaves
+    out is None."""
+
+    step: int
+    """k: the state step the tokens answer."""
+    episode_ids: np.ndarray | None = None
+    """(B,) int64."""
+    object_cloud: np.ndarray | None = None
+    """(B, P, 3) m."""
+    environment_cloud: np.ndarray | None = None
+    """(B, P, 3) m."""
+    local_cloud: np.ndarray | None = None
+    """(B, P, 3) m."""
+    object_tokens: np.ndarray | None = None
+    """(B, N, D)."""
+    local_tokens: np.ndarray | None = None
+    """(B, N, D)."""
+    global_tokens: np.ndarray | None = None
+    """(B, N, D)."""
+    encoder_version: int = 0
+    """Version of the encoder weights (0: random weights)."""
+    stamp_ns: int = 0
+    """`Header.stamp_ns`."""
+
+
+def decode(
+    message: PerceptionTokens,
+    required: Iterable[str] = (),
+    token_shape: tuple[int | None, int | None] = (None, None),
+) -> TokensIn:
+    """PerceptionTokens k, every field it carries checked against one batch size B.
+
+    Args:
+        required: fields that must be set (names of `TokensIn`'s arrays).
+        token_shape: (N, D) every token field must have (None: any).
+    Raises:
+        PayloadError: `missing`, `dtype`, `shape`, `nonfinite`.
+    """
+    specs = {
+        "episode_ids": Spec(np.int64),
+        **{name: Spec(np.float32, (None, 3)) for name in CLOUDS},
+        **{name: Spec(np.float32, token_shape) for name in TOKENS},
+    }
+    b = batch_size(message, specs, ("episode_ids", "object_cloud", "object_tokens"))
+    decoded = arrays(message, specs, b, required)
+    header = message.header
+    return TokensIn(
+        header.step, encoder_version=message.encoder_version, stamp_ns=header.stamp_ns, **decoded
+    )
