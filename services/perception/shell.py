@@ -28,7 +28,7 @@ from typing import Annotated
 import numpy as np
 import torch
 
-from hamnet.messages import robot_state
+from hamnet.messages import robot_state, scene
 from hamnet.messages.robot_state import StateIn
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception, Percepts
@@ -43,7 +43,7 @@ from hamnet.runtime.compute import torch_device
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
-from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
+from hamnet.runtime.tensor import PayloadError, to_tensor
 
 log = logging.getLogger(__name__)
 
@@ -73,27 +73,25 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
     return state
 
 
+_SCENE_READS = ("episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active",
+                "object_points")  # fmt: skip
+
+
 def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> EpisodeScenes:
     """The K scenes of a Scene message as CPU tensors.
 
     Raises:
         PayloadError: `missing`, `dtype`, `shape` (counts disagree, object points not
-            (K, num_points, 3)), `nonfinite`, `range` (an environment index outside [0, B)).
+            (K, num_points, 3)), `nonfinite`, `range` (an environment index outside [0, B),
+            or a scene without any active cuboid).
     """
-    env_ids = field_array(message, "env_ids", np.int32, (None,))  # (K,)
-    k = len(env_ids)
-    if num_envs is not None and len(env_ids) and (env_ids.min() < 0 or env_ids.max() >= num_envs):
-        raise PayloadError("range", f"Scene.env_ids {env_ids.tolist()} outside [0, {num_envs})")
-    episode_ids = field_array(message, "episode_ids", np.int64, (k,))
-    centre = field_array(message, "cuboid_pos", np.float32, (k, None, 3), finite=True)  # (K, C, 3)
-    c = centre.shape[1]
-    quat = field_array(message, "cuboid_quat", np.float32, (k, c, 4), finite=True)
-    half = field_array(message, "cuboid_half_size", np.float32, (k, c, 3), finite=True)
-    active = field_array(message, "cuboid_active", np.bool_, (k, c))
-    points = field_array(message, "object_points", np.float32, (k, num_points, 3), finite=True)
-    if k and not active.any(1).all():
+    decoded = scene.decode(message, _SCENE_READS, num_envs=num_envs, num_points=num_points)
+    if len(decoded.env_ids) and not decoded.cuboid_active.any(1).all():
         raise PayloadError("range", "Scene holds a scene without any active cuboid")
-    return EpisodeScenes.from_arrays(env_ids, episode_ids, centre, quat, half, active, points)
+    return EpisodeScenes.from_arrays(
+        decoded.env_ids, decoded.episode_ids, decoded.cuboid_pos, decoded.cuboid_quat,
+        decoded.cuboid_half_size, decoded.cuboid_active, decoded.object_points,
+    )  # fmt: skip
 
 
 def encode_tokens(percepts: Percepts, step: int, episode_ids: np.ndarray, version: int) -> PerceptionTokens:
