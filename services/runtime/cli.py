@@ -21,13 +21,12 @@ from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.keys import check_segment
 from hamnet.runtime.logs import LogFormat, configure_logging
 from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.shell_config import Flattened
 from hamnet.runtime.transport import TransportConfig
 
 C = TypeVar("C")
 S = TypeVar("S", bound="HasCommon")
 
-Flattened = tyro.conf.OmitArgPrefixes
-"""Annotate a nested config field with this to expose its options without a prefix."""
 
 
 @dataclass(frozen=True)

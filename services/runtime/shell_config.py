@@ -1,11 +1,17 @@
 """The config blocks every service loop shares, flattened into each service's own config
 (`Annotated[ReportConfig, Flattened]`), so `--report-period-s`, `--device`, `--threads` and
-`--seed` mean one thing, with one docstring, in every `hamnet <service> --help`.
+`--seed` mean one thing, with one docstring, in every `hamnet <service> --help`. It holds
+no Zenoh, so a core's config (e.g. the safety supervisor's) can nest the blocks too.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import tyro
+
+Flattened = tyro.conf.OmitArgPrefixes
+"""Annotate a nested config field with this to expose its options without a prefix."""
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.safety.config import Profile, SafetyConfig, with_profile
 from hamnet.safety.shell import SafetyShell
-from hamnet.safety.supervisor import ShellConfig
+from hamnet.safety.supervisor import SafetyLoopConfig
 from hamnet.safety.trajectory import TrajectoryConfig
 
 
@@ -35,7 +35,7 @@ class SafetyServiceConfig:
     """Stages 1-5 and 7 of the filter."""
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     """Stage 6: jerk-limited references at the executor's control rate."""
-    loop: Annotated[ShellConfig, Flattened] = field(default_factory=ShellConfig)
+    loop: Annotated[SafetyLoopConfig, Flattened] = field(default_factory=SafetyLoopConfig)
 
 
 CONFIG = SafetyServiceConfig

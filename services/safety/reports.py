@@ -1,7 +1,8 @@
 """What the safety loop reports besides its commands: rejection events, rate-limited clip
 events and per-stage statistics of the filter's commands (as `Notice`s, handed to an
-injected `emit`), and the counts and latencies of the rate line in the log. Time comes from
-an injected clock, as in `hamnet.safety.supervisor`.
+injected `emit`), and the counts and latencies of the rate line in the log
+(`hamnet.runtime.loop_report`). Time comes from an injected clock, as in
+`hamnet.safety.supervisor`.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.fr3.limits import ACTION_DIM
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.stages import Rejection
@@ -87,24 +89,23 @@ class Reports:
         self.emit, self.clock = emit, clock
         self.clip_event_period_s = clip_event_period_s
         """At most one clip event per stage this often, s."""
-        self.stats_period_s, self.report_period_s = stats_period_s, report_period_s
+        self.stats_period_s = stats_period_s
         self.stats = StatsAccumulator()
         self.clips: dict[str, tuple[StageStats, np.ndarray]] = {}
         """Per clip stage: stats and (B,) clipped environments since its last event."""
         self.last_clip_event: dict[str, float] = {}
-        self.counts: dict[str, int] = dict.fromkeys(
-            ("tracked", "braked", "rejected", "stale", "ignored", "superseded", "watchdog",
-             "restarts", "implausible"), 0
-        )  # fmt: skip
+        self.rate = LoopReport(report_period_s, self._line, logger=log, clock=clock)
+        self.counts = self.rate.counts
         """What happened since the last rate line."""
-        self.latencies: list[float] = []
-        """State received -> command emitted, s, since the last rate line."""
-        self._last_stats = self._last_report = clock()
+        self.stopped_by: str | None = None
+        self.env_transitions = 0
+        """What stopped the loop and the trainer's counter, as of the last `periodic`."""
+        self._last_stats = clock()
 
     def command(self, output: SafeOutput, latency: float) -> None:
         """Count one command, `latency` s after its state arrived."""
         self.counts["braked" if output.filtered is None else "tracked"] += 1
-        self.latencies.append(latency)
+        self.rate.sample("latency_s", latency)
 
     def account(self, filtered: FilterResult, step: int) -> None:
         """Statistics, rejection events and (rate-limited) clip events of one command."""
@@ -144,19 +145,14 @@ class Reports:
                 self.emit(Notice(STATISTICS, step, env_ids, "", reason, summary))
             self.stats.reset()
             self._last_stats = now
-        elapsed = now - self._last_report
-        if elapsed >= self.report_period_s:
-            c = self.counts
-            latency = 1e3 * np.median(self.latencies) if self.latencies else float("nan")
-            log.info(
-                "%.1f commands/s (%d tracking, %d braking), state->command median %.1f ms, "
-                "%d rejected, %d stale and %d ignored actions, %d superseded states, "
-                "%d watchdog stops, %d sim restarts, %d implausible states, stopped by %s, "
-                "%d env transitions",
-                (c["tracked"] + c["braked"]) / elapsed, c["tracked"], c["braked"], latency,
-                c["rejected"], c["stale"], c["ignored"], c["superseded"], c["watchdog"],
-                c["restarts"], c["implausible"], stopped_by or "nothing", env_transitions,
-            )  # fmt: skip
-            self.counts = dict.fromkeys(self.counts, 0)
-            self.latencies.clear()
-            self._last_report = now
+        self.stopped_by, self.env_transitions = stopped_by, env_transitions
+        self.rate.tick()
+
+    def _line(self, w: Window) -> str:
+        c = w.count
+        return (f"{w.rate('tracked', 'braked'):.1f} commands/s ({c('tracked')} tracking, "
+                f"{c('braked')} braking), state->command median {w.median_ms('latency_s'):.1f} "
+                f"ms, {c('rejected')} rejected, {c('stale')} stale and {c('ignored')} ignored "
+                f"actions, {c('superseded')} superseded states, {c('watchdog')} watchdog stops, "
+                f"{c('restarts')} sim restarts, {c('implausible')} implausible states, stopped "
+                f"by {self.stopped_by or 'nothing'}, {self.env_transitions} env transitions")  # fmt: skip

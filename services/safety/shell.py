@@ -36,7 +36,7 @@ from hamnet.safety.messages import (
     encode_notice,
 )
 from hamnet.safety.reports import Notice
-from hamnet.safety.supervisor import ActionIn, Command, ShellConfig, StateIn, Supervisor
+from hamnet.safety.supervisor import ActionIn, Command, SafetyLoopConfig, StateIn, Supervisor
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
@@ -55,7 +55,7 @@ class SafetyShell:
     def __init__(
         self,
         service: Service,
-        config: ShellConfig | None = None,
+        config: SafetyLoopConfig | None = None,
         safety: SafetyConfig | None = None,
         trajectory: TrajectoryConfig | None = None,
     ) -> None:

@@ -29,13 +29,15 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 
 from hamnet.messages.action import ActionIn
 from hamnet.messages.robot_state import StateIn
 from hamnet.runtime.freshness import Verdict, Watermark
+from hamnet.runtime.shell_config import Flattened, ReportConfig
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafeOutput, SafetyFilter
@@ -69,7 +71,7 @@ def episode_starts(state: StateIn, previous_ids: np.ndarray | None) -> np.ndarra
 
 
 @dataclass(frozen=True)
-class ShellConfig:
+class SafetyLoopConfig:
     """Batch size, watchdog and reporting of the safety loop."""
 
     num_envs: int = 0
@@ -80,8 +82,7 @@ class ShellConfig:
     """At most one clip event per stage this often, s (it counts what happened since)."""
     stats_period_s: float = 5.0
     """Seconds between per-stage statistics events."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
 
     def __post_init__(self) -> None:
         if self.num_envs < 0:
@@ -96,14 +97,14 @@ class Supervisor:
     def __init__(
         self,
         emit: Callable[[Command | Notice], None],
-        config: ShellConfig | None = None,
+        config: SafetyLoopConfig | None = None,
         safety: SafetyConfig | None = None,
         trajectory: TrajectoryConfig | None = None,
         estop: EStop | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.emit, self.clock = emit, clock
-        self.config = config if config is not None else ShellConfig()
+        self.config = config if config is not None else SafetyLoopConfig()
         self.safety = safety if safety is not None else SafetyConfig()
         self.trajectory = trajectory if trajectory is not None else TrajectoryConfig()
         self.estop = estop if estop is not None else EStop()
@@ -132,7 +133,7 @@ class Supervisor:
         self.answered: Command | None = None
         """The last command sent, sent again when the sim sends its state again."""
         self.reports = Reports(emit, clock, self.config.clip_event_period_s,
-                               self.config.stats_period_s, self.config.report_period_s)  # fmt: skip
+                               self.config.stats_period_s, self.config.report.report_period_s)  # fmt: skip
         self.watermark = Watermark()
         """The sim's run and its newest state: a restart is followed, a step implausibly
         far ahead is dropped."""

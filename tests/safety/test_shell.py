@@ -35,7 +35,7 @@ from hamnet.safety.messages import (
 )
 from hamnet.safety.shell import SafetyShell
 from hamnet.safety.stats import StageStats
-from hamnet.safety.supervisor import ShellConfig, episode_starts
+from hamnet.safety.supervisor import SafetyLoopConfig, episode_starts
 from tests.scripted import ScriptedService, wire
 
 B, S, J = 2, 8, 7
@@ -256,7 +256,7 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
     hooks = {1: lambda: [("action", b"\xff not a message"),
                          ("schedule", encode(Schedule(env_transitions=4096)))]}  # fmt: skip
     service = scripted(sim_script(act, last=5, hooks=hooks))
-    shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
+    shell = SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=5.0))
     assert shell.run() == 0
     commands = of(service.published, "command")
     assert [c.header.step for c in commands] == list(range(6))
@@ -283,7 +283,7 @@ def test_a_restarted_sim_starts_every_episode_afresh() -> None:
     items = iter([*old, ("state", encode(robot_state(0, q, episode_step=4, run=2))),
                   ("action", encode(policy_action(0, action)))])  # fmt: skip
     service = scripted(lambda published: next(items, "end"))
-    shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
+    shell = SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=5.0))
     assert shell.run() == 0
     commands = of(service.published, "command")
     assert [c.header.step for c in commands] == [0, 1, 2, 3, 0]
@@ -307,7 +307,7 @@ def test_watchdog_brakes_without_actions_and_resumes_when_they_return() -> None:
         return [("action", encode(policy_action(5, np.zeros((B, 21), np.float32))))]
 
     service = scripted(sim_script(act, last=7, hooks={6: late_action}))
-    shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.2))
+    shell = SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=0.2))
     started = time.monotonic()
     shell.run()
     commands = of(service.published, "command")
@@ -334,7 +334,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
     hooks = {2: request("stop"), 5: request("reset")}
     act = lambda step: np.zeros((B, 21), np.float32)
     service = scripted(sim_script(act, last=6, hooks=hooks))
-    shell = SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=5.0))
+    shell = SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=5.0))
     holder.append(shell)
     shell.run()
     commands = of(service.published, "command")
@@ -351,7 +351,7 @@ def test_estop_latches_ignores_actions_until_reset() -> None:
 def test_statistics_event_carries_every_stage() -> None:
     act = lambda step: np.full((B, 21), 5.0, np.float32)  # saturating actions
     service = scripted(sim_script(act, last=3))
-    config = ShellConfig(num_envs=B, watchdog_s=5.0, stats_period_s=0.0)
+    config = SafetyLoopConfig(num_envs=B, watchdog_s=5.0, stats_period_s=0.0)
     SafetyShell(service, config).run()
     events: list[SafetyEvent] = of(service.published, "event")
     stats = [e for e in events if e.kind == SafetyEventKind.SAFETY_EVENT_KIND_UNSPECIFIED]
@@ -379,7 +379,7 @@ def test_state_sent_again_while_waiting_keeps_its_watchdog_deadline() -> None:
 
     service = scripted(script)
     started = time.monotonic()
-    SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.2)).run()
+    SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=0.2)).run()
     commands = of(service.published, "command")
     assert time.monotonic() - started < 1.0
     assert [c.header.step for c in commands] == [0, 0] and commands[0] == commands[1]
@@ -406,7 +406,7 @@ def test_watchdog_fires_under_a_free_running_executor() -> None:
         return None
 
     service = scripted(script)
-    SafetyShell(service, ShellConfig(num_envs=B, watchdog_s=0.25)).run()
+    SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=0.25)).run()
     commands = of(service.published, "command")
     assert len(commands) == 3 and all(c.mode == CommandMode.STOP for c in commands)
     watchdog = [e for e in of(service.published, "event")

@@ -18,7 +18,7 @@ from hamnet.safety.supervisor import (
     BRAKE_PACE,
     ActionIn,
     Command,
-    ShellConfig,
+    SafetyLoopConfig,
     StateIn,
     Supervisor,
 )
@@ -34,7 +34,7 @@ def supervisor(**config) -> tuple[Supervisor, list, Clock]:
     """A supervisor of B environments, what it emits, and its clock."""
     emitted: list[Command | Notice] = []
     clock = Clock(100.0)
-    config = ShellConfig(**{"num_envs": B, "watchdog_s": WATCHDOG_S, **config})
+    config = SafetyLoopConfig(**{"num_envs": B, "watchdog_s": WATCHDOG_S, **config})
     return Supervisor(emitted.append, config, estop=EStop(), clock=clock), emitted, clock
 
 
@@ -63,9 +63,9 @@ def braking(command: Command) -> bool:
 
 def test_config_refuses_a_watchdog_that_never_waits() -> None:
     with pytest.raises(ValueError, match="watchdog_s"):
-        ShellConfig(watchdog_s=0.0)
+        SafetyLoopConfig(watchdog_s=0.0)
     with pytest.raises(ValueError, match="num_envs"):
-        ShellConfig(num_envs=-1)
+        SafetyLoopConfig(num_envs=-1)
 
 
 def test_a_state_is_answered_only_with_its_own_action() -> None:
