@@ -20,7 +20,7 @@ from hamnet.bridge.core import BridgeCore
 from hamnet.bridge.driver import Driver
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
 from hamnet.bridge.franky_driver import FrankyDriver, FrankyDriverConfig
-from hamnet.bridge.shell import BridgeShell, LoopConfig
+from hamnet.bridge.shell import BridgeLoopConfig, BridgeShell
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 
@@ -45,7 +45,7 @@ class BridgeServiceConfig(DriverConfig):
     """One robot: its driver, the pace of its states and its reports."""
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
-    loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
+    loop: Annotated[BridgeLoopConfig, Flattened] = field(default_factory=BridgeLoopConfig)
 
 
 def make_driver(config: DriverConfig) -> Driver:

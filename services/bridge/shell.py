@@ -25,7 +25,8 @@ import functools
 import logging
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 
@@ -36,7 +37,9 @@ from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import Flattened, ReportConfig
 from hamnet.runtime.tensor import from_tensor
 from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.messages import encode_event
@@ -56,7 +59,7 @@ POSE = contract.topic("perception/<w>/object_pose")
 
 
 @dataclass(frozen=True)
-class LoopConfig:
+class BridgeLoopConfig:
     """Pace, goal and reporting of the bridge."""
 
     policy_period_s: float = 0.1
@@ -70,8 +73,7 @@ class LoopConfig:
     """Oldest object pose estimate put in a state, in states (its frames' state to this one)."""
     max_steps: int = 0
     """Exit after this many states (0: run until stopped)."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
 
     def __post_init__(self) -> None:
         if self.max_steps < 0:
@@ -83,7 +85,7 @@ class LoopConfig:
 class BridgeShell:
     """One robot on the network: its state, its commands, its errors and its reset."""
 
-    def __init__(self, service: Service, core: BridgeCore, loop: LoopConfig) -> None:
+    def __init__(self, service: Service, core: BridgeCore, loop: BridgeLoopConfig) -> None:
         self.service, self.core, self.loop = service, core, loop
         ns, w = service.namespace, service.identity.worker
         decoder = functools.partial(_decode_command_payload, samples=core.samples,
@@ -104,6 +106,8 @@ class BridgeShell:
         """When each recent state went out (step -> monotonic s), to time its command."""
         self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
         """Seconds from a state's publication to the execution of its command, newest last."""
+        self.report = LoopReport(loop.report.report_period_s, self._line, figures=self._figures,
+                                 set_figure=service.set_figure, logger=log)  # fmt: skip
 
     def run(self) -> int:
         """Publish states and execute commands until stopped or `max_steps`; stops the arm
@@ -114,7 +118,7 @@ class BridgeShell:
         log.info("%.0f ms policy period, %d samples per command, reset on %s",
                  1e3 * self.loop.policy_period_s, self.core.samples, self.reset_key)  # fmt: skip
         clock = self.core.clock
-        last_report, tick = time.monotonic(), clock()
+        tick = clock()
         try:
             while self.service.running and not 0 < self.loop.max_steps <= self.step:
                 self._apply_requests()
@@ -137,15 +141,11 @@ class BridgeShell:
                         self._execute(received.value)
                 if clock() - tick > self.loop.policy_period_s:
                     tick = clock()  # fell a period behind: do not burst to catch up
-                if time.monotonic() - last_report >= self.loop.report_period_s:
-                    self._report_latency()
-                    log.info("step %d, commands %s, stopped by %s", self.step, self.core.counts,
-                             [e.name for e in self.core.errors] or "nothing")  # fmt: skip
-                    last_report = time.monotonic()
+                self.report.tick()
         finally:
             queryable.undeclare()
             self.core.driver.close()
-            self._report_latency()
+            self.report.flush()
         log.info("stopped after %d states, commands %s", self.step, self.core.counts)
         return 0
 
@@ -177,16 +177,23 @@ class BridgeShell:
             self.latencies.append(time.monotonic() - self.published.pop(command.step))
         self._report_errors()
 
-    def _report_latency(self) -> None:
-        """The latency percentiles of the recent commands, into health and the log."""
+    def _figures(self, w: Window) -> dict[str, float]:
+        """The latency percentiles of the recent commands (a window of the newest, not of
+        the rate line's period), in ms, for health and the rate line."""
         if not self.latencies:
-            return
+            return {}
         median, p99 = 1e3 * np.percentile(self.latencies, [50, 99])
-        self.service.set_figure("command_latency_median_ms", float(median))
-        self.service.set_figure("command_latency_p99_ms", float(p99))
-        self.service.set_figure("command_latency_count", float(len(self.latencies)))
-        log.info("state to command: median %.1f ms, p99 %.1f ms over the last %d commands",
-                 median, p99, len(self.latencies))  # fmt: skip
+        return {"command_latency_median_ms": median, "command_latency_p99_ms": p99,
+                "command_latency_count": len(self.latencies)}  # fmt: skip
+
+    def _line(self, w: Window) -> str:
+        stopped = [e.name for e in self.core.errors] or "nothing"
+        line = f"step {self.step}, commands {self.core.counts}, stopped by {stopped}"
+        if figures := self._figures(w):
+            line += (f"; state to command: median {figures['command_latency_median_ms']:.1f} ms, "
+                     f"p99 {figures['command_latency_p99_ms']:.1f} ms over the last "
+                     f"{len(self.latencies)} commands")  # fmt: skip
+        return line
 
     def _apply_requests(self) -> None:
         for request in self.requests.take():
