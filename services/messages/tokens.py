@@ -42,6 +42,11 @@ class TokensIn:
     stamp_ns: int = 0
     """`Header.stamp_ns`."""
 
+    @property
+    def tokens(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """Object, local and global tokens, (B, N, D) each: the policy's token inputs."""
+        return self.object_tokens, self.local_tokens, self.global_tokens
+
 
 def decode(
     message: PerceptionTokens,

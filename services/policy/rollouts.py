@@ -2,7 +2,7 @@
 service and `hamnet.policy.chunking`.
 
 Consumes each served step (inputs, action, weights version) and the sim's transitions
-(`hamnet.policy.messages.TransitionIn`); hands each complete RolloutChunk of T steps to `send`
+(`hamnet.messages.transition.TransitionIn`); hands each complete RolloutChunk of T steps to `send`
 (the shell's `trainer/<w>/rollout` publisher; `header.policy_version` = the oldest version
 that acted, `header.step` counts the chunks sent). Steps join chunks only once the trainer is heard (its first weights
 announcement or schedule): chunks acted before would only queue up at the trainer while it
@@ -15,8 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from hamnet.messages.transition import TransitionIn
 from hamnet.policy.chunking import Chunk, ChunkAssembler
-from hamnet.policy.messages import TransitionIn
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.policy import Action
 from hamnet.proto.trainer_pb2 import RolloutChunk

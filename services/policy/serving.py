@@ -1,7 +1,7 @@
 """One batch of actions for a paired state and tokens, without Zenoh: the policy service's
 step core for one sim worker.
 
-Consumes decoded states and tokens (`hamnet.policy.messages`) and the EnvCode of reset
+Consumes decoded states and tokens (`hamnet.messages`, checked by `hamnet.policy.messages`) and the EnvCode of reset
 environments; produces the network inputs it acted on and the `Action`. What is carried
 between steps (previous action, memory resets, EnvCode cache) is the one input builder's
 (`hamnet.policy.inputs`), so the service and an in-process trainer see the same inputs. A
@@ -15,8 +15,10 @@ import logging
 import numpy as np
 import torch
 
+from hamnet.messages.robot_state import StateIn
+from hamnet.messages.tokens import TokensIn
 from hamnet.policy import inputs as builder
-from hamnet.policy.messages import StateIn, TokensIn
+from hamnet.policy.messages import robot_observation
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import PoseNoiseConfig, RobotObservation
 from hamnet.policy.policy import Action, Policy
@@ -65,9 +67,10 @@ class Serving:
     def _inputs(self, policy: Policy, state: StateIn, tokens: TokensIn) -> PolicyInputs:
         """The network inputs of a pair, on the device (the builder zeroes the carry of
         environments whose episode started)."""
+        observed = robot_observation(state, policy.config.privileged)
         robot = RobotObservation(**{
             name: None if value is None else value.to(self.device)
-            for name, value in vars(state.robot).items()
+            for name, value in vars(observed).items()
         })  # fmt: skip
         b, config = len(state.episode_ids), policy.config
         if self.carry is None or len(self.carry.episode_ids) != b:
@@ -80,6 +83,6 @@ class Serving:
                         len(self.env_code), b - 1)  # fmt: skip
             self.scene(np.arange(b), np.zeros((b, self.env_code.shape[1]), np.float32))
         return builder.policy_inputs(
-            config, self.carry, robot, tuple(t.to(self.device) for t in tokens.tokens),
+            config, self.carry, robot, tuple(torch.from_numpy(t).to(self.device) for t in tokens.tokens),
             self.env_code, self.pose_noise, self.generator,
         )  # fmt: skip

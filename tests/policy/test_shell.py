@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from hamnet.policy.messages import decode_state, decode_tokens
+from hamnet.policy.messages import decode_state, decode_tokens, robot_observation
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import assemble
 from hamnet.policy.registry import build
@@ -63,7 +63,9 @@ def test_state_and_tokens_decode_to_what_was_sent() -> None:
     robot = random_robot(B, seed=5)
     assert state.step == 5 and state.episode_ids.shape == (B,)
     for name in ("q", "ee_pose", "object_velocity", "physics_params"):
-        torch.testing.assert_close(getattr(state.robot, name), getattr(robot, name))
+        torch.testing.assert_close(
+            getattr(robot_observation(state, True), name), getattr(robot, name)
+        )
     tokens = decode_tokens(wire(tokens_message(5, B)), 17, 128)
     assert [t.shape for t in tokens.tokens] == [(B, 17, 128)] * 3
 
@@ -78,7 +80,9 @@ def test_a_student_reads_the_pose_estimate_and_never_the_privileged_block() -> N
     width = len(PHYSICS_PARAM_NAMES)
     with pytest.raises(PayloadError, match="privileged"):
         decode_state(message, privileged=True, physics_params=width)
-    student = decode_state(message, privileged=False, physics_params=width).robot
+    student = robot_observation(
+        decode_state(message, privileged=False, physics_params=width), False
+    )
     torch.testing.assert_close(student.object_pose, torch.from_numpy(estimate))
     assert student.object_pose is not None and student.physics_params is None
 
