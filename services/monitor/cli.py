@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
 
-from hamnet.monitor.config import LoopConfig, OutputConfig, ViewConfig
+from hamnet.monitor.config import MonitorLoopConfig, OutputConfig, ViewConfig
 from hamnet.monitor.outputs import open_recording
 from hamnet.monitor.shell import MonitorShell
 from hamnet.monitor.view import MonitorView
@@ -31,7 +31,7 @@ class MonitorServiceConfig:
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     view: Annotated[ViewConfig, Flattened] = field(default_factory=ViewConfig)
     output: Annotated[OutputConfig, Flattened] = field(default_factory=OutputConfig)
-    loop: Annotated[LoopConfig, Flattened] = field(default_factory=LoopConfig)
+    loop: Annotated[MonitorLoopConfig, Flattened] = field(default_factory=MonitorLoopConfig)
 
 
 CONFIG = MonitorServiceConfig

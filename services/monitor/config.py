@@ -1,10 +1,13 @@
 """Configuration of the monitor: what it shows (`ViewConfig`), where the Rerun data goes
-(`OutputConfig`) and how its loop keeps up with the stack (`LoopConfig`)."""
+(`OutputConfig`) and how its loop keeps up with the stack (`MonitorLoopConfig`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
+
+from hamnet.runtime.shell_config import Flattened, ReportConfig
 
 
 @dataclass(frozen=True)
@@ -64,14 +67,13 @@ class OutputConfig:
 
 
 @dataclass(frozen=True)
-class LoopConfig:
+class MonitorLoopConfig:
     """How the monitor's loop keeps up."""
 
     inbox_capacity: int = 64
     """Payloads waiting to be drawn; when full the oldest is dropped (reason `overflow`), so
     a slow viewer never queues without bound nor slows the publishers."""
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
 
     def __post_init__(self) -> None:
         if self.inbox_capacity < 1:

@@ -20,7 +20,7 @@ from typing import Any
 
 from google.protobuf.message import Message
 
-from hamnet.monitor.config import LoopConfig
+from hamnet.monitor.config import MonitorLoopConfig
 from hamnet.monitor.decode import (
     decode_action,
     decode_event,
@@ -39,6 +39,7 @@ from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError
 
@@ -58,9 +59,11 @@ Decoder = Callable[[str, bytes], Any]
 class MonitorShell:
     """One monitor on the network: subscriptions, pacing and the loop."""
 
-    def __init__(self, service: Service, view: MonitorView, loop: LoopConfig | None = None) -> None:
+    def __init__(
+        self, service: Service, view: MonitorView, loop: MonitorLoopConfig | None = None
+    ) -> None:
         self.service, self.view = service, view
-        self.loop = loop if loop is not None else LoopConfig()
+        self.loop = loop if loop is not None else MonitorLoopConfig()
         self.env = view.config.env
         self.pacer = FramePacer(view.config.min_frame_interval_s)
         ns, w = service.namespace, service.identity.worker
@@ -82,8 +85,7 @@ class MonitorShell:
             "transition": view.on_transition, "scene": view.on_scene, "event": view.on_event,
             "metrics": view.on_metrics,
         }  # fmt: skip
-        self._last_report = (time.monotonic(), 0)
-        """(when, steps drawn by then) of the last rate line."""
+        self.report = LoopReport(self.loop.report.report_period_s, self._line, logger=log)
         self.scene_seen = False
         """Whether the focus environment's scene has arrived (else the sim is asked for it)."""
 
@@ -98,7 +100,8 @@ class MonitorShell:
                 self.scene_seen |= received.name == "scene"
                 if received.name == "state" and not self.scene_seen:
                     self.service.inbox.catch_up("scene", self.scene_key)  # started late
-            self._report()
+            self.report.total(drawn=self.pacer.drawn)
+            self.report.tick()
         return 0
 
     def _paced(self, message_type: type[Message], decode: Callable[[Any, int], Any]) -> Decoder:
@@ -119,14 +122,8 @@ class MonitorShell:
         drawn = self.pacer.draw(message.header.step, time.monotonic())
         return decode_transition(message, self.env, drawn)
 
-    def _report(self) -> None:
-        now = time.monotonic()
-        then, drawn = self._last_report
-        if now - then < self.loop.report_period_s:
-            return
+    def _line(self, w: Window) -> str:
         success = self.view.success
-        log.info("%.1f steps/s drawn, %d skipped in all, step %d, %d episodes finished, "
-                 "success rate %.2f, %d payloads dropped in all",
-                 (self.pacer.drawn - drawn) / (now - then), self.pacer.skipped, self.view.step,
-                 success.finished, success.rate, self.service.drops.total)  # fmt: skip
-        self._last_report = (now, self.pacer.drawn)
+        return (f"{w.rate('drawn'):.1f} steps/s drawn, {self.pacer.skipped} skipped in all, "
+                f"step {self.view.step}, {success.finished} episodes finished, success rate "
+                f"{success.rate:.2f}, {self.service.drops.total} payloads dropped in all")  # fmt: skip

@@ -85,6 +85,10 @@ class LoopReport:
         """Counts since the last rate line (updated in place, so it can be shared)."""
         self.samples: dict[str, list[float]] = {}
         """Measured values since the last rate line."""
+        self._totals: dict[str, float] = {}
+        """The newest value of each running total (`total`)."""
+        self._base: dict[str, float] = {}
+        """Each running total when the current window began."""
         self.started = clock()
         """When the current window began."""
 
@@ -95,6 +99,13 @@ class LoopReport:
     def sample(self, name: str, value: float) -> None:
         """Record one measured value of `name` (e.g. seconds of one step)."""
         self.samples.setdefault(name, []).append(value)
+
+    def total(self, **totals: float) -> None:
+        """The newest values of running totals a shell keeps anyway (e.g. frames drawn so
+        far): the window counts what they grew by since it began (or since first given)."""
+        for name, value in totals.items():
+            self._totals[name] = value
+            self.counts[name] = value - self._base.setdefault(name, value)
 
     def tick(self, **counts: float) -> Window | None:
         """One turn of the loop: add `counts`, then report when a period has passed.
@@ -131,4 +142,5 @@ class LoopReport:
         is not the loop's rate)."""
         self.counts.clear()
         self.samples.clear()
+        self._base = dict(self._totals)
         self.started = self.clock()

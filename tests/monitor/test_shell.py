@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from hamnet.monitor.config import LoopConfig, ViewConfig
+from hamnet.monitor.config import MonitorLoopConfig, ViewConfig
 from hamnet.monitor.shell import MonitorShell
 from hamnet.monitor.view import MonitorView
 from hamnet.runtime.codec import encode
@@ -34,7 +34,7 @@ def test_a_burst_is_thinned_to_the_rate_and_episodes_are_still_counted(tmp_path)
     recording = rr.RecordingStream("test_monitor_shell")
     recording.save(path)
     view = MonitorView(recording, ViewConfig(env=1, max_rate_hz=0.1))  # one step per 10 s
-    shell = MonitorShell(service, view, LoopConfig())
+    shell = MonitorShell(service, view, MonitorLoopConfig())
     assert shell.run() == 0
     recording.flush()
     recording.disconnect()

@@ -74,6 +74,18 @@ def test_flush_reports_what_is_there_and_restart_forgets_it() -> None:
     assert report.tick().count("steps") == 0
 
 
+def test_running_totals_count_what_they_grew_by_in_the_window() -> None:
+    clock = Clock()
+    report = reporter(clock)
+    report.total(drawn=7)  # what came before the first value is not this loop's
+    report.total(drawn=10)
+    clock.now += 10.0
+    assert report.tick().count("drawn") == 3
+    report.total(drawn=12)
+    clock.now += 10.0
+    assert report.tick().count("drawn") == 2
+
+
 def test_bad_configuration_is_refused() -> None:
     with pytest.raises(ValueError, match="period_s"):
         LoopReport(0.0, str)
