@@ -19,6 +19,7 @@ from hamnet.camera.shell import CameraShell
 from hamnet.camera.sources import FrameSource, ReplayConfig, SimSourceConfig
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import ReportConfig
 
 SourceName = Literal["sim", "replay", "realsense"]
 
@@ -33,8 +34,7 @@ class CameraServiceConfig:
     sim: SimSourceConfig = field(default_factory=SimSourceConfig)
     replay: ReplayConfig = field(default_factory=ReplayConfig)
     realsense: RealSenseConfig = field(default_factory=RealSenseConfig)
-    report_period_s: float = 10.0
-    """Seconds between rate lines in the log."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
 
 
 CONFIG = CameraServiceConfig
@@ -66,6 +66,6 @@ def main(argv: Sequence[str]) -> int:
     source = make_source(config)
     try:
         with Service(identity, config.common.transport) as service:
-            return CameraShell(service, source, config.report_period_s).run()
+            return CameraShell(service, source, config.report).run()
     finally:
         source.close()

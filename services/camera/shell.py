@@ -11,8 +11,6 @@ from __future__ import annotations
 import logging
 import time
 
-import numpy as np
-
 from hamnet.camera.frames import encode_frames
 from hamnet.camera.sources import FrameSource
 from hamnet.messages import robot_state
@@ -20,7 +18,9 @@ from hamnet.messages.robot_state import StateIn
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
+from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
@@ -45,9 +45,11 @@ class CameraShell:
     """Publishes one source's frames on `camera/<w>/frames`."""
 
     def __init__(
-        self, service: Service, source: FrameSource, report_period_s: float = 10.0
+        self, service: Service, source: FrameSource, report: ReportConfig | None = None
     ) -> None:
-        self.service, self.source, self.report_period_s = service, source, report_period_s
+        self.service, self.source = service, source
+        report = report if report is not None else ReportConfig()
+        self.report = LoopReport(report.report_period_s, self._line, logger=log)
         ns, w = service.namespace, service.identity.worker
         if source.needs_state:
             service.inbox.subscribe(
@@ -57,8 +59,7 @@ class CameraShell:
             )
         self.frames = service.publisher(FRAMES.key(ns, w=w))
         self.robot: StateIn | None = None
-        self.published, self.seconds = 0, []
-        self._last_report = time.monotonic()
+        self.published = 0
 
     def run(self) -> int:
         """Publish frames until the source is done or the service stops."""
@@ -72,19 +73,12 @@ class CameraShell:
             if frames is not None:
                 self.frames.put(encode_frames(frames.views, frames.step, frames.names))
                 self.published += 1
-                self.seconds.append(time.perf_counter() - started)
-            self._report()
+                self.report.sample("frame_set_s", time.perf_counter() - started)
+            self.report.tick()
         log.info("published %d frame sets", self.published)
         return 0
 
-    def _report(self) -> None:
-        now = time.monotonic()
-        elapsed = now - self._last_report
-        if elapsed < self.report_period_s:
-            return
-        median = 1e3 * float(np.median(self.seconds)) if self.seconds else float("nan")
-        log.info(
-            "%.1f frame sets/s, median %.1f ms to make one", len(self.seconds) / elapsed, median
-        )
-        self.seconds.clear()
-        self._last_report = now
+    def _line(self, w: Window) -> str:
+        made = len(w.samples.get("frame_set_s", ()))
+        return (f"{made / w.seconds:.1f} frame sets/s, median {w.median_ms('frame_set_s'):.1f} "
+                "ms to make one")  # fmt: skip
