@@ -63,10 +63,12 @@ def service_argv(
     """Arguments after `hamnet` for one worker of `spec`: `["echo", "--namespace", ...]`."""
     own = {_flag(name) for name in spec.args}
     args = {name: _expand(value, namespace) for name, value in spec.args.items()}
+    remap = tuple(f"{port}={expand(key, namespace)}" for port, key in spec.remap.items())
     options = {
         "namespace": namespace,
         **{name: value for name, value in forward.items() if name not in own},
         **args,
+        **({"remap": remap} if remap else {}),
         "worker": worker,
     }
     return [spec.command, *flags(options)]

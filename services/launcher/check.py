@@ -19,7 +19,8 @@ from hamnet.cli import COMMANDS, Command
 from hamnet.launcher.argv import service_argv
 from hamnet.launcher.secure import Security
 from hamnet.launcher.stack import ArgValue, Stack
-from hamnet.runtime.cli import parse
+from hamnet.runtime.cli import check_remap, parse
+from hamnet.runtime.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -72,15 +73,18 @@ def check(stack: Stack, forward: Mapping[str, ArgValue]) -> list[Verdict]:
 
 
 def validate_args(command: Command, argv: list[str]) -> str:
-    """Parse `argv` with the command's CONFIG; returns the parser's complaint or ''."""
-    config_type = importlib.import_module(command.module).CONFIG
+    """Parse `argv` with the command's CONFIG and check its `--remap` against the command's
+    PORTS; returns the complaint or ''."""
+    module = importlib.import_module(command.module)
     output = io.StringIO()
     try:
         with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
-            parse(config_type, argv, f"hamnet {command.name}", "")
+            config = parse(module.CONFIG, argv, f"hamnet {command.name}", "")
+        if hasattr(config, "common"):
+            check_remap(config.common, getattr(module, "PORTS", None))
     except SystemExit:  # tyro reports bad flags and nested `__post_init__` errors this way
         return _first_lines(output.getvalue()) or "invalid arguments"
-    except ValueError as error:  # a top-level config's `__post_init__` reaches us raw
+    except (ValueError, ConfigError) as error:  # a top-level config's `__post_init__`, a remap
         return str(error)
     return ""
 
@@ -122,7 +126,9 @@ def render(
         lines.append(f"  {missing_text(missing)} (`hamnet certs stack {path}` makes them)")
     for v, command in zip(verdicts, commands, strict=True):
         role = "critical" if stack.services[v.service].is_critical else "auxiliary"
-        lines.append(f"  {v.service:<{name_width}}  {command:<{command_width}}  {role:<9}  {v.status}")
+        lines.append(
+            f"  {v.service:<{name_width}}  {command:<{command_width}}  {role:<9}  {v.status}"
+        )
     errors = sum(1 for v in verdicts if v.error)
     missing = not_built(verdicts)
     if errors:

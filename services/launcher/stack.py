@@ -14,6 +14,7 @@ same file runs side by side under `--namespace other` without overwriting files.
       sim: {workers: [0, 1], args: {num-envs: 4}, restart: {max_restarts: 3}}
       record: {args: {output: runs/<namespace>/stack.mcap}}   # auxiliary by default
       watch: {command: echo, args: {period-s: 5}, critical: false}
+      policy: {args: {random-init: hamnet}, remap: {state: hamnet/<namespace>-replay/sim/0/state}}
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ ArgValue = Scalar | None | tuple[Scalar, ...]
 RESERVED_ARGS = {
     "worker": "the service's `workers` key",
     "namespace": "the stack's `namespace` key or `hamnet up --namespace`",
+    "remap": "the service's `remap` key",
 }
 """Flags the launcher sets itself, and where their values come from instead."""
 
@@ -85,6 +87,10 @@ class ServiceSpec:
     """Worker ids: one process per worker, each started with `--worker <id>`."""
     args: Mapping[str, ArgValue] = field(default_factory=dict)
     """Command-line options: flag name (without dashes) -> value."""
+    remap: Mapping[str, str] = field(default_factory=dict)
+    """Ports rewired: port name -> key (`state: hamnet/<namespace>-replay/sim/0/state`, or a
+    path in the stack's namespace such as `sim/1/state`); `hamnet <command> --help` lists a
+    service's ports. Each becomes `--remap PORT=KEY`."""
     restart: RestartPolicy = field(default_factory=RestartPolicy)
     """Restart policy of each of its processes."""
     critical: bool | None = None
@@ -170,8 +176,11 @@ class Stack:
         keys.check_segment("namespace", self.namespace)
         if self.until is not None and self.until not in self.services:
             raise ValueError(f"until: {self.until!r} is not one of the services")
-        for name, value in (("duration_s", self.duration_s), ("ready_timeout_s",
-                            self.ready_timeout_s), ("stop_grace_s", self.stop_grace_s)):
+        for name, value in (
+            ("duration_s", self.duration_s),
+            ("ready_timeout_s", self.ready_timeout_s),
+            ("stop_grace_s", self.stop_grace_s),
+        ):
             if value is not None and not (value > 0 and math.isfinite(value)):
                 raise ValueError(f"{name} must be a positive number of seconds, got {value}")
         owners: dict[tuple[str, str], str] = {}

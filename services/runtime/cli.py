@@ -20,13 +20,13 @@ import tyro
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.keys import check_segment
 from hamnet.runtime.logs import LogFormat, configure_logging
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.shell_config import Flattened
 from hamnet.runtime.transport import TransportConfig
 
 C = TypeVar("C")
 S = TypeVar("S", bound="HasCommon")
-
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,10 @@ class CommonConfig:
     """Worker id of this instance (a key segment), so several instances can run side by side."""
     transport: Annotated[TransportConfig, Flattened] = field(default_factory=TransportConfig)
     logging: Annotated[LogConfig, Flattened] = field(default_factory=LogConfig)
+    remap: tuple[str, ...] = ()
+    """Rewire ports, PORT=KEY each: read or write port PORT on KEY (a whole key such as
+    hamnet/replay/sim/0/state, or a path in this namespace such as sim/1/state) instead of
+    its own key. The service's ports are listed at the end of --help."""
 
     def __post_init__(self) -> None:
         try:
@@ -94,6 +98,15 @@ def check_periods(config: object) -> None:
             check_periods(value)
 
 
+def check_remap(common: CommonConfig, ports: Ports | None) -> None:
+    """ConfigError unless every `--remap` names one of `ports` (None: the command has none)
+    and a key of that port's topic."""
+    if ports is not None:
+        ports.remapped(common.remap, common.transport.namespace)
+    elif common.remap:
+        raise ConfigError("this command has no ports to --remap")
+
+
 class HasCommon(Protocol):
     """A service config: it nests the common options."""
 
@@ -107,15 +120,25 @@ def parse_service(
     service: str,
     description: str,
     default: S | None = None,
+    ports: Ports | None = None,
 ) -> tuple[S, ServiceIdentity]:
     """Parse a service's command line (from `default`, if given) and set up its logging.
 
-    With `--tls-dir` and no `--identity`, the identity is the service's name.
+    With `--tls-dir` and no `--identity`, the identity is the service's name. The service's
+    `ports` are listed in `--help`, and a `--remap` of them is checked here (one line, exit 2).
 
     Returns:
         The config and who the service is on the network (`service/worker`).
     """
-    config = parse(config_type, argv, f"hamnet {service}", description, default)
+    prog = f"hamnet {service}"
+    if ports is not None:
+        description = f"{description}\n\n{ports.describe()}"
+    config = parse(config_type, argv, prog, description, default)
+    try:
+        check_remap(config.common, ports)
+    except ConfigError as error:
+        print(f"{prog}: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
     transport = config.common.transport
     if transport.tls_dir is not None and not transport.identity:
         # A service presents the certificate named after it unless told otherwise.

@@ -262,6 +262,12 @@ class Publisher:
             header.run = header.run or PROCESS_RUN
         return encode(message)
 
+    @property
+    def matching(self) -> bool:
+        """Whether a subscriber that this session knows of matches the key (Zenoh's matching
+        status): a put before then reaches no one."""
+        return self._publisher.matching_status.matching
+
     def put_encoded(self, payload: bytes) -> None:
         """Publish an already encoded message unchanged (relays: echo, replay)."""
         self._publisher.put(payload)

@@ -19,6 +19,7 @@ import signal
 import threading
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 from types import FrameType, TracebackType
 
@@ -26,6 +27,7 @@ import zenoh
 
 from hamnet.proto.health_pb2 import DropCount, Health, ServiceState
 from hamnet.runtime import contract
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher, Received
 from hamnet.runtime.transport import TransportConfig, open_session
 
@@ -68,9 +70,12 @@ class Service:
         transport: TransportConfig,
         health_period_s: float = 1.0,
         inbox_capacity: int = 1024,
+        remap: Sequence[str] = (),
     ) -> None:
+        """`remap`: `PORT=KEY` entries that rewire the shell's ports (`ports`)."""
         self.identity = identity
         self.transport = transport
+        self.remap = tuple(remap)
         self.drops = DropCounter()
         self.events: Counter[str] = Counter()
         """Notable events by name since the start (`count_event`), in every health report."""
@@ -138,6 +143,11 @@ class Service:
         """Ask the run loop to finish."""
         self._stop.set()
 
+    def ports(self, ports: Ports) -> dict[str, str]:
+        """The key of each of a shell's `ports`: its own in this namespace for this worker,
+        or where `remap` rewires it."""
+        return ports.keys(self.namespace, self.remap, w=self.identity.worker)
+
     def publisher(self, key: str) -> Publisher:
         """The publisher of `key` (declared on first use, closed with the service)."""
         if key not in self._publishers:
@@ -155,17 +165,25 @@ class Service:
 
     def receive(self, timeout: float = 0.1) -> Received | None:
         """Next message for the run loop; publishes health when it is due."""
+        self.heartbeat()
+        return self.inbox.get(timeout)
+
+    def heartbeat(self) -> None:
+        """One turn of the run loop: publish health when it is due, and stop when the launcher
+        is gone. `receive` does it; a loop that waits on something else calls it."""
         self._loops += 1
         if time.monotonic() - self._last_health[0] >= self.health_period_s:
             self._publish_health(ServiceState.RUNNING)
             self._check_supervisor()
-        return self.inbox.get(timeout)
 
     def _check_supervisor(self) -> None:
         """Stop when the launcher that started this process is gone (we were re-parented)."""
         if self._supervisor_pid is not None and os.getppid() != self._supervisor_pid:
-            log.warning("%s: its launcher (pid %d) is gone, stopping", self.identity.source,
-                        self._supervisor_pid)
+            log.warning(
+                "%s: its launcher (pid %d) is gone, stopping",
+                self.identity.source,
+                self._supervisor_pid,
+            )
             self._stop.set()
 
     def _publish_health(self, state: int) -> None:

@@ -17,7 +17,8 @@ teacher's SHA-256.
 
 With `max_policy_lag` 0 (synchronous) a worker waits for a new announcement after each chunk;
 with a lag it keeps acting with the newest weights it has (the trainer drops what is too
-old). A bad announcement is logged and the worker keeps the weights it has.
+old). A bad announcement is logged and the worker keeps the weights it has. A chunk is put
+only once a learner subscribes to its key: until then the worker holds it.
 """
 
 from __future__ import annotations
@@ -101,7 +102,7 @@ class RolloutService:
                 continue
             steps, started = self.config.steps_per_rollout, time.monotonic()
             collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
-            self.chunks.put(self.encode(collected.rollout, self.version, self.sent))
+            self._send(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
             self.env_transitions += (
                 steps * self.source.num_envs
@@ -114,6 +115,20 @@ class RolloutService:
                          "the time), %d bad announcements", self.sent, self.version, rate,
                          100 * acting_s / (now - last_report), self.rejected)  # fmt: skip
                 last_report, acting_s, sent_then = now, 0.0, self.sent
+
+    def _send(self, chunk: RolloutChunk) -> None:
+        """Put `chunk` once a learner subscribes to it. Put before then, it would reach no one,
+        and a synchronous worker would wait for weights that its learner cannot announce
+        without the chunk: a learner rank whose subscription had not yet reached this worker
+        hung a run that way. The hold is counted (`chunks_held_for_a_learner`)."""
+        if not self.chunks.matching:
+            self.service.count_event("chunks_held_for_a_learner")
+            log.info("holding a rollout of version %d until a learner subscribes to %s",
+                     self.version, self.chunks.key)  # fmt: skip
+            while not self.chunks.matching and self.service.running:
+                self.service.heartbeat()
+                time.sleep(0.05)
+        self.chunks.put(chunk)
 
     def _take_weights(self, wait: bool) -> None:
         """Load the newest announcement waiting (with `wait`, block until one newer than the

@@ -330,8 +330,10 @@ class Runner:
             with_changes(config.architecture, log_std=config.log_std),
             config.seed,
         )
-        ranks.broadcast(self.policy)
         self.source = InProcess(config) if source is None else source(self.policy)
+        # After the source: every rank subscribes to its workers' chunks before the main one
+        # announces the first weights.
+        ranks.broadcast(self.policy)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
         self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         """The energy loss of an action mean, read as the workers' safety profile reads it."""

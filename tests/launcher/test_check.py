@@ -21,13 +21,17 @@ def verdicts(services: dict, forward: dict | None = None) -> dict[str, str]:
 
 def test_built_command_with_valid_args_is_ok() -> None:
     assert verdicts({"watch": {"command": "echo", "args": {"period-s": 5, "reflect": True}}}) == {
-        "watch": "ok"}
+        "watch": "ok"
+    }
 
 
 @pytest.mark.parametrize(
     ("args", "expected"),
     [
-        ({"period-s": "fast"}, "error: Error parsing --period-s: could not convert string to float: 'fast'"),
+        (
+            {"period-s": "fast"},
+            "error: Error parsing --period-s: could not convert string to float: 'fast'",
+        ),
         ({"perod-s": 1}, "error: Unrecognized options: --perod-s"),
         ({"shm-pool-mb": 0}, "error: hamnet echo: shm_pool_mb must be > 0"),
     ],
@@ -59,11 +63,22 @@ def test_commands_not_built_yet_are_missing_not_errors(monkeypatch) -> None:
     )
     registry = tuple(c for c in COMMANDS if c.name not in ("perception", "bridge")) + unbuilt
     monkeypatch.setattr(check_module, "COMMANDS", registry)
-    stack = parse({"services": {"perception": {"args": {"anything": 1}},
-                                "robot": {"command": "bridge"}, "echo": {}}}, "t")
+    stack = parse(
+        {
+            "services": {
+                "perception": {"args": {"anything": 1}},
+                "robot": {"command": "bridge"},
+                "echo": {},
+            }
+        },
+        "t",
+    )
     result = check(stack, {})
     assert [v.status for v in result] == [
-        "not validated: not built yet (issue #6)", "not validated: not built yet", "ok"]
+        "not validated: not built yet (issue #6)",
+        "not validated: not built yet",
+        "ok",
+    ]
     assert not_built(result) == "perception (issue #6), robot: hamnet bridge"
 
 
@@ -104,3 +119,19 @@ def test_a_negative_duration_is_refused(tmp_path: Path, capsys) -> None:
     assert capsys.readouterr().err.strip().splitlines() == [
         "hamnet up: --duration-s must be a positive number of seconds, got -5.0"
     ]
+
+
+def test_a_remap_is_checked_against_the_commands_ports() -> None:
+    found = verdicts({
+        "shadow": {"command": "policy", "args": {"random-init": "mlp"},
+                   "remap": {"state": "hamnet/other/sim/0/state"}},
+        "typo": {"command": "policy", "workers": [1], "args": {"random-init": "mlp"},
+                 "remap": {"stat": "sim/0/state"}},
+        "wrong": {"command": "policy", "workers": [2], "args": {"random-init": "mlp"},
+                  "remap": {"state": "sim/0/scene"}},
+        "none": {"command": "echo", "remap": {"state": "sim/0/state"}},
+    })  # fmt: skip
+    assert found["shadow"] == "ok"
+    assert found["typo"].startswith("error: no port 'stat'; the ports are state, tokens")
+    assert "is not one of its keys" in found["wrong"]
+    assert found["none"] == "error: this command has no ports to --remap"

@@ -10,11 +10,22 @@ more than 1% in some runs), so later updates are compared by what they learned f
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import time
 from pathlib import Path
 
-from hamnet.runtime.transport import TransportConfig
+import pytest
+
+from hamnet.policy.registry import build
+from hamnet.proto.health_pb2 import Health
+from hamnet.proto.trainer_pb2 import RolloutChunk
+from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.service import HEALTH
+from hamnet.runtime.transport import TransportConfig, open_session
+from hamnet.trainer.shell import WEIGHTS, encode_weights
+from hamnet.trainer.stream import ROLLOUT
 from tests.conftest import transport_args
 
 B, T, ITERATIONS = 2, 2, 3
@@ -46,11 +57,13 @@ def rows(run_dir: Path) -> list[dict]:
 
 
 def finish(process: subprocess.Popen, timeout: float = 150) -> None:
-    """Wait for `process` to exit with status 0."""
-    deadline = time.monotonic() + timeout
-    while process.poll() is None:
-        assert time.monotonic() < deadline, "the run did not end in time"
-        time.sleep(0.2)
+    """Wait for `process` to exit with status 0; past `timeout` kill it (and the ranks it
+    started) and fail with what it printed."""
+    try:
+        process.wait(timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        pytest.fail(f"the run did not end in {timeout:.0f} s:\n{process.stdout.read()}")
     assert process.returncode == 0, process.stdout.read()
 
 
@@ -68,7 +81,9 @@ def test_a_streamed_run_equals_the_in_process_run(
     streamed, inprocess = rows(tmp_path / "streamed"), rows(tmp_path / "inprocess")
     assert len(streamed) == len(inprocess) == ITERATIONS
     assert {k: streamed[0][k] for k in COMPARED} == {k: inprocess[0][k] for k in COMPARED}
-    for a, b in zip(streamed, inprocess, strict=True):  # later updates: the same data, rounding apart
+    for a, b in zip(
+        streamed, inprocess, strict=True
+    ):  # later updates: the same data, rounding apart
         assert a["env_transitions"] == b["env_transitions"]
         assert a["policy_lag"] == 0 and a["dropped_rollouts"] == 0
     assert workers[0].poll() is None, "the worker keeps waiting for the next trainer"
@@ -95,3 +110,34 @@ def test_two_workers_make_one_update_of_both_environments(
         2 * B * T * (i + 1) for i in range(ITERATIONS)
     ]
     assert all(row["policy_lag"] == 0 for row in metrics)
+
+
+def test_a_worker_holds_its_chunk_until_a_learner_subscribes(
+    spawn, transport: TransportConfig
+) -> None:
+    """A chunk put before any learner subscribes would reach no one, and a synchronous worker
+    would then wait for new weights forever: the worker holds it (counted in its Health) and
+    sends it once a subscriber appears. Here the test announces the weights and subscribes
+    only after the worker reports the hold."""
+    worker = spawn("rollout", "--worker", "0", *RUN, *transport_args(transport))
+    ns = transport.namespace
+    session = open_session(transport)
+    try:
+        health = Inbox(session, DropCounter())
+        health.subscribe("health", HEALTH.key(ns, service="rollout", w="0"), Health)
+        weights = Publisher(session, WEIGHTS.key(ns), "trainer/0")
+        announcement = encode_weights(build("hamnet", seed=0), 1, 0)
+        deadline = time.monotonic() + 90
+        while True:
+            assert worker.poll() is None, worker.stdout.read()
+            assert time.monotonic() < deadline, "the worker never held a chunk"
+            weights.put(announcement)
+            report = health.get(timeout=0.5)
+            if report is not None and report.value.events["chunks_held_for_a_learner"]:
+                break
+        chunks = Inbox(session, DropCounter())
+        chunks.subscribe("rollout", ROLLOUT.key(ns, w="0"), RolloutChunk)
+        chunk = chunks.get(timeout=30)
+    finally:
+        session.close()
+    assert chunk is not None and chunk.value.header.policy_version == 1
