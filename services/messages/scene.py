@@ -1,5 +1,6 @@
 """Scene (sim -> perception, policy, monitor): the procedural scenes of the K environments
-that were (re)set, decoded by every consumer with one function.
+that were (re)set. The sim describes them (`SceneDescription`) and encodes them here; every
+consumer decodes them with one function (`SceneIn`, fields the sender leaves out None).
 """
 
 from __future__ import annotations
@@ -10,8 +11,39 @@ from dataclasses import dataclass
 import numpy as np
 
 from hamnet.messages.fields import Spec, arrays
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import Scene
-from hamnet.runtime.tensor import PayloadError, field_array
+from hamnet.runtime.tensor import PayloadError, field_array, to_tensor
+
+
+@dataclass(frozen=True)
+class SceneDescription:
+    """The current episodes of K environments: what the Scene message carries."""
+
+    env_ids: np.ndarray
+    """(K,) int64 environment indices."""
+    episode_ids: np.ndarray
+    """(K,) int64."""
+    object_ids: tuple[str, ...]
+    """(K,) library name of each environment's object."""
+    object_scale: np.ndarray
+    """(K,) float32, the object's scale relative to its library mesh."""
+    object_points: np.ndarray
+    """(K, P, 3) float32 surface points of the object in its own frame, m."""
+    cuboid_centre: np.ndarray
+    """(K, C, 3) float32 cuboid centres, world frame, m."""
+    cuboid_quat: np.ndarray
+    """(K, C, 4) float32 cuboid orientations, wxyz."""
+    cuboid_half_extent: np.ndarray
+    """(K, C, 3) float32 half sizes, m."""
+    cuboid_active: np.ndarray
+    """(K, C) bool: slots in use (inactive slots are parked out of the way)."""
+    env_code: np.ndarray
+    """(K, 25) float32 EnvCode of each scene (paper, "Scene encoding")."""
+    start_pose: np.ndarray
+    """(K, 7) float32 object pose at the episode's start: position, quaternion wxyz."""
+    goal_pose: np.ndarray
+    """(K, 7) float32 goal pose: position, quaternion wxyz."""
 
 
 @dataclass(frozen=True)
@@ -93,3 +125,20 @@ def decode(
     decoded = arrays(message, specs, k, (name for name in required if name != "object_ids"))
     header = message.header
     return SceneIn(header.step, env_ids, object_ids=names, stamp_ns=header.stamp_ns, **decoded)
+
+
+def encode(scenes: SceneDescription, step: int) -> Scene:
+    """The Scene message of K environments' current episodes, at the state of `step`."""
+    message = Scene(header=Header(step=step), object_ids=list(scenes.object_ids))
+    to_tensor(scenes.env_ids.astype(np.int32), message.env_ids)  # (K,)
+    to_tensor(scenes.episode_ids.astype(np.int64), message.episode_ids)  # (K,)
+    to_tensor(scenes.cuboid_centre, message.cuboid_pos)  # (K, C, 3)
+    to_tensor(scenes.cuboid_quat, message.cuboid_quat)  # (K, C, 4)
+    to_tensor(scenes.cuboid_half_extent, message.cuboid_half_size)  # (K, C, 3)
+    to_tensor(scenes.cuboid_active.astype(bool), message.cuboid_active)  # (K, C)
+    to_tensor(scenes.object_scale, message.object_scale)  # (K,)
+    to_tensor(scenes.start_pose, message.start_pose)  # (K, 7)
+    to_tensor(scenes.goal_pose, message.goal_pose)  # (K, 7)
+    to_tensor(scenes.env_code, message.env_code)  # (K, 25)
+    to_tensor(scenes.object_points, message.object_points)  # (K, P, 3)
+    return message

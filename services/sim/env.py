@@ -20,6 +20,7 @@ import numpy as np
 from hamnet.fr3.model import ee_pose_9d
 from hamnet.messages.robot_state import Observation
 from hamnet.messages.safe_command import Command
+from hamnet.messages.scene import SceneDescription
 from hamnet.sim import episodes as draw
 from hamnet.sim import quaternion
 from hamnet.sim.config import SimConfig
@@ -39,36 +40,6 @@ _EPISODE_ARRAYS = (
 
 OBJECT_POINTS = 512
 """Surface points per object sent with each scene: the paper's object cloud size."""
-
-
-@dataclass(frozen=True)
-class SceneDescription:
-    """The current episodes of K environments: what the Scene message carries."""
-
-    env_ids: np.ndarray
-    """(K,) int64 environment indices."""
-    episode_ids: np.ndarray
-    """(K,) int64."""
-    object_ids: tuple[str, ...]
-    """(K,) library name of each environment's object."""
-    object_scale: np.ndarray
-    """(K,) float32, the object's scale relative to its library mesh."""
-    object_points: np.ndarray
-    """(K, P, 3) float32 surface points of the object in its own frame, m."""
-    cuboid_centre: np.ndarray
-    """(K, C, 3) float32 cuboid centres, world frame, m."""
-    cuboid_quat: np.ndarray
-    """(K, C, 4) float32 cuboid orientations, wxyz."""
-    cuboid_half_extent: np.ndarray
-    """(K, C, 3) float32 half sizes, m."""
-    cuboid_active: np.ndarray
-    """(K, C) bool: slots in use (inactive slots are parked out of the way)."""
-    env_code: np.ndarray
-    """(K, 25) float32 EnvCode of each scene (paper, "Scene encoding")."""
-    start_pose: np.ndarray
-    """(K, 7) float32 object pose at the episode's start: position, quaternion wxyz."""
-    goal_pose: np.ndarray
-    """(K, 7) float32 goal pose: position, quaternion wxyz."""
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,25 @@ def test_a_scene_decodes_and_checks_its_counts() -> None:
     assert reason(lambda: scene.decode(other)) == "shape"
 
 
+def test_a_scene_description_round_trips() -> None:
+    decoded = scene.decode(wire(scene.encode(description(), step=6)))
+    sent = description()
+    assert decoded.object_ids == sent.object_ids and decoded.env_ids.tolist() == [2, 0]
+    np.testing.assert_array_equal(decoded.cuboid_pos, sent.cuboid_centre)
+    np.testing.assert_array_equal(decoded.cuboid_half_size, sent.cuboid_half_extent)
+    np.testing.assert_array_equal(decoded.object_points, sent.object_points)
+
+
+def description() -> scene.SceneDescription:
+    f = lambda *shape: np.arange(np.prod(shape), dtype=np.float32).reshape(shape)
+    return scene.SceneDescription(
+        env_ids=np.array([2, 0]), episode_ids=np.array([5, 6]), object_ids=("cube", "mug"),
+        object_scale=f(K), object_points=f(K, P, 3), cuboid_centre=f(K, C, 3),
+        cuboid_quat=f(K, C, 4), cuboid_half_extent=f(K, C, 3), cuboid_active=np.ones((K, C), bool),
+        env_code=f(K, 25), start_pose=f(K, 7), goal_pose=f(K, 7),
+    )  # fmt: skip
+
+
 def tokens_message() -> PerceptionTokens:
     message = PerceptionTokens(header=Header(step=3), encoder_version=2)
     to_tensor(np.arange(B, dtype=np.int64), message.episode_ids)
