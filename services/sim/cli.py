@@ -19,7 +19,8 @@ from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.shell import SimLoopConfig, SimShell
+from hamnet.sim.loop import SimLoopConfig
+from hamnet.sim.shell import SimShell
 from hamnet.sim.stages import StageName, stage_config, stage_in
 
 OwnPrefix = tyro.conf.arg(name="")

@@ -11,11 +11,7 @@ started late catch up (`Inbox.catch_up`).
 Steps are numbered: state k (`header.step` = k) is the state after k policy steps; the
 command answering it carries `header.step` = k; transition k is its outcome, published just
 before state k+1 (and the scenes of the episodes that start in it, before that state).
-Lock-step (default): the sim steps only on the command of the current step, so a slow
-policy slows the sim down instead of losing steps; while it waits it publishes the scenes
-and the state again every `resend_s`, so services that start after it get going.
-Free-running (`--realtime`): one step per policy period of wall-clock time with the latest
-command, whatever its step, or holding the current joint positions until one arrives.
+The loops that pace the steps (lock-step or free-running) are in `hamnet.sim.loop`.
 """
 
 from __future__ import annotations
@@ -23,30 +19,27 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from dataclasses import dataclass, field
-from typing import Annotated
 
 import numpy as np
 
 from hamnet.messages.robot_state import encode as encode_state
 from hamnet.messages.safe_command import decode as decode_command
-from hamnet.messages.scene import encode as encode_scene
 from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.messages.transition import encode as encode_transition
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime import contract
-from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
-from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
-from hamnet.runtime.shell_config import ReportConfig
+from hamnet.runtime.tensor import to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, VectorEnv
+from hamnet.sim.env import Command, Observation, SceneDescription, VectorEnv
+from hamnet.sim.loop import SimLoopConfig, free_running, lock_step
 from hamnet.sim.stall import StallWatch
 
 log = logging.getLogger(__name__)
@@ -58,32 +51,28 @@ COMMAND = contract.topic("safety/<w>/command")
 SCHEDULE = contract.topic("trainer/schedule")
 
 
+
+# --- encode / decode: pure functions, tested without a session -------------------------
+
+
+def encode_scene(scenes: SceneDescription, step: int) -> Scene:
+    """The Scene message of K environments' current episodes, at the state of `step`."""
+    message = Scene(header=Header(step=step), object_ids=list(scenes.object_ids))
+    to_tensor(scenes.env_ids.astype(np.int32), message.env_ids)  # (K,)
+    to_tensor(scenes.episode_ids.astype(np.int64), message.episode_ids)  # (K,)
+    to_tensor(scenes.cuboid_centre, message.cuboid_pos)  # (K, C, 3)
+    to_tensor(scenes.cuboid_quat, message.cuboid_quat)  # (K, C, 4)
+    to_tensor(scenes.cuboid_half_extent, message.cuboid_half_size)  # (K, C, 3)
+    to_tensor(scenes.cuboid_active.astype(bool), message.cuboid_active)  # (K, C)
+    to_tensor(scenes.object_scale, message.object_scale)  # (K,)
+    to_tensor(scenes.start_pose, message.start_pose)  # (K, 7)
+    to_tensor(scenes.goal_pose, message.goal_pose)  # (K, 7)
+    to_tensor(scenes.env_code, message.env_code)  # (K, 25)
+    to_tensor(scenes.object_points, message.object_points)  # (K, P, 3)
+    return message
+
+
 # --- the loop ----------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class SimLoopConfig:
-    """How the shell paces its steps."""
-
-    realtime: bool = False
-    """Free-running: step every policy period of wall-clock time with the latest command,
-    instead of waiting for the command of each step (lock-step)."""
-    max_steps: int = 0
-    """Exit after this many policy steps (0: run until stopped)."""
-    resend_s: float = 1.0
-    """Lock-step: while waiting for a command, publish the scenes and the state again this
-    often, s, so services started after the sim get going."""
-    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
-    stall_s: float = 2.0
-    """Seconds without a command, once the first has come, that make a stall of the closed
-    loop (`hamnet.sim.stall`): logged, and counted as a `loop_stalls` event in the health
-    reports that `hamnet up` sums. 2 s is 20 periods of the paper's 10 Hz policy."""
-
-    def __post_init__(self) -> None:
-        for name in ("resend_s", "stall_s"):
-            value = getattr(self, name)
-            if value <= 0:
-                raise ConfigError(f"--{name.replace('_', '-')} must be > 0 s, got {value}")
 
 
 class SimShell:
@@ -119,14 +108,11 @@ class SimShell:
         """Reset, then step until stopped or `max_steps`; returns the exit status."""
         self.observation = self.env.reset()
         self.report.restart()  # rates of the steps, not of the first reset
-        self._publish_all()
+        self.publish_all()
         mode = "free-running" if self.loop.realtime else "lock-step"
         log.info("%d environments, %s, %.0f ms policy period", self.env.num_envs, mode,
                  1e3 * self.env.config.policy_period_s)  # fmt: skip
-        if self.loop.realtime:
-            self._free_running()
-        else:
-            self._lock_step()
+        (free_running if self.loop.realtime else lock_step)(self)
         env_steps = self.step * self.env.num_envs
         log.info("stopped after %d steps (%d environment steps)", self.step, env_steps)
         return 0
@@ -136,55 +122,15 @@ class SimShell:
         """Stopped, or `max_steps` done."""
         return not self.service.running or 0 < self.loop.max_steps <= self.step
 
-    def _lock_step(self) -> None:
-        last_sent = time.monotonic()
-        while not self.finished:
-            self.report.tick()
-            self._watch_stall()
-            received = self.service.receive(timeout=0.05)
-            if received is None:
-                if time.monotonic() - last_sent >= self.loop.resend_s:
-                    self._publish_all()
-                    last_sent = time.monotonic()
-                continue
-            answer = self._handle(received)
-            if answer is None:
-                continue
-            step, command = answer
-            if step != self.step:
-                self._stale(step)
-                continue
-            self._step(command)
-            self._commanded()  # the wait for the next command starts once this step is done
-            last_sent = time.monotonic()
+    def turn(self) -> None:
+        """Once per turn of the loop: the rate line and the stall watch, when due."""
+        self.report.tick()
+        if self.stall.check(time.monotonic()):
+            log.warning("no command for %.1f s at step %d: the closed loop is stalled",
+                        self.loop.stall_s, self.step)  # fmt: skip
+            self.service.count_event("loop_stalls")
 
-    def _free_running(self) -> None:
-        period = self.env.config.policy_period_s
-        command: Command | None = None
-        tick = time.monotonic()
-        while not self.finished:
-            self.report.tick()
-            self._watch_stall()
-            tick += period
-            while self.service.running and (remaining := tick - time.monotonic()) > 0:
-                received = self.service.receive(timeout=min(remaining, 0.1))
-                answer = self._handle(received) if received is not None else None
-                if answer is not None:
-                    command = answer[1]  # whatever its step
-                    self._commanded()
-            if self.finished:
-                break
-            if command is None:
-                if self.step == 0:
-                    log.info("no command yet: holding the joint positions until one arrives")
-                self._step(hold_command(self.observation.q, self.env.config.control_samples))
-            else:
-                self._step(command)
-            if time.monotonic() - tick > period:  # fell a period behind: do not burst to catch up
-                self.late += 1
-                tick = time.monotonic()
-
-    def _handle(self, received: Received) -> tuple[int, Command] | None:
+    def handle(self, received: Received) -> tuple[int, Command] | None:
         """A command to consider, or None after applying a schedule or answering a query."""
         if received.name == "schedule":
             self.env.set_schedule(curriculum_values(received.value, self.env.config.curriculum))
@@ -195,7 +141,13 @@ class SimShell:
             return None
         return received.value
 
-    def _step(self, command: Command) -> None:
+    def hold(self) -> None:
+        """Step holding the joint positions (free-running, before the first command)."""
+        if self.step == 0:
+            log.info("no command yet: holding the joint positions until one arrives")
+        self.advance(hold_command(self.observation.q, self.env.config.control_samples))
+
+    def advance(self, command: Command) -> None:
         """Step every environment; publish transition k, new scenes and state k+1."""
         started, resetting = time.perf_counter(), self.env.reset_seconds
         result = self.env.step(command)
@@ -208,7 +160,7 @@ class SimShell:
             self._publish_scene(result.reset_ids)
         self.state.put(encode_state(self.observation, self.step))
 
-    def _publish_all(self) -> None:
+    def publish_all(self) -> None:
         """Scenes of every environment, then the current state."""
         self._publish_scene(np.arange(self.env.num_envs))
         self.state.put(encode_state(self.observation, self.step))
@@ -220,18 +172,14 @@ class SimShell:
         """The Scene message of the current episodes of `env_ids` (K,)."""
         return encode_scene(self.env.scenes(env_ids), self.step)
 
-    def _watch_stall(self) -> None:
-        if self.stall.check(time.monotonic()):
-            log.warning("no command for %.1f s at step %d: the closed loop is stalled",
-                        self.loop.stall_s, self.step)  # fmt: skip
-            self.service.count_event("loop_stalls")
-
-    def _commanded(self) -> None:
+    def commanded(self) -> None:
+        """A command was used: a stall, if any, is over."""
         ended = self.stall.commanded(time.monotonic())
         if ended is not None:
             log.info("commands arrive again at step %d after a %.1f s stall", self.step, ended)
 
-    def _stale(self, step: int) -> None:
+    def ignore(self, step: int) -> None:
+        """Count a command that answered another step than the current one."""
         self.stale += 1
         if self.stale == 1:
             log.info("ignoring a command for step %d at step %d (further ones are counted in "

@@ -59,7 +59,8 @@ def test_the_sim_counts_a_stall_when_commands_stop_and_logs_its_end(caplog) -> N
         return "command", encode(safe_command(command, step))
 
     service = ScriptedService(script, idle=True)
-    shell = SimShell(service, env, SimLoopConfig(report=ReportConfig(report_period_s=1e9), stall_s=STALL_S))
+    loop = SimLoopConfig(report=ReportConfig(report_period_s=1e9), stall_s=STALL_S)
+    shell = SimShell(service, env, loop)
     assert shell.run() == 0
     assert service.events == {"loop_stalls": 1} and shell.step == 3
     assert any("after a" in r.message and "stall" in r.message for r in caplog.records)
