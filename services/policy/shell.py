@@ -24,6 +24,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
+from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.policy import messages as m
 from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.pairing import Pairing
@@ -104,7 +105,7 @@ class PolicyShell:
         inbox.subscribe("weights", WEIGHTS.key(ns),
                         decoder=lambda k, p: parse(WeightsAnnouncement, p))  # fmt: skip
         inbox.subscribe("schedule", SCHEDULE.key(ns),
-                        decoder=lambda k, p: int(parse(Schedule, p).env_transitions))  # fmt: skip
+                        decoder=lambda k, p: decode_schedule(parse(Schedule, p)))  # fmt: skip
         self.action = service.publisher(ACTION.key(ns, w=w))
         self.rollouts: RolloutFeed | None = None
         """Rollout chunks of what was served (None: `rollout_horizon` 0)."""
