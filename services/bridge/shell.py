@@ -31,6 +31,7 @@ from typing import Annotated
 import numpy as np
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.messages import object_pose
 from hamnet.messages.safe_command import decode as decode_command
 from hamnet.proto.perception_pb2 import ObjectPoseEstimate
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
@@ -40,7 +41,6 @@ from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import Flattened, ReportConfig
-from hamnet.runtime.tensor import from_tensor
 from hamnet.safety.estop import EStop, on_query
 from hamnet.safety.messages import encode_event
 
@@ -220,14 +220,10 @@ class BridgeShell:
 def _decode_command_payload(
     key: str, payload: bytes, samples: int, control_dt: float
 ) -> BridgeCommand:
-    message = parse(SafeCommand, payload)
-    step, command = decode_command(message, 1, samples, control_dt)
-    episode = -1
-    if message.HasField("episode_ids"):
-        episode = int(from_tensor(message.episode_ids, np.int64, (1,))[0])
+    step, command = decode_command(parse(SafeCommand, payload), 1, samples, control_dt)
+    episode = -1 if command.episode_ids is None else int(command.episode_ids[0])
     return BridgeCommand(step, episode, command)
 
 
 def _decode_pose(key: str, payload: bytes) -> tuple[int, np.ndarray]:
-    message = parse(ObjectPoseEstimate, payload)
-    return message.header.step, from_tensor(message.pose, np.float32, (1, 7))[0].copy()
+    return object_pose.decode(parse(ObjectPoseEstimate, payload))

@@ -25,6 +25,8 @@ class Command:
     """(B, J) damping, N m s/rad."""
     tau_limit: np.ndarray
     """(B, J) torque clip, N m."""
+    episode_ids: np.ndarray | None = None
+    """(B,) int64 episodes of the state the command answers (None: not sent)."""
 
 
 def decode(
@@ -36,7 +38,8 @@ def decode(
         message: the parsed SafeCommand.
         num_envs: B; control_samples: S; control_dt: the executor's sample period, s.
     Returns:
-        (header.step, Command with q_ref (B, S, J), kp, kd, tau_limit (B, J)).
+        (header.step, Command with q_ref (B, S, J), kp, kd, tau_limit (B, J) and the
+        episode ids (B,) if sent).
     Raises:
         PayloadError: `missing`, `dtype`, `shape` (batch size, sample count or joint count
             differ from the executor's), `nonfinite`, `range` (negative gain or torque
@@ -47,8 +50,9 @@ def decode(
     gains = {name: field_array(message, name, None, (b, j)) for name in ("kp", "kd", "tau_limit")}
     if message.HasField("dq_ref"):  # checked, unused: the impedance law damps towards rest
         field_array(message, "dq_ref", None, (b, s, j))
+    episode_ids = None
     if message.HasField("episode_ids"):
-        from_tensor(message.episode_ids, np.int64, (b,))
+        episode_ids = from_tensor(message.episode_ids, np.int64, (b,))
     negative = [name for name, value in gains.items() if (value < 0).any()]
     if negative:
         raise PayloadError("range", f"SafeCommand.{', '.join(negative)} must be >= 0")
@@ -56,4 +60,4 @@ def decode(
         raise PayloadError(
             "control_dt", f"samples of {message.control_dt} s, the sim's are {control_dt} s"
         )
-    return message.header.step, Command(q_ref=q_ref, **gains)
+    return message.header.step, Command(q_ref=q_ref, episode_ids=episode_ids, **gains)

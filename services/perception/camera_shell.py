@@ -27,19 +27,19 @@ import numpy as np
 
 from hamnet.camera.frames import decode_frames
 from hamnet.messages import robot_state
+from hamnet.messages.object_pose import encode as encode_pose
 from hamnet.messages.robot_state import StateIn
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
 from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
 from hamnet.perception.shell import PerceptionLoopConfig, encode_tokens
 from hamnet.proto.camera_pb2 import DepthFrames
-from hamnet.proto.perception_pb2 import ObjectPoseEstimate, PerceptionTokens
+from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import to_tensor
 
 log = logging.getLogger(__name__)
 
@@ -57,14 +57,6 @@ def decode_step(message: RobotState) -> StateIn:
             see one robot).
     """
     return robot_state.decode(message, 1, required=("episode_ids",))
-
-
-def encode_pose(pose: np.ndarray, step: int) -> ObjectPoseEstimate:
-    """ObjectPoseEstimate of one robot's object (pose (7,)) for state `step`."""
-    message = ObjectPoseEstimate()
-    message.header.step = step
-    to_tensor(pose.astype(np.float32)[None], message.pose)  # (1, 7)
-    return message
 
 
 class CameraPerceptionShell:

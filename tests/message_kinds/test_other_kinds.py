@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hamnet.messages import action, safe_command, scene, schedule, tokens, transition
+from hamnet.messages import action, object_pose, safe_command, scene, schedule, tokens, transition
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -150,3 +150,20 @@ def test_a_safe_command_decodes_into_the_executors_command() -> None:
 
 def test_a_schedule_is_its_counter() -> None:
     assert schedule.decode(wire(Schedule(env_transitions=3 * 2**33))) == 3 * 2**33
+
+
+def test_an_object_pose_estimate_round_trips_for_one_robot() -> None:
+    pose = np.array([0.5, 0.1, 0.2, 1.0, 0.0, 0.0, 0.0])
+    step, decoded = object_pose.decode(wire(object_pose.encode(pose, step=12)))
+    assert step == 12 and decoded.dtype == np.float32
+    np.testing.assert_allclose(decoded, pose)
+    two = object_pose.encode(pose, step=12)
+    to_tensor(np.zeros((2, 7), np.float32), two.pose)
+    assert reason(lambda: object_pose.decode(two)) == "shape"
+
+
+def test_a_safe_command_carries_its_episode_ids_when_sent() -> None:
+    message = command_message()
+    assert safe_command.decode(message, B, S, 0.01)[1].episode_ids is None
+    to_tensor(np.array([3, 4, 5], np.int64), message.episode_ids)
+    assert safe_command.decode(message, B, S, 0.01)[1].episode_ids.tolist() == [3, 4, 5]
