@@ -9,12 +9,27 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from hamnet.messages.fields import Spec, arrays
 from hamnet.messages.robot_state import StateIn
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
+from hamnet.runtime.tensor import to_tensor
+
+if TYPE_CHECKING:  # the consumers that read numpy only (safety, monitor) need no torch
+    import torch
+
+
+class Answer(Protocol):
+    """What PolicyAction is encoded from (`hamnet.policy.policy.Action`)."""
+
+    action: torch.Tensor  # (B, 21)
+    log_prob: torch.Tensor  # (B,)
+    values: torch.Tensor  # (B, R)
+    module_weights: torch.Tensor  # (B, L, M)
 
 
 @dataclass(frozen=True)
@@ -67,3 +82,17 @@ def decode(message: PolicyAction, required: Iterable[str] = ()) -> ActionIn:
     return ActionIn(
         header.step, policy_version=header.policy_version, stamp_ns=header.stamp_ns, **decoded
     )
+
+
+def encode(
+    step: int, version: int, episode_ids: np.ndarray, answer: Answer, deterministic: bool
+) -> PolicyAction:
+    """PolicyAction k: action (B, 21), log_prob (B,), values (B, R), module weights (B, L, M)."""
+    message = PolicyAction(
+        header=Header(step=step, policy_version=version), deterministic=deterministic
+    )
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
+    for name in ("action", "log_prob", "values", "module_weights"):
+        value = getattr(answer, name).detach().cpu().float().numpy()  # float32
+        to_tensor(value, getattr(message, name))
+    return message

@@ -6,14 +6,31 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from hamnet.messages.fields import Spec, arrays, batch_size
+from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.runtime.tensor import to_tensor
+
+if TYPE_CHECKING:  # the consumers that read numpy only (the monitor) need no torch
+    import torch
 
 CLOUDS = ("object_cloud", "environment_cloud", "local_cloud")
 TOKENS = ("object_tokens", "local_tokens", "global_tokens")
+
+
+class Percepts(Protocol):
+    """What PerceptionTokens is encoded from (`hamnet.perception.core.Percepts`)."""
+
+    object_cloud: torch.Tensor  # (B, P, 3)
+    environment_cloud: torch.Tensor  # (B, P, 3)
+    local_cloud: torch.Tensor  # (B, P, 3)
+    object_tokens: torch.Tensor  # (B, N, D)
+    local_tokens: torch.Tensor  # (B, N, D)
+    global_tokens: torch.Tensor  # (B, N, D)
 
 
 @dataclass(frozen=True)
@@ -72,3 +89,15 @@ def decode(
     return TokensIn(
         header.step, encoder_version=message.encoder_version, stamp_ns=header.stamp_ns, **decoded
     )
+
+
+def encode(
+    percepts: Percepts, step: int, episode_ids: np.ndarray, version: int
+) -> PerceptionTokens:
+    """PerceptionTokens k: clouds (B, P, 3) and tokens (B, 1 + K, D), float32."""
+    message = PerceptionTokens(header=Header(step=step), encoder_version=version)
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
+    for name in (*CLOUDS, *TOKENS):
+        value = getattr(percepts, name).detach().cpu().numpy().astype(np.float32)
+        to_tensor(value, getattr(message, name))
+    return message

@@ -29,10 +29,11 @@ from hamnet.camera.frames import decode_frames
 from hamnet.messages import robot_state
 from hamnet.messages.object_pose import encode as encode_pose
 from hamnet.messages.robot_state import StateIn
+from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
 from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
-from hamnet.perception.shell import PerceptionLoopConfig, encode_tokens
+from hamnet.perception.shell import PerceptionLoopConfig
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState

@@ -25,15 +25,14 @@ import time
 from dataclasses import dataclass, field
 from typing import Annotated
 
-import numpy as np
 import torch
 
 from hamnet.messages import robot_state, scene
 from hamnet.messages.robot_state import StateIn
+from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.config import CloudConfig
-from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.perception.core import EpisodeScenes, Perception
 from hamnet.perception.unicorn import UniCORN
-from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.runtime import contract
@@ -43,7 +42,7 @@ from hamnet.runtime.compute import torch_device
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
-from hamnet.runtime.tensor import PayloadError, to_tensor
+from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
@@ -92,16 +91,6 @@ def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> Episo
         decoded.env_ids, decoded.episode_ids, decoded.cuboid_pos, decoded.cuboid_quat,
         decoded.cuboid_half_size, decoded.cuboid_active, decoded.object_points,
     )  # fmt: skip
-
-
-def encode_tokens(percepts: Percepts, step: int, episode_ids: np.ndarray, version: int) -> PerceptionTokens:
-    """PerceptionTokens k: clouds (B, P, 3) and tokens (B, 1 + K, D), float32."""
-    message = PerceptionTokens(header=Header(step=step), encoder_version=version)
-    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
-    for name in ("object_cloud", "environment_cloud", "local_cloud", "object_tokens", "local_tokens",
-                 "global_tokens"):  # fmt: skip
-        to_tensor(getattr(percepts, name).detach().cpu().numpy().astype(np.float32), getattr(message, name))
-    return message
 
 
 # --- the loop ------------------------------------------------------------------------------

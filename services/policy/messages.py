@@ -1,6 +1,7 @@
 """The policy service's messages: RobotState, PerceptionTokens, Scene and Transition decoded
-into what the policy reads, and its answer encoded as a PolicyAction. Pure functions, tested
-without a session; a malformed payload raises `PayloadError` (the inbox counts and drops it).
+(`hamnet.messages`) with the fields and widths the policy reads, and its answer encoded as a
+PolicyAction (`encode_action`). Pure functions, tested without a session; a malformed payload
+raises `PayloadError` (the inbox counts and drops it).
 """
 
 from __future__ import annotations
@@ -13,12 +14,9 @@ from hamnet.messages.robot_state import StateIn
 from hamnet.messages.tokens import TokensIn
 from hamnet.messages.transition import TransitionIn
 from hamnet.policy.observation import RobotObservation
-from hamnet.policy.policy import Action
-from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
-from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
-from hamnet.runtime.tensor import PayloadError, to_tensor
+from hamnet.runtime.tensor import PayloadError
 from hamnet.sim.rewards import REWARD_NAMES
 
 POLICY_READS = ("episode_ids", "episode_step", "q", "dq", "ee_pose", "goal_pose")
@@ -85,17 +83,3 @@ def decode_transition(message: Transition) -> TransitionIn:
         raise PayloadError("shape", f"reward terms {list(message.reward_names)}, the critic's "
                                     f"are {list(REWARD_NAMES)}")  # fmt: skip
     return transition.decode(message)
-
-
-def encode_action(
-    step: int, version: int, episode_ids: np.ndarray, action: Action, deterministic: bool
-) -> PolicyAction:
-    """PolicyAction k: action (B, 21), log_prob (B,), values (B, R), module weights (B, L, M)."""
-    message = PolicyAction(
-        header=Header(step=step, policy_version=version), deterministic=deterministic
-    )
-    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
-    for name in ("action", "log_prob", "values", "module_weights"):
-        value = getattr(action, name).detach().to("cpu", torch.float32).numpy()
-        to_tensor(value, getattr(message, name))
-    return message
