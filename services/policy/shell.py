@@ -24,6 +24,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
+from hamnet.messages.action import encode as encode_action
 from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.policy import messages as m
 from hamnet.policy.observation import PoseNoiseConfig
@@ -211,7 +212,7 @@ class PolicyShell:
             self.counts["mismatch"] += 1
             return
         inputs, action = acted
-        message = m.encode_action(state.step, self.version, state.episode_ids, action,
+        message = encode_action(state.step, self.version, state.episode_ids, action,
                                 self.config.deterministic)  # fmt: skip
         self.action.put(message)
         self.watermark.advance(state.step)
