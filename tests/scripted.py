@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from hamnet.runtime.codec import decode, encode
 from hamnet.runtime.pubsub import DropCounter, Received
-from hamnet.runtime.service import ServiceIdentity
+from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.runtime.tensor import PayloadError
 
 
@@ -62,6 +62,9 @@ class ScriptedService:
     running: bool = True
     caught_up: list[tuple[str, str]] = field(default_factory=list)
     events: Counter[str] = field(default_factory=Counter)
+    remap: tuple[str, ...] = ()
+
+    ports = Service.ports  # the real resolution of a shell's ports, from the fields above
 
     def __post_init__(self) -> None:
         self.inbox, self.decoders = self, {}

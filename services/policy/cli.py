@@ -25,7 +25,7 @@ import tyro
 
 from hamnet.policy.params import parameter_table
 from hamnet.policy.registry import ARCHITECTURES, build
-from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
+from hamnet.policy.shell import PORTS, PolicyLoopConfig, PolicyShell
 from hamnet.policy.weights import WeightsError, policy_from, read_checkpoint
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
@@ -65,7 +65,7 @@ CONFIG = PolicyServiceConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet policy` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "policy", __doc__)
+    config, identity = parse_service(CONFIG, argv, "policy", __doc__, ports=PORTS)
     if config.print_params:
         print(parameter_table())
         return 0
@@ -80,5 +80,5 @@ def main(argv: Sequence[str]) -> int:
         except WeightsError as error:
             log.error("%s", error)
             return 2
-    with Service(identity, config.common.transport) as service:
+    with Service(identity, config.common.transport, remap=config.common.remap) as service:
         return PolicyShell(service, policy, version, config.loop).run()

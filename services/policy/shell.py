@@ -37,25 +37,24 @@ from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
-from hamnet.runtime import contract
 from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.freshness import Verdict, Watermark
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-TOKENS = contract.topic("perception/<w>/tokens")
-SCENE = contract.topic("sim/<w>/scene")
-WEIGHTS = contract.topic("trainer/weights")
-SCHEDULE = contract.topic("trainer/schedule")
-ACTION = contract.topic("policy/<w>/action")
-TRANSITION = contract.topic("sim/<w>/transition")
-ROLLOUT = contract.topic("trainer/<w>/rollout")
+PORTS = Ports(
+    inputs={"state": "sim/<w>/state", "tokens": "perception/<w>/tokens", "scene": "sim/<w>/scene",
+            "weights": "trainer/weights", "schedule": "trainer/schedule",
+            "transition": "sim/<w>/transition"},
+    outputs={"action": "policy/<w>/action", "rollout": "trainer/<w>/rollout"},
+)  # fmt: skip
+"""What the policy reads and writes (`hamnet.runtime.ports`)."""
 
 
 @dataclass(frozen=True)
@@ -95,25 +94,25 @@ class PolicyShell:
         self.device = torch_device(compute.device, compute.threads)
         self.weights = HotReload(policy, version, self.device)
         model = policy.config
-        ns, w = service.namespace, service.identity.worker
+        self.port = port = service.ports(PORTS)
         inbox = service.inbox
-        inbox.subscribe("state", STATE.key(ns, w=w), decoder=lambda k, p: m.decode_state(
+        inbox.subscribe("state", port["state"], decoder=lambda k, p: m.decode_state(
             parse(RobotState, p), model.privileged, model.observation.physics_params))  # fmt: skip
-        inbox.subscribe("tokens", TOKENS.key(ns, w=w), decoder=lambda k, p: m.decode_tokens(
+        inbox.subscribe("tokens", port["tokens"], decoder=lambda k, p: m.decode_tokens(
             parse(PerceptionTokens, p), model.num_tokens, model.token_dim))  # fmt: skip
-        inbox.subscribe("scene", SCENE.key(ns, w=w),
+        inbox.subscribe("scene", port["scene"],
                         decoder=lambda k, p: m.decode_scene(parse(Scene, p), model.env_code_dim))  # fmt: skip
-        inbox.subscribe("weights", WEIGHTS.key(ns),
+        inbox.subscribe("weights", port["weights"],
                         decoder=lambda k, p: parse(WeightsAnnouncement, p))  # fmt: skip
-        inbox.subscribe("schedule", SCHEDULE.key(ns),
+        inbox.subscribe("schedule", port["schedule"],
                         decoder=lambda k, p: decode_schedule(parse(Schedule, p)))  # fmt: skip
-        self.action = service.publisher(ACTION.key(ns, w=w))
+        self.action = service.publisher(port["action"])
         self.rollouts: RolloutFeed | None = None
         """Rollout chunks of what was served (None: `rollout_horizon` 0)."""
         if self.config.rollout_horizon:
-            inbox.subscribe("transition", TRANSITION.key(ns, w=w),
+            inbox.subscribe("transition", port["transition"],
                             decoder=lambda k, p: m.decode_transition(parse(Transition, p)))  # fmt: skip
-            rollout = service.publisher(ROLLOUT.key(ns, w=w))
+            rollout = service.publisher(port["rollout"])
             self.rollouts = RolloutFeed(self.config.rollout_horizon, rollout.put)
         self.pairing: Pairing[m.StateIn, m.TokensIn] = Pairing(self.config.pending)
         pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
@@ -151,7 +150,7 @@ class PolicyShell:
                 self._handle(received.name, received.value)
             if self.rollouts is not None and not self.rollouts.trainer_heard:
                 # A trainer announces each version once: ask one that started first (once a second).
-                self.service.inbox.catch_up("weights", WEIGHTS.key(self.service.namespace))
+                self.service.inbox.catch_up("weights", self.port["weights"])
             self.report.tick()
         return 0
 
