@@ -24,9 +24,9 @@ import numpy as np
 
 from hamnet.messages.robot_state import encode as encode_state
 from hamnet.messages.safe_command import decode as decode_command
+from hamnet.messages.scene import encode as encode_scene
 from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.messages.transition import encode as encode_transition
-from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
@@ -35,10 +35,9 @@ from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
-from hamnet.runtime.tensor import to_tensor
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, SceneDescription, VectorEnv
+from hamnet.sim.env import Command, Observation, VectorEnv
 from hamnet.sim.loop import SimLoopConfig, free_running, lock_step
 from hamnet.sim.stall import StallWatch
 
@@ -49,27 +48,6 @@ SCENE = contract.topic("sim/<w>/scene")
 TRANSITION = contract.topic("sim/<w>/transition")
 COMMAND = contract.topic("safety/<w>/command")
 SCHEDULE = contract.topic("trainer/schedule")
-
-
-
-# --- encode / decode: pure functions, tested without a session -------------------------
-
-
-def encode_scene(scenes: SceneDescription, step: int) -> Scene:
-    """The Scene message of K environments' current episodes, at the state of `step`."""
-    message = Scene(header=Header(step=step), object_ids=list(scenes.object_ids))
-    to_tensor(scenes.env_ids.astype(np.int32), message.env_ids)  # (K,)
-    to_tensor(scenes.episode_ids.astype(np.int64), message.episode_ids)  # (K,)
-    to_tensor(scenes.cuboid_centre, message.cuboid_pos)  # (K, C, 3)
-    to_tensor(scenes.cuboid_quat, message.cuboid_quat)  # (K, C, 4)
-    to_tensor(scenes.cuboid_half_extent, message.cuboid_half_size)  # (K, C, 3)
-    to_tensor(scenes.cuboid_active.astype(bool), message.cuboid_active)  # (K, C)
-    to_tensor(scenes.object_scale, message.object_scale)  # (K,)
-    to_tensor(scenes.start_pose, message.start_pose)  # (K, 7)
-    to_tensor(scenes.goal_pose, message.goal_pose)  # (K, 7)
-    to_tensor(scenes.env_code, message.env_code)  # (K, 25)
-    to_tensor(scenes.object_points, message.object_points)  # (K, P, 3)
-    return message
 
 
 # --- the loop ----------------------------------------------------------------------------
