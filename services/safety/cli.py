@@ -18,7 +18,7 @@ from typing import Annotated
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.safety.config import Profile, SafetyConfig, with_profile
-from hamnet.safety.shell import SafetyShell
+from hamnet.safety.shell import PORTS, SafetyShell
 from hamnet.safety.supervisor import SafetyLoopConfig
 from hamnet.safety.trajectory import TrajectoryConfig
 
@@ -44,7 +44,7 @@ CONFIG = SafetyServiceConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet safety` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "safety", __doc__)
-    with Service(identity, config.common.transport) as service:
+    config, identity = parse_service(CONFIG, argv, "safety", __doc__, ports=PORTS)
+    with Service(identity, config.common.transport, remap=config.common.remap) as service:
         safety = with_profile(config.profile, config.safety)
         return SafetyShell(service, config.loop, safety, config.trajectory).run()

@@ -24,8 +24,8 @@ from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop, on_query
@@ -41,12 +41,16 @@ from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-ACTION = contract.topic("policy/<w>/action")
-SCHEDULE = contract.topic("trainer/schedule")
-COMMAND = contract.topic("safety/<w>/command")
-EVENT = contract.topic("safety/<w>/event")
-ESTOP = contract.topic("safety/<w>/estop")
+PORTS = Ports(
+    inputs={
+        "state": "sim/<w>/state",
+        "action": "policy/<w>/action",
+        "schedule": "trainer/schedule",
+        "estop": "safety/<w>/estop",
+    },
+    outputs={"command": "safety/<w>/command", "event": "safety/<w>/event"},
+)
+"""What the safety filter reads and writes (`hamnet.runtime.ports`)."""
 
 
 class SafetyShell:
@@ -62,14 +66,14 @@ class SafetyShell:
         self.service = service
         self.estop = EStop()
         self.core = Supervisor(self._put, config, safety, trajectory, self.estop)
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         inbox = service.inbox
-        inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state_payload)
-        inbox.subscribe("action", ACTION.key(ns, w=w), decoder=_decode_action_payload)
-        inbox.subscribe("schedule", SCHEDULE.key(ns), decoder=_decode_schedule_payload)
-        self.command = service.publisher(COMMAND.key(ns, w=w))
-        self.event = service.publisher(EVENT.key(ns, w=w))
-        self.estop_key = ESTOP.key(ns, w=w)
+        inbox.subscribe("state", port["state"], decoder=self._decode_state_payload)
+        inbox.subscribe("action", port["action"], decoder=_decode_action_payload)
+        inbox.subscribe("schedule", port["schedule"], decoder=_decode_schedule_payload)
+        self.command = service.publisher(port["command"])
+        self.event = service.publisher(port["event"])
+        self.estop_key = port["estop"]
 
     @property
     def env_transitions(self) -> int:
