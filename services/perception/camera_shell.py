@@ -33,21 +33,15 @@ from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
 from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
-from hamnet.perception.shell import PerceptionLoopConfig
+from hamnet.perception.shell import PORTS, PerceptionLoopConfig
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 
 log = logging.getLogger(__name__)
-
-STATE = contract.topic("sim/<w>/state")
-FRAMES = contract.topic("camera/<w>/frames")
-TOKENS = contract.topic("perception/<w>/tokens")
-POSE = contract.topic("perception/<w>/object_pose")
 
 
 def decode_step(message: RobotState) -> StateIn:
@@ -67,11 +61,11 @@ class CameraPerceptionShell:
         self, service: Service, core: CameraPerception, version: int, config: PerceptionLoopConfig
     ) -> None:
         self.service, self.core, self.version, self.config = service, core, version, config
-        ns, w = service.namespace, service.identity.worker
-        service.inbox.subscribe("frames", FRAMES.key(ns, w=w), decoder=self._decode_frames)
-        service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
-        self.tokens = service.publisher(TOKENS.key(ns, w=w))
-        self.pose = service.publisher(POSE.key(ns, w=w))
+        port = service.ports(PORTS)
+        service.inbox.subscribe("frames", port["frames"], decoder=self._decode_frames)
+        service.inbox.subscribe("state", port["state"], decoder=self._decode_state)
+        self.tokens = service.publisher(port["tokens"])
+        self.pose = service.publisher(port["object_pose"])
         self.frames: list[DepthView] | None = None
         """The newest frames not processed yet (guarded by `changed`)."""
         self.percepts: tuple[Percepts, np.ndarray] | None = None

@@ -38,7 +38,7 @@ from hamnet.perception.config import (
     PlaneConfig,
     SegmenterName,
 )
-from hamnet.perception.shell import PerceptionLoopConfig, PerceptionShell
+from hamnet.perception.shell import PORTS, PerceptionLoopConfig, PerceptionShell
 from hamnet.perception.unicorn import UniCORN
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.compute import torch_device
@@ -101,7 +101,7 @@ def encoder_from(config: PerceptionServiceConfig) -> tuple[UniCORN, int]:
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet perception` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "perception", __doc__)
+    config, identity = parse_service(CONFIG, argv, "perception", __doc__, ports=PORTS)
     if config.write_random_checkpoint is not None:
         seed = config.loop.compute.seed
         write_random_checkpoint(config.write_random_checkpoint, config.encoder, seed)
@@ -112,7 +112,7 @@ def main(argv: Sequence[str]) -> int:
     except CheckpointError as error:
         print(f"hamnet perception: {error}", file=sys.stderr)
         return 2
-    with Service(identity, config.common.transport) as service:
+    with Service(identity, config.common.transport, remap=config.common.remap) as service:
         if config.clouds_from == "cameras":
             return camera_shell(service, encoder, version, config).run()
         return PerceptionShell(service, encoder, version, config.loop, config.clouds).run()

@@ -35,20 +35,23 @@ from hamnet.perception.core import EpisodeScenes, Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
-from hamnet.runtime import contract
 from hamnet.runtime.cli import Flattened
 from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-SCENE = contract.topic("sim/<w>/scene")
-TOKENS = contract.topic("perception/<w>/tokens")
+PORTS = Ports(
+    inputs={"state": "sim/<w>/state", "scene": "sim/<w>/scene", "frames": "camera/<w>/frames"},
+    outputs={"tokens": "perception/<w>/tokens", "object_pose": "perception/<w>/object_pose"},
+)
+"""What perception reads and writes (`hamnet.runtime.ports`): frames and object_pose with
+`--clouds-from cameras` (`camera_shell`), scene without."""
 
 
 # --- decode / encode: pure functions, tested without a session -------------------------
@@ -125,12 +128,12 @@ class PerceptionShell:
         self.config = config if config is not None else PerceptionLoopConfig()
         self.clouds = clouds if clouds is not None else CloudConfig()
         self.device = torch_device(self.config.compute.device, self.config.compute.threads)
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         self.num_envs: int | None = self.config.num_envs or None
-        self.scene_key = SCENE.key(ns, w=w)
+        self.scene_key = port["scene"]
         service.inbox.subscribe("scene", self.scene_key, decoder=self._decode_scene)
-        service.inbox.subscribe("state", STATE.key(ns, w=w), decoder=self._decode_state)
-        self.tokens = service.publisher(TOKENS.key(ns, w=w))
+        service.inbox.subscribe("state", port["state"], decoder=self._decode_state)
+        self.tokens = service.publisher(port["tokens"])
         self.core: Perception | None = None
         self.pending: list[EpisodeScenes] = []
         """Scenes received before the first state (which fixes B)."""
