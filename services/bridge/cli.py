@@ -20,7 +20,7 @@ from hamnet.bridge.core import BridgeCore
 from hamnet.bridge.driver import Driver
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
 from hamnet.bridge.franky_driver import FrankyDriver, FrankyDriverConfig
-from hamnet.bridge.shell import BridgeLoopConfig, BridgeShell
+from hamnet.bridge.shell import PORTS, BridgeLoopConfig, BridgeShell
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 
@@ -65,13 +65,13 @@ def main(argv: Sequence[str]) -> int:
         from hamnet.bridge.gap import main as gap
 
         return gap(argv[1:])
-    config, identity = parse_service(CONFIG, argv, "bridge", __doc__)
+    config, identity = parse_service(CONFIG, argv, "bridge", __doc__, ports=PORTS)
     try:
         core = BridgeCore(make_driver(config), config.loop.policy_period_s)
     except ConnectionError as error:
         print(f"hamnet bridge: {error} (`hamnet bridge check` says more)", file=sys.stderr)
         return 2
-    with Service(identity, config.common.transport) as service:
+    with Service(identity, config.common.transport, remap=config.common.remap) as service:
         return BridgeShell(service, core, config.loop).run()
 
 

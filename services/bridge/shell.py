@@ -35,10 +35,10 @@ from hamnet.messages import object_pose
 from hamnet.messages.safe_command import decode as decode_command
 from hamnet.proto.perception_pb2 import ObjectPoseEstimate
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import Flattened, ReportConfig
 from hamnet.safety.estop import EStop, on_query
@@ -51,11 +51,15 @@ LATENCY_WINDOW = 1000
 LATENCY_HORIZON = 100
 """States kept for timing their commands: a later command is stale anyway."""
 
-STATE = contract.topic("sim/<w>/state")
-COMMAND = contract.topic("safety/<w>/command")
-EVENT = contract.topic("bridge/<w>/event")
-RESET = contract.topic("bridge/<w>/reset")
-POSE = contract.topic("perception/<w>/object_pose")
+PORTS = Ports(
+    inputs={
+        "command": "safety/<w>/command",
+        "object_pose": "perception/<w>/object_pose",
+        "reset": "bridge/<w>/reset",
+    },
+    outputs={"state": "sim/<w>/state", "event": "bridge/<w>/event"},
+)
+"""What the bridge reads and writes (`hamnet.runtime.ports`)."""
 
 
 @dataclass(frozen=True)
@@ -87,14 +91,14 @@ class BridgeShell:
 
     def __init__(self, service: Service, core: BridgeCore, loop: BridgeLoopConfig) -> None:
         self.service, self.core, self.loop = service, core, loop
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         decoder = functools.partial(_decode_command_payload, samples=core.samples,
                                     control_dt=core.driver.control_period_s)  # fmt: skip
-        service.inbox.subscribe("command", COMMAND.key(ns, w=w), decoder=decoder)
-        service.inbox.subscribe("pose", POSE.key(ns, w=w), decoder=_decode_pose)
-        self.state = service.publisher(STATE.key(ns, w=w))
-        self.event = service.publisher(EVENT.key(ns, w=w))
-        self.reset_key = RESET.key(ns, w=w)
+        service.inbox.subscribe("command", port["command"], decoder=decoder)
+        service.inbox.subscribe("pose", port["object_pose"], decoder=_decode_pose)
+        self.state = service.publisher(port["state"])
+        self.event = service.publisher(port["event"])
+        self.reset_key = port["reset"]
         self.requests = EStop()
         self.step = 0
         self.episode_step = 0

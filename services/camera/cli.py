@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
 from hamnet.camera.realsense import RealSenseConfig
-from hamnet.camera.shell import CameraShell
+from hamnet.camera.shell import PORTS, CameraShell
 from hamnet.camera.sources import FrameSource, ReplayConfig, SimSourceConfig
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
@@ -62,10 +62,10 @@ def make_source(config: CameraServiceConfig) -> FrameSource:
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet camera` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "camera", __doc__)
+    config, identity = parse_service(CONFIG, argv, "camera", __doc__, ports=PORTS)
     source = make_source(config)
     try:
-        with Service(identity, config.common.transport) as service:
+        with Service(identity, config.common.transport, remap=config.common.remap) as service:
             return CameraShell(service, source, config.report).run()
     finally:
         source.close()

@@ -16,17 +16,20 @@ from hamnet.camera.sources import FrameSource
 from hamnet.messages import robot_state
 from hamnet.messages.robot_state import StateIn
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-FRAMES = contract.topic("camera/<w>/frames")
+PORTS = Ports(
+    inputs={"state": "sim/<w>/state"},
+    outputs={"frames": "camera/<w>/frames"},
+)
+"""What the camera service reads and writes (`hamnet.runtime.ports`)."""
 
 
 def decode_pose(message: RobotState) -> StateIn:
@@ -50,14 +53,14 @@ class CameraShell:
         self.service, self.source = service, source
         report = report if report is not None else ReportConfig()
         self.report = LoopReport(report.report_period_s, self._line, logger=log)
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         if source.needs_state:
             service.inbox.subscribe(
                 "state",
-                STATE.key(ns, w=w),
+                port["state"],
                 decoder=lambda key, p: decode_pose(parse(RobotState, p)),
             )
-        self.frames = service.publisher(FRAMES.key(ns, w=w))
+        self.frames = service.publisher(port["frames"])
         self.robot: StateIn | None = None
         self.published = 0
 

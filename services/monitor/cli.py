@@ -17,7 +17,7 @@ from typing import Annotated
 
 from hamnet.monitor.config import MonitorLoopConfig, OutputConfig, ViewConfig
 from hamnet.monitor.outputs import open_recording
-from hamnet.monitor.shell import MonitorShell
+from hamnet.monitor.shell import PORTS, MonitorShell
 from hamnet.monitor.view import MonitorView
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
@@ -40,7 +40,7 @@ CONFIG = MonitorServiceConfig
 
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet monitor` with command-line arguments `argv`; returns the exit status."""
-    config, identity = parse_service(CONFIG, argv, "monitor", __doc__)
+    config, identity = parse_service(CONFIG, argv, "monitor", __doc__, ports=PORTS)
     try:
         recording = open_recording(config.output)
     except ValueError as error:
@@ -48,7 +48,12 @@ def main(argv: Sequence[str]) -> int:
         return 2
     try:
         view = MonitorView(recording, config.view)
-        with Service(identity, config.common.transport, inbox_capacity=config.loop.inbox_capacity) as service:
+        with Service(
+            identity,
+            config.common.transport,
+            remap=config.common.remap,
+            inbox_capacity=config.loop.inbox_capacity,
+        ) as service:
             return MonitorShell(service, view, config.loop).run()
     finally:
         recording.flush()

@@ -37,21 +37,27 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafetyEvent
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-SCENE = contract.topic("sim/<w>/scene")
-TRANSITION = contract.topic("sim/<w>/transition")
-TOKENS = contract.topic("perception/<w>/tokens")
-ACTION = contract.topic("policy/<w>/action")
-EVENT = contract.topic("safety/<w>/event")
-METRICS = contract.topic("trainer/metrics")
+PORTS = Ports(
+    inputs={
+        "state": "sim/<w>/state",
+        "scene": "sim/<w>/scene",
+        "transition": "sim/<w>/transition",
+        "tokens": "perception/<w>/tokens",
+        "action": "policy/<w>/action",
+        "event": "safety/<w>/event",
+        "metrics": "trainer/metrics",
+    },
+    outputs={},
+)
+"""What the monitor reads and writes (`hamnet.runtime.ports`)."""
 
 Decoder = Callable[[str, bytes], Any]
 
@@ -66,17 +72,17 @@ class MonitorShell:
         self.loop = loop if loop is not None else MonitorLoopConfig()
         self.env = view.config.env
         self.pacer = FramePacer(view.config.min_frame_interval_s)
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         env = self.env
-        self.scene_key = SCENE.key(ns, w=w)
+        self.scene_key = port["scene"]
         subscriptions: dict[str, tuple[str, Decoder]] = {
-            "state": (STATE.key(ns, w=w), self._paced(RobotState, decode_state)),
-            "tokens": (TOKENS.key(ns, w=w), self._paced(PerceptionTokens, decode_tokens)),
-            "action": (ACTION.key(ns, w=w), self._paced(PolicyAction, decode_action)),
-            "transition": (TRANSITION.key(ns, w=w), self._decode_transition),
+            "state": (port["state"], self._paced(RobotState, decode_state)),
+            "tokens": (port["tokens"], self._paced(PerceptionTokens, decode_tokens)),
+            "action": (port["action"], self._paced(PolicyAction, decode_action)),
+            "transition": (port["transition"], self._decode_transition),
             "scene": (self.scene_key, lambda key, p: decode_scene(parse(Scene, p), env)),
-            "event": (EVENT.key(ns, w=w), lambda key, p: decode_event(parse(SafetyEvent, p))),
-            "metrics": (METRICS.key(ns), lambda key, p: decode_metrics(parse(Metrics, p))),
+            "event": (port["event"], lambda key, p: decode_event(parse(SafetyEvent, p))),
+            "metrics": (port["metrics"], lambda key, p: decode_metrics(parse(Metrics, p))),
         }
         for name, (key, decoder) in subscriptions.items():
             service.inbox.subscribe(name, key, decoder=decoder)
