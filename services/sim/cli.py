@@ -20,7 +20,7 @@ from hamnet.runtime.service import Service
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.loop import SimLoopConfig
-from hamnet.sim.shell import SimShell
+from hamnet.sim.shell import PORTS, SimShell
 from hamnet.sim.stages import StageName, stage_config, stage_in
 
 OwnPrefix = tyro.conf.arg(name="")
@@ -55,7 +55,7 @@ def main(argv: Sequence[str]) -> int:
     """Run `hamnet sim` with command-line arguments `argv`; returns the exit status."""
     stage = stage_in(argv, "full")
     default = SimServiceConfig(stage=stage, sim=stage_config(stage))
-    config, identity = parse_service(CONFIG, argv, "sim", __doc__, default=default)
+    config, identity = parse_service(CONFIG, argv, "sim", __doc__, default=default, ports=PORTS)
     if config.print_model_path:
         print(model_path())
         return 0
@@ -68,5 +68,5 @@ def main(argv: Sequence[str]) -> int:
         print(path)
         return 0
     env = VectorEnv(config.sim)
-    with Service(identity, config.common.transport) as service:
+    with Service(identity, config.common.transport, remap=config.common.remap) as service:
         return SimShell(service, env, config.loop).run()

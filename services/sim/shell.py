@@ -30,9 +30,9 @@ from hamnet.messages.transition import encode as encode_transition
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.loop_report import LoopReport, Window
+from hamnet.runtime.ports import Ports
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
 from hamnet.sim.commands import hold_command
@@ -43,11 +43,15 @@ from hamnet.sim.stall import StallWatch
 
 log = logging.getLogger(__name__)
 
-STATE = contract.topic("sim/<w>/state")
-SCENE = contract.topic("sim/<w>/scene")
-TRANSITION = contract.topic("sim/<w>/transition")
-COMMAND = contract.topic("safety/<w>/command")
-SCHEDULE = contract.topic("trainer/schedule")
+PORTS = Ports(
+    inputs={"command": "safety/<w>/command", "schedule": "trainer/schedule"},
+    outputs={
+        "state": "sim/<w>/state",
+        "scene": "sim/<w>/scene",
+        "transition": "sim/<w>/transition",
+    },
+)
+"""What the sim reads and writes (`hamnet.runtime.ports`)."""
 
 
 # --- the loop ----------------------------------------------------------------------------
@@ -58,7 +62,7 @@ class SimShell:
 
     def __init__(self, service: Service, env: VectorEnv, loop: SimLoopConfig) -> None:
         self.service, self.env, self.loop = service, env, loop
-        ns, w = service.namespace, service.identity.worker
+        port = service.ports(PORTS)
         config = env.config
         control_dt = config.policy_period_s / config.control_samples
         decoder = functools.partial(
@@ -67,12 +71,12 @@ class SimShell:
             control_samples=config.control_samples,
             control_dt=control_dt,
         )
-        service.inbox.subscribe("command", COMMAND.key(ns, w=w), decoder=decoder)
-        service.inbox.subscribe("schedule", SCHEDULE.key(ns), decoder=_decode_schedule_payload)
-        self.state = service.publisher(STATE.key(ns, w=w))
-        self.scene = service.publisher(SCENE.key(ns, w=w))
-        service.inbox.serve("scene_query", SCENE.key(ns, w=w))
-        self.transition = service.publisher(TRANSITION.key(ns, w=w))
+        service.inbox.subscribe("command", port["command"], decoder=decoder)
+        service.inbox.subscribe("schedule", port["schedule"], decoder=_decode_schedule_payload)
+        self.state = service.publisher(port["state"])
+        self.scene = service.publisher(port["scene"])
+        service.inbox.serve("scene_query", port["scene"])
+        self.transition = service.publisher(port["transition"])
         self.step = 0
         self.observation: Observation | None = None
         self.stale = 0
