@@ -14,10 +14,11 @@ import math
 import time
 from collections.abc import Mapping
 
+from hamnet.messages.schedule import encode as encode_schedule
 from hamnet.policy.policy import Policy
 from hamnet.policy.weights import sha256, to_bytes
 from hamnet.proto.common_pb2 import Header
-from hamnet.proto.trainer_pb2 import Metrics, Schedule, WeightsAnnouncement
+from hamnet.proto.trainer_pb2 import Metrics, WeightsAnnouncement
 from hamnet.runtime import contract
 from hamnet.runtime.service import Service
 
@@ -35,11 +36,6 @@ def encode_weights(policy: Policy, version: int, env_transitions: int) -> Weight
         architecture=policy.architecture, config_json=policy.config.to_json(),
         safetensors=data, sha256=sha256(data), env_transitions=int(env_transitions),
     )  # fmt: skip
-
-
-def encode_schedule(env_transitions: int, iteration: int) -> Schedule:
-    """Schedule after `iteration` updates: the counter only."""
-    return Schedule(header=Header(step=iteration), env_transitions=int(env_transitions))
 
 
 def encode_metrics(row: Mapping[str, object], iteration: int) -> Metrics:

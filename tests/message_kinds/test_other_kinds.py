@@ -167,3 +167,8 @@ def test_a_safe_command_carries_its_episode_ids_when_sent() -> None:
     assert safe_command.decode(message, B, S, 0.01)[1].episode_ids is None
     to_tensor(np.array([3, 4, 5], np.int64), message.episode_ids)
     assert safe_command.decode(message, B, S, 0.01)[1].episode_ids.tolist() == [3, 4, 5]
+
+
+def test_the_trainers_schedule_round_trips() -> None:
+    message = wire(schedule.encode(5 * 2**31, iteration=3))
+    assert schedule.decode(message) == 5 * 2**31 and message.header.step == 3
