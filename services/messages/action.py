@@ -24,12 +24,11 @@ if TYPE_CHECKING:  # the consumers that read numpy only (safety, monitor) need n
 
 
 class Answer(Protocol):
-    """What PolicyAction is encoded from (`hamnet.policy.policy.Action`)."""
+    """What PolicyAction is encoded from: `hamnet.policy.policy.Action`, or any object with
+    an `action`. Its `log_prob` (B,), `values` (B, R) and `module_weights` (B, L, M) are
+    encoded when it has them (a scripted policy has none); torch tensors or numpy arrays."""
 
-    action: torch.Tensor  # (B, 21)
-    log_prob: torch.Tensor  # (B,)
-    values: torch.Tensor  # (B, R)
-    module_weights: torch.Tensor  # (B, L, M)
+    action: torch.Tensor | np.ndarray  # (B, 21)
 
 
 @dataclass(frozen=True)
@@ -87,12 +86,21 @@ def decode(message: PolicyAction, required: Iterable[str] = ()) -> ActionIn:
 def encode(
     step: int, version: int, episode_ids: np.ndarray, answer: Answer, deterministic: bool
 ) -> PolicyAction:
-    """PolicyAction k: action (B, 21), log_prob (B,), values (B, R), module weights (B, L, M)."""
+    """PolicyAction k: action (B, 21), and the log_prob (B,), values (B, R) and module
+    weights (B, L, M) that `answer` has, as float32."""
     message = PolicyAction(
         header=Header(step=step, policy_version=version), deterministic=deterministic
     )
     to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
     for name in ("action", "log_prob", "values", "module_weights"):
-        value = getattr(answer, name).detach().cpu().float().numpy()  # float32
-        to_tensor(value, getattr(message, name))
+        value = getattr(answer, name, None)
+        if value is not None:
+            to_tensor(_float32(value), getattr(message, name))
     return message
+
+
+def _float32(value: torch.Tensor | np.ndarray) -> np.ndarray:
+    """A tensor (detached, on the CPU) or an array as a float32 array, without importing torch."""
+    if hasattr(value, "detach"):
+        value = value.detach().cpu().float().numpy()
+    return np.asarray(value, dtype=np.float32)
