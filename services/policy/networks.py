@@ -23,7 +23,7 @@ from torch import Tensor, nn
 
 from hamnet.policy.config import ModelConfig
 from hamnet.policy.layers import MLP, CrossAttention, ModularMLP
-from hamnet.policy.observation import Observation
+from hamnet.policy.observation import NetworkInputs
 
 GATE_INIT = 0.008
 """Gate header weights start U(-0.008, 0.008), biases 0 (init_std, hypernet_modular.py:281)."""
@@ -33,7 +33,7 @@ GATE_INIT = 0.008
 class PolicyInputs:
     """One batch of everything a policy network may read."""
 
-    observation: Observation
+    observation: NetworkInputs
     object_tokens: Tensor | None
     """(B, N, D) UniCORN tokens of the object cloud, the last token is [EMB]; None for a
     network without clouds (`ModelConfig.clouds` False)."""
@@ -116,7 +116,9 @@ class ObjectEncoder(nn.Module):
 
     def forward(self, inputs: PolicyInputs) -> Tensor:
         """(B, E_out + S) features."""
-        summary = self.attention(inputs.observation.object_query, require(inputs.object_tokens, "object tokens"))
+        summary = self.attention(
+            inputs.observation.object_query, require(inputs.object_tokens, "object tokens")
+        )
         return torch.cat((summary, inputs.observation.base), dim=-1)
 
 

@@ -17,9 +17,9 @@ import dataclasses
 import torch
 from torch import Tensor, nn
 
-from hamnet.policy.observation import Observation, ObservationSpec
+from hamnet.policy.observation import NetworkInputs, ObservationSpec
 
-GROUPS = tuple(field.name for field in dataclasses.fields(Observation))
+GROUPS = tuple(field.name for field in dataclasses.fields(NetworkInputs))
 """The observation's groups, each standardised on its own."""
 
 
@@ -35,7 +35,7 @@ class InputNormalizer(nn.Module):
             self.register_buffer(f"{group}_var", torch.ones(width))
         self.register_buffer("count", torch.zeros(()))
 
-    def forward(self, observation: Observation) -> Observation:
+    def forward(self, observation: NetworkInputs) -> NetworkInputs:
         """The observation standardised and clipped, group by group ((B, width) each)."""
         if not self.count:
             return observation
@@ -47,7 +47,7 @@ class InputNormalizer(nn.Module):
         return dataclasses.replace(observation, **changes)
 
     @torch.no_grad()
-    def update(self, observation: Observation) -> None:
+    def update(self, observation: NetworkInputs) -> None:
         """Fold a batch of N raw observations ((N, width) per group) into the statistics."""
         if len(observation.context) == 0:
             return
@@ -60,7 +60,9 @@ class InputNormalizer(nn.Module):
         self.count.copy_(total)
 
 
-def merge_moments(mean: Tensor, var: Tensor, count: Tensor, batch: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+def merge_moments(
+    mean: Tensor, var: Tensor, count: Tensor, batch: Tensor
+) -> tuple[Tensor, Tensor, Tensor]:
     """Mean, variance and count of a stream after folding in `batch` (N, *shape): Chan et
     al.'s parallel update, in float64, results in the dtype of `mean`.
 

@@ -107,7 +107,7 @@ class RobotObservation:
 
 
 @dataclass(frozen=True)
-class Observation:
+class NetworkInputs:
     """The network's non-geometric inputs, one tensor per group of `ObservationSpec`."""
 
     context: Tensor
@@ -216,7 +216,7 @@ def _pieces(robot: RobotObservation, previous_action: Tensor, spec: ObservationS
 
 def assemble(
     robot: RobotObservation, previous_action: Tensor, spec: ObservationSpec
-) -> Observation:
+) -> NetworkInputs:
     """The network inputs of one batch of robot states.
 
     Args:
@@ -230,5 +230,6 @@ def assemble(
     """
     pieces = _pieces(robot, previous_action, spec)
     group = lambda name: torch.cat([pieces[n] for n in spec.names(name)], dim=-1)
-    return Observation(group("context"), group("base"), group("scene_query"), group("object_query"))
-
+    return NetworkInputs(
+        group("context"), group("base"), group("scene_query"), group("object_query")
+    )

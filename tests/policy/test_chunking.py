@@ -12,7 +12,7 @@ import torch
 from hamnet.policy.chunking import ChunkAssembler
 from hamnet.policy.messages import decode_transition
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import Observation
+from hamnet.policy.observation import NetworkInputs
 from hamnet.policy.registry import build
 from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.proto.trainer_pb2 import Schedule
@@ -36,7 +36,7 @@ def inputs(k: int) -> PolicyInputs:
     rows = 100.0 * k + torch.arange(B, dtype=torch.float32)  # (B,)
     tokens = rows[:, None, None].expand(B, 2, 3).clone()  # (B, N, D)
     piece = rows[:, None].expand(B, 4).clone()  # (B, 4)
-    observation = Observation(piece, piece + 0.1, piece + 0.2, piece + 0.3)
+    observation = NetworkInputs(piece, piece + 0.1, piece + 0.2, piece + 0.3)
     return PolicyInputs(observation, tokens, tokens + 0.5, tokens + 0.25)
 
 

@@ -13,7 +13,7 @@ import torch.distributed as dist
 import torch.multiprocessing as mp
 
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import Observation
+from hamnet.policy.observation import NetworkInputs
 from hamnet.trainer import cli
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.ppo import Batch, UpdateStats, update
@@ -66,7 +66,9 @@ def tiny_rollout(rank: int, steps: int = 3, envs: int = 2) -> Rollout:
     """A rollout of `envs` environments whose every number says its rank, step and env."""
     generator = torch.Generator().manual_seed(rank)
     field = lambda *shape: torch.randn(*shape, generator=generator)
-    observation = Observation(*(field(steps * envs, 3) for _ in dataclasses.fields(Observation)))
+    observation = NetworkInputs(
+        *(field(steps * envs, 3) for _ in dataclasses.fields(NetworkInputs))
+    )
     return Rollout(
         PolicyInputs(observation, field(steps * envs, 4, 5)), field(steps, envs, 2),
         field(steps, envs), field(steps, envs, 2), field(steps, envs, 2), field(steps, envs, 2),
@@ -123,7 +125,7 @@ def test_every_rank_sees_every_environment_side_by_side(two_ranks: list[dict]) -
         for f in dataclasses.fields(Rollout):
             if f.name != "inputs":
                 assert torch.equal(getattr(joined, f.name), getattr(whole, f.name)), f.name
-        for f in dataclasses.fields(Observation):
+        for f in dataclasses.fields(NetworkInputs):
             expected = getattr(whole.inputs.observation, f.name)
             assert torch.equal(getattr(joined.inputs.observation, f.name), expected)
         assert joined.inputs.object_tokens is None
