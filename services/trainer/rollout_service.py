@@ -32,6 +32,7 @@ from functools import partial
 from hamnet.policy.policy import Policy
 from hamnet.policy.weights import WeightsError, from_announcement, load_into, policy_from
 from hamnet.proto.trainer_pb2 import RolloutChunk, WeightsAnnouncement
+from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 from hamnet.trainer.chunks import Batch, encode_rollout
 from hamnet.trainer.dagger import DaggerConfig
@@ -92,8 +93,9 @@ class RolloutService:
 
     def run(self) -> None:
         """Collect and send until stopped."""
-        last_report, acting_s, sent_then = time.monotonic(), 0.0, 0
+        report = LoopReport(self.report_period_s, self._line, logger=log)
         while self.service.running:
+            report.tick()
             self._take_weights(
                 wait=self.policy is None
                 or (self.max_policy_lag == 0 and self.version == self.acted)
@@ -104,17 +106,16 @@ class RolloutService:
             collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
             self._send(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
-            self.env_transitions += (
-                steps * self.source.num_envs
-            )  # the counter runs on between updates
-            now = time.monotonic()
-            acting_s += now - started
-            if now - last_report >= self.report_period_s:
-                rate = (self.sent - sent_then) * steps * self.source.num_envs / max(acting_s, 1e-9)
-                log.info("%d rollouts sent, weights version %d, %.0f env steps/s while acting (%.0f%% of "
-                         "the time), %d bad announcements", self.sent, self.version, rate,
-                         100 * acting_s / (now - last_report), self.rejected)  # fmt: skip
-                last_report, acting_s, sent_then = now, 0.0, self.sent
+            self.env_transitions += steps * self.source.num_envs  # runs on between updates
+            report.count("env_steps", steps * self.source.num_envs)
+            report.count("acting_s", time.monotonic() - started)
+
+    def _line(self, w: Window) -> str:
+        """The rate line: env steps/s while acting, and the share of the time spent acting."""
+        rate = w.count("env_steps") / max(w.count("acting_s"), 1e-9)
+        return (f"{self.sent} rollouts sent, weights version {self.version}, {rate:.0f} env "
+                f"steps/s while acting ({100 * w.rate('acting_s'):.0f}% of the time), "
+                f"{self.rejected} bad announcements")  # fmt: skip
 
     def _send(self, chunk: RolloutChunk) -> None:
         """Put `chunk` once a learner subscribes to it. Put before then, it would reach no one,
