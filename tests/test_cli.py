@@ -9,10 +9,23 @@ import sys
 import pytest
 
 import hamnet.cli
-from hamnet.cli import COMMANDS, Command, main, usage
+from hamnet.cli import COMMANDS, Subcommand, main, usage
 
-REQUIRED = {"sim", "bridge", "perception", "policy", "safety", "trainer", "monitor", "record",
-            "replay", "up", "router", "topics", "echo"}
+REQUIRED = {
+    "sim",
+    "bridge",
+    "perception",
+    "policy",
+    "safety",
+    "trainer",
+    "monitor",
+    "record",
+    "replay",
+    "up",
+    "router",
+    "topics",
+    "echo",
+}
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
@@ -38,7 +51,7 @@ def test_built_commands_document_their_options(command) -> None:
 def test_a_command_not_built_says_so_and_fails(monkeypatch, capsys) -> None:
     """Every command is built today; one listed before its service exists (the way each
     started) names its issue and exits 2."""
-    planned = Command("calibrate", "camera extrinsics from a target", None, 17)
+    planned = Subcommand("calibrate", "camera extrinsics from a target", None, 17)
     monkeypatch.setattr(hamnet.cli, "COMMANDS", (*COMMANDS, planned))
     assert main(["calibrate"]) == 2
     assert "hamnet calibrate: not built yet (issue #17)" in capsys.readouterr().err

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from hamnet.cli import COMMANDS, Command
+from hamnet.cli import COMMANDS, Subcommand
 from hamnet.launcher.argv import service_argv
 from hamnet.launcher.secure import Security
 from hamnet.launcher.stack import ArgValue, Stack
@@ -29,7 +29,7 @@ class Verdict:
 
     service: str
     """Service name in the stack file."""
-    command: Command | None
+    command: Subcommand | None
     """Its `hamnet` command; None when no command has that name."""
     error: str = ""
     """Why it cannot run as written; '' when it can (or is not built yet)."""
@@ -47,7 +47,7 @@ class Verdict:
         return "ok" if self.built else f"not validated: not built yet{issue_text(self.command)}"
 
 
-def issue_text(command: Command | None) -> str:
+def issue_text(command: Subcommand | None) -> str:
     """` (issue #3)` for a command built by a known issue, else ''."""
     return f" (issue #{command.issue})" if command and command.issue else ""
 
@@ -72,7 +72,7 @@ def check(stack: Stack, forward: Mapping[str, ArgValue]) -> list[Verdict]:
     return verdicts
 
 
-def validate_args(command: Command, argv: list[str]) -> str:
+def validate_args(command: Subcommand, argv: list[str]) -> str:
     """Parse `argv` with the command's CONFIG and check its `--remap` against the command's
     PORTS; returns the complaint or ''."""
     module = importlib.import_module(command.module)

@@ -36,7 +36,7 @@ from hamnet.safety.messages import (
     encode_notice,
 )
 from hamnet.safety.reports import Notice
-from hamnet.safety.supervisor import ActionIn, Command, SafetyLoopConfig, StateIn, Supervisor
+from hamnet.safety.supervisor import ActionIn, SafeAnswer, SafetyLoopConfig, StateIn, Supervisor
 from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
@@ -115,8 +115,8 @@ class SafetyShell:
         else:  # received_ns is time.monotonic_ns(), the supervisor's clock; 0 when unknown
             self.core.on_state(value, received_ns / 1e9 if received_ns else None)
 
-    def _put(self, item: Command | Notice) -> None:
-        if isinstance(item, Command):
+    def _put(self, item: SafeAnswer | Notice) -> None:
+        if isinstance(item, SafeAnswer):
             message = encode_command(item.output, item.step, item.episode_ids, self.control_dt)
             self.command.put(message)
         else:

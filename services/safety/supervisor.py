@@ -1,7 +1,7 @@
 """The safety loop without a network: which state gets which command, and when.
 
 Consumes decoded robot states (`StateIn`), policy actions (`ActionIn`), the trainer's
-env_transitions and the e-stop latch's requests; produces `Command`s (state k's safe
+env_transitions and the e-stop latch's requests; produces `SafeAnswer`s (state k's safe
 command, step k, as the sim's lock-step requires) and `Notice`s (the events: watchdog and
 e-stop events here; rejections, rate-limited clip events and per-stage statistics every
 `stats_period_s` from `hamnet.safety.reports`), handed to an injected `emit` in the order
@@ -53,7 +53,7 @@ executor sends one state per period anyway (the 10% absorbs its jitter)."""
 
 
 @dataclass(frozen=True)
-class Command:
+class SafeAnswer:
     """The safe command answering state `step`."""
 
     output: SafeOutput
@@ -96,7 +96,7 @@ class Supervisor:
 
     def __init__(
         self,
-        emit: Callable[[Command | Notice], None],
+        emit: Callable[[SafeAnswer | Notice], None],
         config: SafetyLoopConfig | None = None,
         safety: SafetyConfig | None = None,
         trajectory: TrajectoryConfig | None = None,
@@ -130,7 +130,7 @@ class Supervisor:
         a policy still starting, not a policy gone silent)."""
         self.stopped_by: str | None = None
         """None (following the policy), "watchdog" or "estop"."""
-        self.answered: Command | None = None
+        self.answered: SafeAnswer | None = None
         """The last command sent, sent again when the sim sends its state again."""
         self.reports = Reports(emit, clock, self.config.clip_event_period_s,
                                self.config.stats_period_s, self.config.report.report_period_s)  # fmt: skip
@@ -294,7 +294,7 @@ class Supervisor:
         self._answer()
 
     def _command(self, output: SafeOutput, state: StateIn) -> None:
-        self.answered = Command(output, state.step, state.episode_ids)
+        self.answered = SafeAnswer(output, state.step, state.episode_ids)
         self.emit(self.answered)
         self.pending = None
         self.last_command_at = self.clock()

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hamnet.cli import COMMANDS, Command
+from hamnet.cli import COMMANDS, Subcommand
 from hamnet.launcher import check as check_module
 from hamnet.launcher.check import check, not_built
 from hamnet.launcher.cli import main
@@ -58,8 +58,8 @@ def test_commands_not_built_yet_are_missing_not_errors(monkeypatch) -> None:
     """A stack naming a command whose service is not built is reported, not rejected; the
     registry is patched so that this holds whatever is built by now."""
     unbuilt = (
-        Command("perception", "clouds", None, 6),
-        Command("bridge", "robot", None),
+        Subcommand("perception", "clouds", None, 6),
+        Subcommand("bridge", "robot", None),
     )
     registry = tuple(c for c in COMMANDS if c.name not in ("perception", "bridge")) + unbuilt
     monkeypatch.setattr(check_module, "COMMANDS", registry)

@@ -17,7 +17,7 @@ from hamnet.safety.reports import STATISTICS, Notice
 from hamnet.safety.supervisor import (
     BRAKE_PACE,
     ActionIn,
-    Command,
+    SafeAnswer,
     SafetyLoopConfig,
     StateIn,
     Supervisor,
@@ -32,7 +32,7 @@ PERIOD_S = 0.1
 
 def supervisor(**config) -> tuple[Supervisor, list, Clock]:
     """A supervisor of B environments, what it emits, and its clock."""
-    emitted: list[Command | Notice] = []
+    emitted: list[SafeAnswer | Notice] = []
     clock = Clock(100.0)
     config = SafetyLoopConfig(**{"num_envs": B, "watchdog_s": WATCHDOG_S, **config})
     return Supervisor(emitted.append, config, estop=EStop(), clock=clock), emitted, clock
@@ -49,15 +49,15 @@ def action(step: int, value: float = 0.0) -> ActionIn:
     return ActionIn(step, np.full((B, 21), value, np.float32), None)
 
 
-def commands(emitted: list) -> list[Command]:
-    return [item for item in emitted if isinstance(item, Command)]
+def commands(emitted: list) -> list[SafeAnswer]:
+    return [item for item in emitted if isinstance(item, SafeAnswer)]
 
 
 def notices(emitted: list, kind: str | None = None) -> list[Notice]:
     return [n for n in emitted if isinstance(n, Notice) and kind in (None, n.kind)]
 
 
-def braking(command: Command) -> bool:
+def braking(command: SafeAnswer) -> bool:
     return command.output.filtered is None and bool(command.output.stopping.all())
 
 
