@@ -54,8 +54,8 @@ def payloads(b: int, step: int, rng: np.random.Generator) -> dict[str, bytes]:
     pose = np.tile([0.5, 0.0, 0.1, 1.0, 0.0, 0.0, 0.0], (b, 1)).astype(np.float32)
     obs = Observation(
         episode_ids=np.arange(b, dtype=np.int64), episode_step=np.zeros(b, np.int32),
-        q=np.tile(Q_HOME, (b, 1)) + 0.1 * f(J), dq=f(J), tau=f(J), ee_pose=f(9), goal_pose=pose,
-        object_pose=pose, object_velocity=f(6), physics_params=f(6),
+        q=np.tile(Q_HOME, (b, 1)) + 0.1 * f(J), dq=f(J), tau=f(J), ee_pos_rot6d=f(9),
+        goal_pose=pose, object_pose=pose, object_velocity=f(6), physics_params=f(6),
     )  # fmt: skip
     transition = Transition(header=Header(step=step), reward_names=REWARD_NAMES)
     to_tensor(obs.episode_ids, transition.episode_ids)  # (B,)

@@ -18,14 +18,14 @@ class PrivilegedState(_message.Message):
     def __init__(self, object_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., object_velocity: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., physics_params: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
 
 class RobotState(_message.Message):
-    __slots__ = ("header", "episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose", "privileged", "object_pose_estimate")
+    __slots__ = ("header", "episode_ids", "episode_step", "q", "dq", "tau", "ee_pos_rot6d", "goal_pose", "privileged", "object_pose_estimate")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     EPISODE_IDS_FIELD_NUMBER: _ClassVar[int]
     EPISODE_STEP_FIELD_NUMBER: _ClassVar[int]
     Q_FIELD_NUMBER: _ClassVar[int]
     DQ_FIELD_NUMBER: _ClassVar[int]
     TAU_FIELD_NUMBER: _ClassVar[int]
-    EE_POSE_FIELD_NUMBER: _ClassVar[int]
+    EE_POS_ROT6D_FIELD_NUMBER: _ClassVar[int]
     GOAL_POSE_FIELD_NUMBER: _ClassVar[int]
     PRIVILEGED_FIELD_NUMBER: _ClassVar[int]
     OBJECT_POSE_ESTIMATE_FIELD_NUMBER: _ClassVar[int]
@@ -35,11 +35,11 @@ class RobotState(_message.Message):
     q: _common_pb2.Tensor
     dq: _common_pb2.Tensor
     tau: _common_pb2.Tensor
-    ee_pose: _common_pb2.Tensor
+    ee_pos_rot6d: _common_pb2.Tensor
     goal_pose: _common_pb2.Tensor
     privileged: PrivilegedState
     object_pose_estimate: _common_pb2.Tensor
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_step: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., q: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., dq: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., tau: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., ee_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., privileged: _Optional[_Union[PrivilegedState, _Mapping]] = ..., object_pose_estimate: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., episode_ids: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., episode_step: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., q: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., dq: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., tau: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., ee_pos_rot6d: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., goal_pose: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ..., privileged: _Optional[_Union[PrivilegedState, _Mapping]] = ..., object_pose_estimate: _Optional[_Union[_common_pb2.Tensor, _Mapping]] = ...) -> None: ...
 
 class Scene(_message.Message):
     __slots__ = ("header", "env_ids", "episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active", "object_ids", "object_scale", "start_pose", "goal_pose", "env_code", "object_points")

@@ -30,7 +30,7 @@ from hamnet.bridge.driver import (
     RobotReading,
 )
 from hamnet.fr3.limits import NUM_JOINTS as J
-from hamnet.fr3.model import ee_pose_9d
+from hamnet.fr3.model import ee_pos_rot6d
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime.errors import ConfigError
@@ -212,8 +212,8 @@ def encode_state(
     to_tensor(np.array([episode_step], dtype=np.int32), message.episode_step)  # (1,)
     for name in ("q", "dq", "tau"):  # (1, J) each
         to_tensor(getattr(reading, name)[None].astype(np.float32), getattr(message, name))
-    ee_pose = ee_pose_9d(reading.ee_position, reading.ee_rotation)[None]  # (1, 9)
-    to_tensor(ee_pose.astype(np.float32), message.ee_pose)
+    ee = ee_pos_rot6d(reading.ee_position, reading.ee_rotation)[None]  # (1, 9)
+    to_tensor(ee.astype(np.float32), message.ee_pos_rot6d)
     to_tensor(np.asarray(goal_pose, dtype=np.float32)[None], message.goal_pose)  # (1, 7)
     if object_pose is not None:
         to_tensor(np.asarray(object_pose, dtype=np.float32)[None], message.object_pose_estimate)

@@ -57,10 +57,11 @@ def robot_dof_index(model: mujoco.MjModel) -> np.ndarray:
     return np.array([model.joint(name).dofadr[0] for name in JOINT_NAMES])
 
 
-def ee_pose_9d(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """The end-effector pose as RobotState carries it (sim and bridge alike): (..., 9) of the
+def ee_pos_rot6d(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """The end effector as RobotState carries it (sim and bridge alike): (..., 9) of the
     position (..., 3), m, and the first two columns of the rotation (..., 3, 3), column after
-    column (the 6D rotation the policy reads)."""
+    column (the 6D rotation the policy reads). Not a `*_pose`: those are position +
+    quaternion wxyz (7)."""
     six_d = np.swapaxes(rotation[..., :, :2], -1, -2).reshape(*rotation.shape[:-2], 6)
     return np.concatenate([position, six_d], axis=-1)
 
@@ -114,5 +115,3 @@ def pinocchio_ee_jacobian(model: pin.Model, data: pin.Data, q: np.ndarray) -> np
     """End-effector Jacobian by Pinocchio, (6, J), same convention as `mujoco_ee_jacobian`."""
     frame = model.getFrameId(EE_SITE)
     return pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED).copy()
-
-

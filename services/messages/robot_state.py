@@ -30,7 +30,7 @@ class Observation:
     q: np.ndarray  # (B, J) rad
     dq: np.ndarray  # (B, J) rad/s
     tau: np.ndarray  # (B, J) N m, actuator torque (gravity compensation included)
-    ee_pose: np.ndarray  # (B, 9): position (3) + first two rotation columns (6)
+    ee_pos_rot6d: np.ndarray  # (B, 9): position (3) + first two rotation columns (6)
     goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
     object_pose: np.ndarray  # (B, 7), privileged
     object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
@@ -69,7 +69,7 @@ class StateIn:
     """(B,) int32 policy steps since each episode started (0: it starts in this state)."""
     tau: np.ndarray | None = None
     """(B, J) measured joint torques, N m."""
-    ee_pose: np.ndarray | None = None
+    ee_pos_rot6d: np.ndarray | None = None
     """(B, 9) end-effector position (m) and first two rotation columns."""
     goal_pose: np.ndarray | None = None
     """(B, 7) object goal: position (m) and quaternion wxyz."""
@@ -87,7 +87,7 @@ _FIELDS = {
     "q": Spec(np.float32, (J,)),
     "dq": Spec(np.float32, (J,)),
     "tau": Spec(np.float32, (J,)),
-    "ee_pose": Spec(np.float32, (9,)),
+    "ee_pos_rot6d": Spec(np.float32, (9,)),
     "goal_pose": Spec(np.float32, (7,)),
     "object_pose_estimate": Spec(np.float32, (7,)),
 }
@@ -126,7 +126,7 @@ def encode(obs: Observation, step: int) -> RobotState:
     message = RobotState(header=Header(step=step))
     to_tensor(obs.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
     to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
-    for name in ("q", "dq", "tau", "ee_pose", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
+    for name in ("q", "dq", "tau", "ee_pos_rot6d", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
         to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
     to_tensor(obs.object_pose.astype(np.float32), message.object_pose_estimate)  # (B, 7), exact
     privileged = message.privileged

@@ -38,7 +38,15 @@ class Carry:
 def robot_observation(observation, device="cpu") -> RobotObservation:
     """The `RobotObservation` of a `hamnet.sim.env.Observation` (numpy, (B, ...) fields of
     the same names): the trainer's in-process path, without the wire."""
-    fields = ("q", "dq", "ee_pose", "goal_pose", "object_pose", "object_velocity", "physics_params")
+    fields = (
+        "q",
+        "dq",
+        "ee_pos_rot6d",
+        "goal_pose",
+        "object_pose",
+        "object_velocity",
+        "physics_params",
+    )
     return RobotObservation(**{
         name: torch.as_tensor(getattr(observation, name), dtype=torch.float32, device=device)
         for name in fields
@@ -108,7 +116,7 @@ def policy_inputs(
     """
     if not config.privileged and pose_noise is not None and robot.object_pose is not None:
         robot = RobotObservation(
-            robot.q, robot.dq, robot.ee_pose, robot.goal_pose,
+            robot.q, robot.dq, robot.ee_pos_rot6d, robot.goal_pose,
             estimated_pose(robot.object_pose, pose_noise, generator),
         )  # fmt: skip
     b = len(robot.q)

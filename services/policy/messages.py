@@ -19,7 +19,7 @@ from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.runtime.tensor import PayloadError
 from hamnet.sim.rewards import REWARD_NAMES
 
-POLICY_READS = ("episode_ids", "episode_step", "q", "dq", "ee_pose", "goal_pose")
+POLICY_READS = ("episode_ids", "episode_step", "q", "dq", "ee_pos_rot6d", "goal_pose")
 """The RobotState fields every policy reads; a teacher also reads the privileged block, a
 student `object_pose_estimate`."""
 
@@ -53,8 +53,8 @@ def robot_observation(state: StateIn, privileged: bool) -> RobotObservation:
     if privileged:
         extra = {name: getattr(state.privileged, name)
                  for name in ("object_pose", "object_velocity", "physics_params")}  # fmt: skip
-    arrays = {"q": state.q, "dq": state.dq, "ee_pose": state.ee_pose, "goal_pose": state.goal_pose,
-              **extra}  # fmt: skip
+    arrays = {"q": state.q, "dq": state.dq, "ee_pos_rot6d": state.ee_pos_rot6d,
+              "goal_pose": state.goal_pose, **extra}  # fmt: skip
     return RobotObservation(**{name: torch.from_numpy(value) for name, value in arrays.items()})
 
 

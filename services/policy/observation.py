@@ -93,7 +93,7 @@ class RobotObservation:
     """(B, J) joint positions, rad."""
     dq: Tensor
     """(B, J) joint velocities, rad/s."""
-    ee_pose: Tensor
+    ee_pos_rot6d: Tensor
     """(B, 9) end-effector translation (m) + 6D rotation."""
     goal_pose: Tensor
     """(B, 7) goal pose of the object: position (m) + quaternion wxyz."""
@@ -197,7 +197,7 @@ def _pieces(robot: RobotObservation, previous_action: Tensor, spec: ObservationS
         raise ValueError("an observation needs the object pose (true, or the estimator's)")
     pieces = {
         "robot_state": torch.cat((robot.q, robot.dq), dim=-1),  # (B, 2J)
-        "hand_state": robot.ee_pose,  # (B, 9)
+        "hand_state": robot.ee_pos_rot6d,  # (B, 9)
         "object_state": pose_9d(robot.object_pose),  # (B, 9)
         "goal": relative_goal(robot.object_pose, robot.goal_pose),  # (B, 9)
         "previous_action": previous_action,  # (B, A)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hamnet.fr3.model import ee_pose_9d
+from hamnet.fr3.model import ee_pos_rot6d
 from hamnet.messages.robot_state import Observation
 from hamnet.messages.safe_command import Command
 from hamnet.messages.scene import SceneDescription
@@ -124,7 +124,13 @@ class VectorEnv:
         self.episode_step += 1
         pos, quat = self._object_pose()
         ends = termination(
-            pos, quat, self.goal_pos, self.goal_quat, self.workspace, self.episode_step, self.config.task
+            pos,
+            quat,
+            self.goal_pos,
+            self.goal_quat,
+            self.workspace,
+            self.episode_step,
+            self.config.task,
         )
         current = self._potentials(pos, quat)
         rewards = reward_terms(ends.success, self.potentials, current, self.config.task)
@@ -158,7 +164,7 @@ class VectorEnv:
             q=p.qpos[:, w.robot_qpos].astype(np.float32),
             dq=p.qvel[:, w.robot_dof].astype(np.float32),
             tau=p.bind("qfrc_actuator")[:, w.robot_dof].astype(np.float32),
-            ee_pose=ee_pose_9d(site_pos, site_rot).astype(np.float32),
+            ee_pos_rot6d=ee_pos_rot6d(site_pos, site_rot).astype(np.float32),
             goal_pose=np.concatenate([self.goal_pos, self.goal_quat], axis=1).astype(np.float32),
             object_pose=np.concatenate([pos, quat], axis=1).astype(np.float32),
             object_velocity=self._object_velocity(quat).astype(np.float32),
@@ -182,7 +188,9 @@ class VectorEnv:
             cuboid_active=arrays["active"][ids].copy(),
             env_code=arrays["env_code"][ids].astype(np.float32),
             start_pose=self.start_pose[ids].copy(),
-            goal_pose=np.concatenate([self.goal_pos[ids], self.goal_quat[ids]], 1).astype(np.float32),
+            goal_pose=np.concatenate([self.goal_pos[ids], self.goal_quat[ids]], 1).astype(
+                np.float32
+            ),
         )
 
     def snapshot(self) -> tuple[dict[str, np.ndarray], dict[str, object]]:
@@ -249,7 +257,9 @@ class VectorEnv:
         self.goal_quat[env_ids] = drawn.goal_quat
         self.physics_params[env_ids] = drawn.physics_params
         scenes = drawn.scenes
-        lo, hi = workspace_bounds(scenes.centre[:, TABLE], scenes.half_extent[:, TABLE], self.config.task)
+        lo, hi = workspace_bounds(
+            scenes.centre[:, TABLE], scenes.half_extent[:, TABLE], self.config.task
+        )
         self.workspace[0][env_ids], self.workspace[1][env_ids] = lo, hi
         for name, array in self.scene_arrays.items():
             array[env_ids] = getattr(scenes, name)

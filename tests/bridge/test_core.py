@@ -98,7 +98,7 @@ def test_the_state_has_the_sims_fields_but_no_privileged_block() -> None:
     core, _, _ = make()
     message = encode_state(core.read(), 7, 3, 2, np.array([0.5, 0, 0.1, 1, 0, 0, 0]))
     assert not message.HasField("privileged") and message.header.step == 7
-    ee_pose = from_tensor(message.ee_pose, np.float32, (1, 9))
-    assert np.allclose(ee_pose[0, :3], [0.50, 0.0, 0.455], atol=0.01)  # Q_HOME's pose
-    assert np.allclose(ee_pose[0, 3:], [1, 0, 0, 0, -1, 0], atol=1e-4)  # paddle face down
+    ee_pos_rot6d = from_tensor(message.ee_pos_rot6d, np.float32, (1, 9))
+    assert np.allclose(ee_pos_rot6d[0, :3], [0.50, 0.0, 0.455], atol=0.01)  # Q_HOME's pose
+    assert np.allclose(ee_pos_rot6d[0, 3:], [1, 0, 0, 0, -1, 0], atol=1e-4)  # paddle face down
     assert from_tensor(message.episode_ids, np.int64, (1,)).tolist() == [3]

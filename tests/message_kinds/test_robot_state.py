@@ -19,7 +19,7 @@ def observation(seed: int = 0) -> Observation:
     f = lambda *shape: rng.standard_normal(shape).astype(np.float32)
     return Observation(
         episode_ids=np.arange(B, dtype=np.int64) + 10, episode_step=np.array([0, 1, 2], np.int32),
-        q=f(B, J), dq=f(B, J), tau=f(B, J), ee_pose=f(B, 9), goal_pose=f(B, 7),
+        q=f(B, J), dq=f(B, J), tau=f(B, J), ee_pos_rot6d=f(B, 9), goal_pose=f(B, 7),
         object_pose=f(B, 7), object_velocity=f(B, 6), physics_params=f(B, P),
     )  # fmt: skip
 
@@ -36,7 +36,7 @@ def test_an_observation_round_trips_with_its_privileged_block() -> None:
     message.header.run, message.header.stamp_ns = 2, 99
     state = robot_state.decode(wire(message), num_envs=B)
     assert (state.run, state.step, state.stamp_ns) == (2, 4, 99)
-    for name in ("episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose"):
+    for name in ("episode_ids", "episode_step", "q", "dq", "tau", "ee_pos_rot6d", "goal_pose"):
         np.testing.assert_array_equal(getattr(state, name), getattr(obs, name))
     np.testing.assert_array_equal(state.object_pose_estimate, obs.object_pose)
     for name in ("object_pose", "object_velocity", "physics_params"):
@@ -46,7 +46,7 @@ def test_an_observation_round_trips_with_its_privileged_block() -> None:
 
 def test_fields_left_out_are_none_unless_required() -> None:
     message = robot_state.encode(observation(), step=0)
-    for name in ("privileged", "tau", "ee_pose", "episode_step"):
+    for name in ("privileged", "tau", "ee_pos_rot6d", "episode_step"):
         message.ClearField(name)
     state = robot_state.decode(message)
     assert state.privileged is None and state.tau is None and state.episode_step is None
@@ -70,7 +70,7 @@ def test_the_batch_comes_from_num_envs_else_the_episode_ids_else_q() -> None:
     [
         ("q", np.zeros((B, J), np.float64), "dtype"),
         ("q", np.zeros((B, J + 1), np.float32), "shape"),
-        ("ee_pose", np.zeros((B, 7), np.float32), "shape"),
+        ("ee_pos_rot6d", np.zeros((B, 7), np.float32), "shape"),
         ("goal_pose", np.full((B, 7), np.nan, np.float32), "nonfinite"),
         ("episode_ids", np.zeros(B, np.int32), "dtype"),
     ],

@@ -113,9 +113,11 @@ def test_paddle_is_drawn_where_the_sim_reports_the_end_effector(run) -> None:
     """The paddle body's drawn pose, moved to site `ee` (0.09 m along its z), equals the
     end-effector position in each state of the focus environment (sim's own kinematics)."""
     rrd, sent = run
-    assert sorted(rrd.rows("/robot/fr3_paddle", "Transform3D:translation")) == list(range(STEPS + 1))
+    assert sorted(rrd.rows("/robot/fr3_paddle", "Transform3D:translation")) == list(
+        range(STEPS + 1)
+    )
     for state in sent["state"]:
-        ee = from_tensor(state.ee_pose, np.float32, (B, 9))[ENV, :3]
+        ee = from_tensor(state.ee_pos_rot6d, np.float32, (B, 9))[ENV, :3]
         np.testing.assert_allclose(drawn_ee(rrd, state.header.step), ee, atol=1e-4)
 
 
@@ -184,9 +186,12 @@ def test_rewards_success_rate_events_and_metrics(run) -> None:
     by_iteration = rrd.rows("/trainer/success_rate", "Scalars:scalars", "iteration")
     assert by_iteration == {i + 1: [s] for i, s in enumerate(success)}
     by_transitions = rrd.rows("/trainer/success_rate", "Scalars:scalars", "env_transitions")
-    assert by_transitions == {(i + 1) * TRANSITIONS_PER_ITERATION: [s] for i, s in enumerate(success)}
+    assert by_transitions == {
+        (i + 1) * TRANSITIONS_PER_ITERATION: [s] for i, s in enumerate(success)
+    }
     assert rrd.rows("/trainer/return/goal", "Scalars:scalars") == {  # the newest step
-        STEPS: [sent["metrics"][-1].scalars["return/goal"]]}
+        STEPS: [sent["metrics"][-1].scalars["return/goal"]]
+    }
 
 
 def test_every_view_of_the_layout_shows_logged_entities(run) -> None:
@@ -195,7 +200,9 @@ def test_every_view_of_the_layout_shows_logged_entities(run) -> None:
     rrd, _ = run
     assert len(rrd.view_origins) == 28
     for origin in rrd.view_origins:
-        assert any(e == origin or e.startswith(origin.rstrip("/") + "/") for e in rrd.entities), origin
+        assert any(e == origin or e.startswith(origin.rstrip("/") + "/") for e in rrd.entities), (
+            origin
+        )
 
 
 def test_the_view_opens_on_the_step_timeline(run) -> None:
@@ -255,7 +262,10 @@ def test_show_scene_files_open_with_a_layout_a_camera_and_a_legend(tmp_path) -> 
     path = tmp_path / "scene.rrd"
     save_scene(path, seed=5)
     rrd = Rrd(path)
-    assert sorted(rrd.view_origins) == ["/", "/legend"]  # the blueprint stores views in no fixed order
+    assert sorted(rrd.view_origins) == [
+        "/",
+        "/legend",
+    ]  # the blueprint stores views in no fixed order
     [[eye]] = rrd.blueprint_values("EyeControls3D:position")
     assert np.linalg.norm(eye) > 1.5  # m from the robot: the table and the arm fit
     assert {"/legend", "/scene/pedestal"} <= rrd.entities

@@ -62,7 +62,7 @@ def test_state_and_tokens_decode_to_what_was_sent() -> None:
     state = decode_state(wire(state_message(5, B)), privileged=True, physics_params=width)
     robot = random_robot(B, seed=5)
     assert state.step == 5 and state.episode_ids.shape == (B,)
-    for name in ("q", "ee_pose", "object_velocity", "physics_params"):
+    for name in ("q", "ee_pos_rot6d", "object_velocity", "physics_params"):
         torch.testing.assert_close(
             getattr(robot_observation(state, True), name), getattr(robot, name)
         )
@@ -126,7 +126,9 @@ def test_a_restarted_sim_is_followed_at_once_and_a_far_future_step_is_refused() 
         ("state", state_message(1, B, run=8)), ("tokens", tokens_message(1, B)),
     ])  # fmt: skip
     assert [a.header.step for a in actions] == [0, 1, 2, 3, 4, 5, 0, 1]
-    first = torch.from_numpy(np.frombuffer(actions[6].action.data, np.float32).reshape(B, 21).copy())
+    first = torch.from_numpy(
+        np.frombuffer(actions[6].action.data, np.float32).reshape(B, 21).copy()
+    )
     torch.testing.assert_close(first, expected(policy, 0), atol=1e-5, rtol=1e-5)  # no carry
     assert shell.counts["implausible"] == 2 and shell.counts["restarts"] == 3
 
@@ -145,7 +147,9 @@ def test_envcode_oracle_reads_the_scene_of_each_environment() -> None:
                               ("scene", scene_message([0, 1], code[:2])),
                               ("state", state_message(0, B)), ("tokens", tokens_message(0, B))])  # fmt: skip
     got = np.frombuffer(actions[0].action.data, np.float32).reshape(B, 21)
-    torch.testing.assert_close(torch.from_numpy(got.copy()), expected(policy, 0, code), atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(
+        torch.from_numpy(got.copy()), expected(policy, 0, code), atol=1e-5, rtol=1e-5
+    )
 
 
 def test_hot_reload_swaps_between_batches_and_bad_weights_keep_the_old_ones() -> None:
@@ -153,16 +157,22 @@ def test_hot_reload_swaps_between_batches_and_bad_weights_keep_the_old_ones() ->
     corrupt = announcement(newer, 2)
     corrupt.sha256 = "0" * 64
     messages = [
-        ("state", state_message(0, B)), ("tokens", tokens_message(0, B)),
+        ("state", state_message(0, B)),
+        ("tokens", tokens_message(0, B)),
         ("weights", announcement(newer, 1)),
-        ("state", state_message(1, B)), ("tokens", tokens_message(1, B)),
+        ("state", state_message(1, B)),
+        ("tokens", tokens_message(1, B)),
         ("weights", corrupt),  # sha256 mismatch
         ("weights", announcement(build("mlp", seed=0), 3)),  # another architecture
         ("weights", announcement(newer, 0)),  # not newer
-        ("weights", announcement(newer, 1)),  # a repeat of the served version: ignored, not rejected
+        (
+            "weights",
+            announcement(newer, 1),
+        ),  # a repeat of the served version: ignored, not rejected
         ("weights", announcement(newer, 4, data=to_bytes(newer, 5))),  # metadata disagrees
         ("weights", announcement(newer, 6, data=b"garbage")),
-        ("state", state_message(2, B)), ("tokens", tokens_message(2, B)),
+        ("state", state_message(2, B)),
+        ("tokens", tokens_message(2, B)),
     ]
     actions, shell = run(serving, messages)
     assert [(a.header.step, a.header.policy_version) for a in actions] == [(0, 0), (1, 1), (2, 1)]

@@ -29,9 +29,13 @@ def state_message(
     message = RobotState(header=Header(step=step, run=run))
     ids = np.zeros(batch, np.int64) if episode_ids is None else np.asarray(episode_ids, np.int64)
     to_tensor(ids, message.episode_ids)
-    steps = np.full(batch, step, np.int32) if episode_step is None else np.asarray(episode_step, np.int32)
+    steps = (
+        np.full(batch, step, np.int32)
+        if episode_step is None
+        else np.asarray(episode_step, np.int32)
+    )
     to_tensor(steps, message.episode_step)
-    for name in ("q", "dq", "ee_pose", "goal_pose"):
+    for name in ("q", "dq", "ee_pos_rot6d", "goal_pose"):
         _f32(getattr(robot, name), getattr(message, name))
     for name in ("object_pose", "object_velocity", "physics_params"):
         _f32(getattr(robot, name), getattr(message.privileged, name))

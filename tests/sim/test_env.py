@@ -47,7 +47,7 @@ def test_observations_and_results_have_the_contract_shapes(env: VectorEnv) -> No
     result = env.step(hold(observation))
     o = result.observation
     shapes = {
-        "q": (B, 7), "dq": (B, 7), "tau": (B, 7), "ee_pose": (B, 9), "goal_pose": (B, 7),
+        "q": (B, 7), "dq": (B, 7), "tau": (B, 7), "ee_pos_rot6d": (B, 9), "goal_pose": (B, 7),
         "object_pose": (B, 7), "object_velocity": (B, 6),
         "physics_params": (B, len(PHYSICS_PARAM_NAMES)),
     }  # fmt: skip
@@ -58,7 +58,7 @@ def test_observations_and_results_have_the_contract_shapes(env: VectorEnv) -> No
     assert np.isfinite(result.reward_terms).all()
     for flags in (result.terminated, result.truncated, result.success):
         assert flags.shape == (B,) and flags.dtype == bool
-    rotation = o.ee_pose[:, 3:].reshape(B, 2, 3)
+    rotation = o.ee_pos_rot6d[:, 3:].reshape(B, 2, 3)
     np.testing.assert_allclose(np.linalg.norm(rotation, axis=2), 1.0, atol=1e-5)
 
 
@@ -150,7 +150,9 @@ def test_final_observation_keeps_the_state_that_ended_an_episode(env: VectorEnv)
     assert final.object_pose[1, 2] < -0.3 and first.object_pose[1, 2] > -0.25
     assert final.episode_ids[1] == result.episode_ids[1] != first.episode_ids[1]
     for name in ("q", "object_pose", "episode_ids"):
-        np.testing.assert_array_equal(getattr(final, name)[[0, 2, 3]], getattr(first, name)[[0, 2, 3]])
+        np.testing.assert_array_equal(
+            getattr(final, name)[[0, 2, 3]], getattr(first, name)[[0, 2, 3]]
+        )
 
 
 def test_scenes_describe_the_current_episodes(env: VectorEnv) -> None:
@@ -166,7 +168,9 @@ def test_scenes_describe_the_current_episodes(env: VectorEnv) -> None:
     assert len(scenes.object_ids) == 2 and scenes.env_code.shape == (2, 25)
     moved = env.step(hold(observation)).observation  # the start pose stays the episode's
     still = moved.episode_ids[[2, 0]] == observation.episode_ids[[2, 0]]
-    np.testing.assert_array_equal(env.scenes(np.array([2, 0])).start_pose[still], scenes.start_pose[still])
+    np.testing.assert_array_equal(
+        env.scenes(np.array([2, 0])).start_pose[still], scenes.start_pose[still]
+    )
     assert len(env.scenes().env_ids) == B
 
 
@@ -198,14 +202,17 @@ def test_near_starts_put_the_paddle_beside_the_object_without_touching_anything(
     near = make_env()
     near.set_schedule(CurriculumValues(p_near_init=1.0, p_tight=0.0))
     observation = near.reset(seed=8)
-    gap = np.linalg.norm(observation.ee_pose[:, :3] - observation.object_pose[:, :3], axis=1)
+    gap = np.linalg.norm(observation.ee_pos_rot6d[:, :3] - observation.object_pose[:, :3], axis=1)
     assert np.median(gap) < 0.25, gap
     ncon = near.physics.bind("ncon")
     for env_index in range(B):
         data = near.physics.batch.get_data(env_index)
         bodies = near.world.model.geom_bodyid[[data.contact.geom1, data.contact.geom2]]
         arm_contacts = np.isin(bodies, near.world.robot_bodies).any(axis=0).sum()
-        assert arm_contacts == 0 or (observation.q[env_index] == fr3_limits.Q_HOME.astype(np.float32)).all()
+        assert (
+            arm_contacts == 0
+            or (observation.q[env_index] == fr3_limits.Q_HOME.astype(np.float32)).all()
+        )
     assert ncon.shape == (B,)
 
 

@@ -48,7 +48,7 @@ def observation(rng: np.random.Generator, b: int = B) -> Observation:
     return Observation(
         episode_ids=rng.integers(0, 1000, b).astype(np.int64),
         episode_step=rng.integers(0, 300, b).astype(np.int32),
-        q=f(J), dq=f(J), tau=f(J), ee_pose=f(9), goal_pose=f(7),
+        q=f(J), dq=f(J), tau=f(J), ee_pos_rot6d=f(9), goal_pose=f(7),
         object_pose=f(7), object_velocity=f(6), physics_params=f(6),
     )  # fmt: skip
 
@@ -66,12 +66,11 @@ def safe_command(command: Command, step: int, **overrides: np.ndarray) -> SafeCo
 equal, close = np.testing.assert_array_equal, np.testing.assert_allclose
 
 
-
 def test_state_round_trips_with_its_privileged_block() -> None:
     obs = observation(np.random.default_rng(0))
     message = wire(encode_state(obs, step=7))
     assert message.header.step == 7
-    for name in ("episode_ids", "episode_step", "q", "dq", "tau", "ee_pose", "goal_pose"):
+    for name in ("episode_ids", "episode_step", "q", "dq", "tau", "ee_pos_rot6d", "goal_pose"):
         equal(from_tensor(getattr(message, name)), getattr(obs, name))
     for name in ("object_pose", "object_velocity", "physics_params"):
         equal(from_tensor(getattr(message.privileged, name)), getattr(obs, name))
@@ -149,8 +148,10 @@ BAD_COMMANDS: dict[str, tuple[Callable[[Command], dict], str]] = {
     "sample count": (lambda c: {"q_ref": c.q_ref[:, :-1]}, "shape"),
     "joint count": (lambda c: {"kp": c.kp[:, :6]}, "shape"),
     "integer gains": (lambda c: {"kp": c.kp.astype(np.int64)}, "dtype"),
-    "NaN reference": (lambda c: {"q_ref": np.where(np.arange(J) == 2, np.nan, c.q_ref)},
-                      "nonfinite"),
+    "NaN reference": (
+        lambda c: {"q_ref": np.where(np.arange(J) == 2, np.nan, c.q_ref)},
+        "nonfinite",
+    ),
     "negative torque limit": (lambda c: {"tau_limit": -c.tau_limit}, "range"),
 }
 """A change to a valid command, and the reason it must be dropped under."""

@@ -28,10 +28,16 @@ def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> 
     scenes = env.scenes()
     distance = np.linalg.norm(scenes.goal_pose[:, :3] - scenes.start_pose[:, :3], axis=1)
     assert (distance >= 0.08 - 1e-6).all() and (distance <= 0.2 + 1e-6).all()
-    raised = [i for i, name in enumerate(CUBOID_NAMES) if name.startswith(("ramp", "wall", "ceiling"))]
+    raised = [
+        i for i, name in enumerate(CUBOID_NAMES) if name.startswith(("ramp", "wall", "ceiling"))
+    ]
     assert not scenes.cuboid_active[:, raised].any()  # no ramp joins a raised plate: flat
-    np.testing.assert_allclose(np.abs((scenes.goal_pose[:, 3:] * scenes.start_pose[:, 3:]).sum(1)), 1.0, atol=1e-5)
-    np.testing.assert_allclose(scenes.goal_pose[:, 2], scenes.start_pose[:, 2], atol=1e-4)  # same face, flat
+    np.testing.assert_allclose(
+        np.abs((scenes.goal_pose[:, 3:] * scenes.start_pose[:, 3:]).sum(1)), 1.0, atol=1e-5
+    )
+    np.testing.assert_allclose(
+        scenes.goal_pose[:, 2], scenes.start_pose[:, 2], atol=1e-4
+    )  # same face, flat
     assert env.schedule.p_near_init == 1.0
     assert env.config.task.success_radius == 0.05 and env.config.task.success_angle == 0.3
     assert observation.episode_step.tolist() == [0] * 16
@@ -39,7 +45,7 @@ def test_easy_stage_is_a_flat_open_table_with_near_starts_and_short_pushes() -> 
     # The paddle starts on the side away from the goal (within near_behind of straight
     # behind; the IK's tolerance and fallbacks loosen it a little).
     away = scenes.start_pose[:, :2] - scenes.goal_pose[:, :2]
-    paddle = observation.ee_pose[:, :2] - scenes.start_pose[:, :2]
+    paddle = observation.ee_pos_rot6d[:, :2] - scenes.start_pose[:, :2]
     cosine = (away * paddle).sum(1) / np.linalg.norm(away, axis=1) / np.linalg.norm(paddle, axis=1)
     assert np.median(cosine) > np.cos(0.5) and (cosine > 0).mean() >= 0.8
 

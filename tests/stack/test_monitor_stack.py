@@ -26,7 +26,9 @@ from tests.monitor.recorded import Rrd, drawn_ee
 B, ENV = 2, 1
 
 
-def test_monitor_saves_the_robot_and_scene_of_a_running_sim(spawn, transport: TransportConfig, tmp_path) -> None:
+def test_monitor_saves_the_robot_and_scene_of_a_running_sim(
+    spawn, transport: TransportConfig, tmp_path
+) -> None:
     path = tmp_path / "monitor.rrd"
     ns = transport.namespace
     session = open_session(transport)
@@ -45,7 +47,9 @@ def test_monitor_saves_the_robot_and_scene_of_a_running_sim(spawn, transport: Tr
             received = inbox.get(timeout=0.5)
             if received is not None and received.name == "state":
                 states[received.value.header.step] = received.value
-        monitor = spawn("monitor", "--save", str(path), "--env", str(ENV), *transport_args(transport))
+        monitor = spawn(
+            "monitor", "--save", str(path), "--env", str(ENV), *transport_args(transport)
+        )
         health = Health()
         while health.received.get("state", 0) < 20:
             assert monitor.poll() is None, monitor.stdout.read()
@@ -75,5 +79,5 @@ def test_monitor_saves_the_robot_and_scene_of_a_running_sim(spawn, transport: Tr
     compared = sorted(set(drawn) & set(states))
     assert len(compared) >= 10, (sorted(drawn), sorted(states))
     for step in compared:
-        ee = from_tensor(states[step].ee_pose, np.float32, (B, 9))[ENV, :3]
+        ee = from_tensor(states[step].ee_pos_rot6d, np.float32, (B, 9))[ENV, :3]
         np.testing.assert_allclose(drawn_ee(rrd, step), ee, atol=1e-4)

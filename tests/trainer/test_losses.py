@@ -131,7 +131,8 @@ def test_energy_loss_is_the_power_of_the_impedance_torque() -> None:
 
 def test_the_energy_term_reads_the_joint_velocities_of_the_base_observation() -> None:
     spec = build("state-mlp").config.observation
-    robot = RobotObservation(q=torch.zeros(3, 7), dq=torch.arange(21.0).reshape(3, 7), ee_pose=torch.zeros(3, 9),
+    robot = RobotObservation(q=torch.zeros(3, 7), dq=torch.arange(21.0).reshape(3, 7),
+                             ee_pos_rot6d=torch.zeros(3, 9),
                              goal_pose=torch.tensor([[0, 0, 0, 1, 0, 0, 0.0]] * 3),
                              object_pose=torch.tensor([[0, 0, 0, 1, 0, 0, 0.0]] * 3),
                              object_velocity=torch.zeros(3, 6), physics_params=torch.zeros(3, spec.physics_params))  # fmt: skip
