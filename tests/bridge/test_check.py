@@ -7,7 +7,10 @@ from hamnet.cli import main
 
 
 def test_the_fake_fr3_passes_the_check(capsys) -> None:
-    assert main(["bridge", "check", "--driver", "fake", "--rounds", "5"]) == 0
+    """Round trips bounded by the whole period: the default 10% took 12.7 ms once on a loaded
+    machine (the bound itself is tested in test_franky.py)."""
+    argv = ["bridge", "check", "--driver", "fake", "--rounds", "5", "--max-round-trip-fraction", "1"]
+    assert main(argv) == 0
     out = capsys.readouterr().out
     assert "round trip over 5 holds" in out and out.splitlines()[-1] == "verdict: ok"
 
