@@ -31,10 +31,10 @@ from hamnet.bridge.driver import (
 )
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.fr3.model import ee_pos_rot6d
-from hamnet.proto.common_pb2 import Header
+from hamnet.messages import robot_state
+from hamnet.messages.robot_state import StateIn
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime.errors import ConfigError
-from hamnet.runtime.tensor import to_tensor
 from hamnet.safety.fake_fr3 import REFLEXES, reflex_flags
 from hamnet.sim.env import Command
 
@@ -207,14 +207,9 @@ def encode_state(
         object_pose: (7,) the object pose estimate, the same layout; None leaves the field
             out (a student policy then answers nothing, and safety holds the arm).
     """
-    message = RobotState(header=Header(step=step))
-    to_tensor(np.array([episode_id], dtype=np.int64), message.episode_ids)  # (1,)
-    to_tensor(np.array([episode_step], dtype=np.int32), message.episode_step)  # (1,)
-    for name in ("q", "dq", "tau"):  # (1, J) each
-        to_tensor(getattr(reading, name)[None].astype(np.float32), getattr(message, name))
-    ee = ee_pos_rot6d(reading.ee_position, reading.ee_rotation)[None]  # (1, 9)
-    to_tensor(ee.astype(np.float32), message.ee_pos_rot6d)
-    to_tensor(np.asarray(goal_pose, dtype=np.float32)[None], message.goal_pose)  # (1, 7)
-    if object_pose is not None:
-        to_tensor(np.asarray(object_pose, dtype=np.float32)[None], message.object_pose_estimate)
-    return message
+    return robot_state.encode(StateIn(
+        0, step, reading.q[None], reading.dq[None], np.array([episode_id]), np.array([episode_step]),
+        tau=reading.tau[None], ee_pos_rot6d=ee_pos_rot6d(reading.ee_position, reading.ee_rotation)[None],
+        goal_pose=np.asarray(goal_pose)[None],
+        object_pose_estimate=None if object_pose is None else np.asarray(object_pose)[None],
+    ))  # fmt: skip

@@ -121,15 +121,25 @@ def decode(
     )
 
 
-def encode(obs: Observation, step: int) -> RobotState:
-    """RobotState k (with the privileged block) from the observation after `step` steps."""
-    message = RobotState(header=Header(step=step))
-    to_tensor(obs.episode_ids.astype(np.int64), message.episode_ids)  # (B,)
-    to_tensor(obs.episode_step.astype(np.int32), message.episode_step)  # (B,)
-    for name in ("q", "dq", "tau", "ee_pos_rot6d", "goal_pose"):  # (B, J) x3, (B, 9), (B, 7)
-        to_tensor(getattr(obs, name).astype(np.float32), getattr(message, name))
-    to_tensor(obs.object_pose.astype(np.float32), message.object_pose_estimate)  # (B, 7), exact
-    privileged = message.privileged
-    for name in ("object_pose", "object_velocity", "physics_params"):  # (B, 7), (B, 6), (B, P)
-        to_tensor(getattr(obs, name).astype(np.float32), getattr(privileged, name))
+def encode(state: StateIn) -> RobotState:
+    """RobotState k from every field `state` has (None leaves it out), in the documented
+    dtypes: the one encoder of the sim's and the bridge's states. `run` 0 leaves the
+    header's run to the publisher."""
+    message = RobotState(header=Header(step=state.step, run=state.run))
+    for name, spec in _FIELDS.items():
+        if (value := getattr(state, name)) is not None:
+            to_tensor(np.asarray(value, dtype=spec.dtype), getattr(message, name))
+    if state.privileged is not None:
+        for name, spec in _PRIVILEGED.items():
+            value = np.asarray(getattr(state.privileged, name), dtype=spec.dtype)
+            to_tensor(value, getattr(message.privileged, name))
     return message
+
+
+def encode_observation(obs: Observation, step: int) -> RobotState:
+    """RobotState k as the sim publishes it after `step` steps: every field, the exact object
+    pose as the estimate too, and the privileged block."""
+    privileged = Privileged(obs.object_pose, obs.object_velocity, obs.physics_params)
+    return encode(StateIn(0, step, obs.q, obs.dq, obs.episode_ids, obs.episode_step,
+                          tau=obs.tau, ee_pos_rot6d=obs.ee_pos_rot6d, goal_pose=obs.goal_pose,
+                          object_pose_estimate=obs.object_pose, privileged=privileged))  # fmt: skip

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from hamnet.messages.robot_state import encode as encode_state
+from hamnet.messages.robot_state import encode_observation as encode_state
 from hamnet.messages.safe_command import decode as decode_command
 from hamnet.messages.scene import encode as encode_scene
 from hamnet.messages.schedule import decode as decode_schedule

@@ -32,7 +32,7 @@ def reason(call) -> str:
 
 def test_an_observation_round_trips_with_its_privileged_block() -> None:
     obs = observation()
-    message = robot_state.encode(obs, step=4)
+    message = robot_state.encode_observation(obs, step=4)
     message.header.run, message.header.stamp_ns = 2, 99
     state = robot_state.decode(wire(message), num_envs=B)
     assert (state.run, state.step, state.stamp_ns) == (2, 4, 99)
@@ -45,7 +45,7 @@ def test_an_observation_round_trips_with_its_privileged_block() -> None:
 
 
 def test_fields_left_out_are_none_unless_required() -> None:
-    message = robot_state.encode(observation(), step=0)
+    message = robot_state.encode_observation(observation(), step=0)
     for name in ("privileged", "tau", "ee_pos_rot6d", "episode_step"):
         message.ClearField(name)
     state = robot_state.decode(message)
@@ -57,7 +57,7 @@ def test_fields_left_out_are_none_unless_required() -> None:
 
 
 def test_the_batch_comes_from_num_envs_else_the_episode_ids_else_q() -> None:
-    message = robot_state.encode(observation(), step=0)
+    message = robot_state.encode_observation(observation(), step=0)
     assert reason(lambda: robot_state.decode(message, num_envs=B + 1)) == "shape"
     to_tensor(np.zeros(B + 1, np.int64), message.episode_ids)
     assert reason(lambda: robot_state.decode(message)) == "shape"  # q has B rows
@@ -76,13 +76,13 @@ def test_the_batch_comes_from_num_envs_else_the_episode_ids_else_q() -> None:
     ],
 )
 def test_a_malformed_field_is_dropped_with_its_reason(field, value, expected) -> None:
-    message = robot_state.encode(observation(), step=0)
+    message = robot_state.encode_observation(observation(), step=0)
     to_tensor(value, getattr(message, field))
     assert reason(lambda: robot_state.decode(message)) == expected
 
 
 def test_a_privileged_block_needs_all_three_fields() -> None:
-    message = robot_state.encode(observation(), step=0)
+    message = robot_state.encode_observation(observation(), step=0)
     message.privileged.ClearField("physics_params")
     assert reason(lambda: robot_state.decode(message)) == "missing"
     to_tensor(np.zeros((B, 6), np.float32), message.privileged.object_pose)
