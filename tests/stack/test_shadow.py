@@ -56,8 +56,9 @@ def test_a_shadow_policy_answers_another_stacks_states_through_remapped_ports(
                     answered.append(received.value.header.step)
                 else:
                     own_states += 1
-        while (received := inbox.get(timeout=1.0)) is not None:  # states still on their way
-            if received.name == "state":
+        settled = time.monotonic() + 1.0  # the states of the last answers, still on their way
+        while (left := settled - time.monotonic()) > 0:
+            if (received := inbox.get(timeout=left)) is not None and received.name == "state":
                 states.add(received.value.header.step)
     finally:
         session.close()
