@@ -1,16 +1,28 @@
 """SafeCommand (safety -> sim, bridge): the joint references and gains an executor applies
-for one policy period, decoded into the sim's `Command` with one function.
+for one policy period, encoded from the safety filter's output and decoded into `Command`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.proto.safety_pb2 import SafeCommand
-from hamnet.runtime.tensor import PayloadError, field_array, from_tensor
+from hamnet.proto.common_pb2 import Header
+from hamnet.proto.safety_pb2 import CommandMode, SafeCommand
+from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
+
+
+class References(Protocol):
+    """What a SafeCommand is encoded from (`hamnet.safety.filter.SafeOutput`)."""
+
+    q_ref: np.ndarray  # (B, S, J) rad
+    dq_ref: np.ndarray  # (B, S, J) rad/s
+    kp: np.ndarray  # (B, J) N m/rad
+    kd: np.ndarray  # (B, J) N m s/rad
+    tau_limit: np.ndarray  # (B, J) N m
 
 
 @dataclass(frozen=True)
@@ -61,3 +73,19 @@ def decode(
             "control_dt", f"samples of {message.control_dt} s, the sim's are {control_dt} s"
         )
     return message.header.step, Command(q_ref=q_ref, episode_ids=episode_ids, **gains)
+
+
+def encode(
+    references: References,
+    step: int,
+    mode: CommandMode.ValueType,
+    episode_ids: np.ndarray,
+    control_dt: float,
+) -> SafeCommand:
+    """SafeCommand k: references (B, S, J) and gains (B, J) in float64, the episodes (B,) of
+    the state it answers, its mode and the sample period control_dt, s."""
+    message = SafeCommand(header=Header(step=step), mode=mode, control_dt=control_dt)
+    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
+    for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):
+        to_tensor(np.asarray(getattr(references, name), dtype=np.float64), getattr(message, name))
+    return message

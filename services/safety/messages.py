@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from hamnet.messages import action, robot_state
+from hamnet.messages import action, robot_state, safe_command
 from hamnet.messages.action import ActionIn
 from hamnet.messages.robot_state import StateIn
 from hamnet.proto.common_pb2 import Header
@@ -67,14 +67,8 @@ def command_mode(output: SafeOutput) -> CommandMode.ValueType:
 def encode_command(
     output: SafeOutput, step: int, episode_ids: np.ndarray, control_dt: float
 ) -> SafeCommand:
-    """SafeCommand k: references (B, S, J) and gains (B, J) in float64, control_dt in s."""
-    message = SafeCommand(
-        header=Header(step=step), mode=command_mode(output), control_dt=control_dt
-    )
-    to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)  # (B,)
-    for name in ("q_ref", "dq_ref", "kp", "kd", "tau_limit"):  # (B, S, J) x2, (B, J) x3
-        to_tensor(np.asarray(getattr(output, name), dtype=np.float64), getattr(message, name))
-    return message
+    """SafeCommand k of the filter's output, in the mode it sums up to (`command_mode`)."""
+    return safe_command.encode(output, step, command_mode(output), episode_ids, control_dt)
 
 
 def encode_event(
