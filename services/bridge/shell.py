@@ -33,6 +33,7 @@ import numpy as np
 from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
 from hamnet.messages import object_pose
 from hamnet.messages.safe_command import decode as decode_command
+from hamnet.messages.safety_event import encode as encode_event
 from hamnet.proto.perception_pb2 import ObjectPoseEstimate
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEventKind
 from hamnet.runtime.codec import parse
@@ -42,7 +43,6 @@ from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import Flattened, ReportConfig
 from hamnet.safety.estop import EStop, on_query
-from hamnet.safety.messages import encode_event
 
 log = logging.getLogger(__name__)
 

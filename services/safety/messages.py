@@ -16,17 +16,14 @@ import numpy as np
 from hamnet.messages import action, robot_state, safe_command
 from hamnet.messages.action import ActionIn
 from hamnet.messages.robot_state import StateIn
-from hamnet.proto.common_pb2 import Header
+from hamnet.messages.safety_event import encode as encode_event
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEvent, SafetyEventKind
-from hamnet.proto.safety_pb2 import StageStats as StageStatsMessage
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.tensor import to_tensor
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.reports import Notice, rejections
 from hamnet.safety.stages import Rejection
-from hamnet.safety.stats import StageStats
 
 SAFETY_READS = ("q", "dq", "episode_ids", "episode_step")
 """The RobotState fields the filter reads; a state without one is dropped as `missing`."""
@@ -69,26 +66,6 @@ def encode_command(
 ) -> SafeCommand:
     """SafeCommand k of the filter's output, in the mode it sums up to (`command_mode`)."""
     return safe_command.encode(output, step, command_mode(output), episode_ids, control_dt)
-
-
-def encode_event(
-    kind: SafetyEventKind.ValueType,
-    step: int,
-    env_ids: np.ndarray | None = None,
-    stage: str = "",
-    reason: str = "",
-    stats: tuple[StageStats, ...] = (),
-) -> SafetyEvent:
-    """One SafetyEvent at state step `step`, about environments `env_ids` (K,)."""
-    message = SafetyEvent(header=Header(step=step), kind=kind, stage=stage, reason=reason)
-    if env_ids is not None:
-        to_tensor(np.asarray(env_ids, dtype=np.int32), message.env_ids)  # (K,)
-    message.stages.extend(
-        StageStatsMessage(stage=s.stage, commands=s.commands, clipped=s.clipped,
-                          mean_excess=s.mean_excess, max_excess=s.max_excess)
-        for s in stats
-    )  # fmt: skip
-    return message
 
 
 def encode_notice(notice: Notice) -> SafetyEvent:

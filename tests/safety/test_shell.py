@@ -15,6 +15,7 @@ import pytest
 
 from hamnet.fr3.limits import Q_HOME
 from hamnet.messages.safe_command import decode as decode_command
+from hamnet.messages.safety_event import encode as encode_event
 from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -26,13 +27,7 @@ from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafetyFilter
-from hamnet.safety.messages import (
-    decode_action,
-    decode_state,
-    encode_command,
-    encode_event,
-    rejection_events,
-)
+from hamnet.safety.messages import decode_action, decode_state, encode_command, rejection_events
 from hamnet.safety.shell import SafetyShell
 from hamnet.safety.stats import StageStats
 from hamnet.safety.supervisor import SafetyLoopConfig, episode_starts
