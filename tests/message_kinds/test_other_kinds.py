@@ -8,11 +8,20 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hamnet.messages import action, object_pose, safe_command, scene, schedule, tokens, transition
+from hamnet.messages import (
+    action,
+    object_pose,
+    safe_command,
+    safety_event,
+    scene,
+    schedule,
+    tokens,
+    transition,
+)
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
-from hamnet.proto.safety_pb2 import SafeCommand
+from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEventKind
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.tensor import PayloadError, to_tensor
@@ -172,3 +181,24 @@ def test_a_safe_command_carries_its_episode_ids_when_sent() -> None:
 def test_the_trainers_schedule_round_trips() -> None:
     message = wire(schedule.encode(5 * 2**31, iteration=3))
     assert schedule.decode(message) == 5 * 2**31 and message.header.step == 3
+
+
+def test_a_safe_command_round_trips_through_its_one_encoder() -> None:
+    b, s, j = 2, 3, 7
+    refs = SimpleNamespace(q_ref=np.full((b, s, j), 0.5), dq_ref=np.zeros((b, s, j)),
+                           kp=np.full((b, j), 40.0), kd=np.full((b, j), 2.0),
+                           tau_limit=np.full((b, j), 10.0))  # fmt: skip
+    message = wire(safe_command.encode(refs, 9, CommandMode.HOLD, np.array([4, 5]), 0.0125))
+    assert message.mode == CommandMode.HOLD and message.q_ref.dtype == message.kp.dtype
+    step, command = safe_command.decode(message, b, s, 0.0125)
+    assert step == 9 and np.array_equal(command.episode_ids, [4, 5])
+    assert np.array_equal(command.q_ref, refs.q_ref) and np.array_equal(command.kd, refs.kd)
+
+
+def test_a_safety_event_carries_its_environments_and_stage_figures() -> None:
+    figures = SimpleNamespace(stage="joint_limit", commands=10, clipped=3, mean_excess=0.01,
+                              max_excess=0.02)  # fmt: skip
+    event = wire(safety_event.encode(SafetyEventKind.CLIPPED_JOINT_LIMIT, 4, np.array([1]),
+                                     "joint_limit", "clipped", (figures,)))  # fmt: skip
+    assert event.header.step == 4 and event.kind == SafetyEventKind.CLIPPED_JOINT_LIMIT
+    assert event.stages[0].clipped == 3 and event.env_ids.shape == [1]
