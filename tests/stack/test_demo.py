@@ -71,11 +71,11 @@ def recorded_steps(demo: DemoRun) -> dict[str, set[int]]:
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory) -> DemoRun:
     folder, transport = tmp_path_factory.mktemp("demo"), isolated()
-    # The stack's own 20 s: the trainer and its rollout worker take about 11 s to come up on
+    # The stack's own 40 s: the trainer and its rollout worker take about 16 s to come up on
     # a busy 2-core machine (imports, the sim's first reset, the encoder), so a shorter demo
-    # can end before they announce.
+    # (it was 20 s) ends before they have trained.
     with up(DEMO, transport, cwd=folder) as run:
-        assert run.wait(timeout=60) == 0, run.output
+        assert run.wait(timeout=120) == 0, run.output
     return DemoRun(load(DEMO), transport, run.summary(), folder)
 
 
@@ -91,6 +91,8 @@ def test_demo_closes_the_loop_records_it_and_lists_the_missing_services(demo: De
     assert set(processes) == built
     assert all(p["announced"] >= 1 and p["restarts"] == 0 for p in processes.values()), processes
     assert not any(alive(pid) for p in processes.values() for pid in p["pids"])
+    # The trainer made its updates while the loop ran, and ended by itself.
+    assert processes["trainer"]["outcome"] == "finished", processes["trainer"]
 
     # The loop turned: every service in it answered the previous one, step after step. The
     # sim's steps are its transitions. Before the policy is up, safety brakes the states
