@@ -30,11 +30,12 @@ class Spec:
 
 
 def batch_size(message: Message, specs: Mapping[str, Spec], order: Iterable[str]) -> int | None:
-    """B: the length of the first field of `order` the message carries, else None."""
+    """B: the declared length of the first field of `order` the message carries, else None.
+    Read from the tensor's shape, not its data: `arrays` decodes and checks every field once."""
     for name in order:
-        if message.HasField(name):
-            spec = specs[name]
-            return len(field_array(message, name, spec.dtype, (None, *spec.tail), spec.finite))
+        if name in specs and message.HasField(name):
+            shape = getattr(message, name).shape
+            return int(shape[0]) if shape else None
     return None
 
 
