@@ -17,6 +17,9 @@ import pytest
 
 from hamnet.runtime.transport import TransportConfig, free_port
 
+LOG_TAIL_LINES = 30
+"""Lines of each spawned process's output shown when its test failed."""
+
 
 @pytest.fixture
 def transport() -> TransportConfig:
@@ -31,9 +34,18 @@ def transport_args(transport: TransportConfig) -> list[str]:
     return ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """Keep each phase's report on the test (`item.report_call`) for fixtures to read."""
+    report = yield
+    setattr(item, f"report_{report.when}", report)
+    return report
+
+
 @pytest.fixture
-def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
-    """Start `python -m hamnet <args>` processes; all are stopped at teardown."""
+def spawn(request: pytest.FixtureRequest) -> Iterator[Callable[..., subprocess.Popen]]:
+    """Start `python -m hamnet <args>` processes; all are stopped at teardown, and when the
+    test failed, the last lines each one printed are shown with the failure."""
     processes: list[subprocess.Popen] = []
 
     def start(*args: str, netns: str | None = None) -> subprocess.Popen:
@@ -60,3 +72,8 @@ def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
+    report = getattr(request.node, "report_call", None)
+    if report is not None and report.failed:
+        for process in processes:
+            tail = process.stdout.read().splitlines()[-LOG_TAIL_LINES:]
+            print(f"--- {' '.join(process.args)}:", *tail, sep="\n")

@@ -23,8 +23,15 @@ def wire(message, finite: bool = True):
 class CapturingPublisher:
     """Keeps what is put, through the wire format, under the topic's last key segment."""
 
-    def __init__(self, key: str, published: list[tuple[str, object]]) -> None:
-        self.topic, self.published = key.rsplit("/", 1)[1], published
+    def __init__(
+        self, key: str, published: list[tuple[str, object]], subscribed: Callable[[], bool]
+    ) -> None:
+        self.topic, self.published, self._subscribed = key.rsplit("/", 1)[1], published, subscribed
+
+    @property
+    def matching(self) -> bool:
+        """Whether a subscriber is known (the scripted network's `subscribed`)."""
+        return self._subscribed()
 
     def put(self, message) -> None:
         self.published.append((self.topic, wire(message)))
@@ -63,6 +70,8 @@ class ScriptedService:
     caught_up: list[tuple[str, str]] = field(default_factory=list)
     events: Counter[str] = field(default_factory=Counter)
     remap: tuple[str, ...] = ()
+    subscribed: Callable[[], bool] = lambda: True
+    """What every publisher's `matching` answers now."""
 
     ports = Service.ports  # the real resolution of a shell's ports, from the fields above
 
@@ -81,7 +90,7 @@ class ScriptedService:
         self.decoders[name] = (key, lambda key, query: query)
 
     def publisher(self, key: str) -> CapturingPublisher:
-        return CapturingPublisher(key, self.published)
+        return CapturingPublisher(key, self.published, self.subscribed)
 
     def count_event(self, name: str) -> None:
         self.events[name] += 1

@@ -113,7 +113,8 @@ class PolicyShell:
             inbox.subscribe("transition", port["transition"],
                             decoder=lambda k, p: m.decode_transition(parse(Transition, p)))  # fmt: skip
             rollout = service.publisher(port["rollout"])
-            self.rollouts = RolloutFeed(self.config.rollout_horizon, rollout.put)
+            self.rollouts = RolloutFeed(self.config.rollout_horizon, rollout.put,
+                                        lambda: rollout.matching)  # fmt: skip
         self.pairing: Pairing[m.StateIn, m.TokensIn] = Pairing(self.config.pending)
         pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
         self.serving = Serving(model.env_code_dim, self.device, compute.seed, pose_noise)
@@ -231,6 +232,7 @@ class PolicyShell:
                 f"unpaired halves dropped: {drops['superseded']} superseded, "
                 f"{drops['overflow']} overflow")  # fmt: skip
         if self.rollouts is not None:
-            line += (f"; {self.rollouts.sent} rollout chunks sent; partial chunks dropped: "
+            line += (f"; {self.rollouts.sent} rollout chunks sent, {self.rollouts.unlearned} "
+                     f"steps served while no learner subscribed; partial chunks dropped: "
                      f"{self.rollouts.assembler.dropped}")  # fmt: skip
         return line

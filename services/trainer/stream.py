@@ -127,8 +127,8 @@ class Streamed:
                 return self._collected(taken, version, announced)
             if time.monotonic() - waiting_since >= self.report_period_s:
                 log.info("waiting for rollouts of version %d from %s: start `hamnet rollout` "
-                         "workers with this run's flags", version,
-                         sorted(self.roster.waiting) or f"{self.workers} workers")  # fmt: skip
+                         "workers with this run's flags (%d chunks dropped so far)", version,
+                         sorted(self.roster.waiting) or f"{self.workers} workers", self.dropped)  # fmt: skip
                 waiting_since = time.monotonic()
             received = self.service.receive(timeout=0.1)
             if received is None:

@@ -179,7 +179,8 @@ def test_the_shell_publishes_what_it_served_as_a_chunk_the_trainer_decodes() -> 
     """Step 0 served before the trainer is heard (its schedule) joins no chunk; steps 1..T
     with their transitions and step T + 1 make one RolloutChunk whose actions and values are
     the published actions' and whose inputs the trainer's policy reads. With
-    `rollout_horizon` 0 the shell neither listens to transitions nor publishes chunks."""
+    `rollout_horizon` 0 the shell neither listens to transitions nor publishes chunks; while
+    no learner subscribes to the chunks it serves every step and sends no chunk."""
     policy = build("hamnet", seed=0)
     messages = []
     for k in range(T + 2):
@@ -190,19 +191,21 @@ def test_the_shell_publishes_what_it_served_as_a_chunk_the_trainer_decodes() -> 
         messages += [("transition", transition)] if k <= T else []
         messages += [("schedule", Schedule(env_transitions=0))] if k == 0 else []
 
-    def published(horizon: int) -> list[tuple[str, object]]:
+    def published(horizon: int, subscribed: bool = True) -> list[tuple[str, object]]:
         items = iter([m for m in messages if horizon or m[0] != "transition"])  # off: unheard
 
         def script(_) -> tuple[str, bytes] | str:
             item = next(items, None)
             return "end" if item is None else (item[0], encode(item[1]))
 
-        service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
+        service = ScriptedService(script, identity=ServiceIdentity("policy", "0"),
+                                  subscribed=lambda: subscribed)  # fmt: skip
         config = PolicyLoopConfig(compute=ComputeConfig(seed=1), rollout_horizon=horizon)
         PolicyShell(service, policy, 4, config).run()
         return service.published
 
     assert [topic for topic, _ in published(0)] == ["action"] * (T + 2)
+    assert [topic for topic, _ in published(T, subscribed=False)] == ["action"] * (T + 2)
     out = published(T)
     actions = [message for topic, message in out if topic == "action"]
     (chunk,) = [message for topic, message in out if topic == "rollout"]

@@ -50,6 +50,10 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
     services["camera"]["args"] = {"source": "sim"}
     services["perception"]["args"].update(segmenter="mask")
     services["policy"]["args"] = {"random-init": "student", "deterministic": True}
+    # The test kills the policy to see the watchdog bring the arm to rest: restarted, as the
+    # stack file's default would, it acts again and safety rightly follows it.
+    services["policy"]["restart"] = {"max_restarts": 0}
+    services["policy"]["critical"] = False
     for auxiliary in ("monitor", "record", "watch"):
         del services[auxiliary]
     endpoint = f"tls/127.0.0.1:{free_port()}"
