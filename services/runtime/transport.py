@@ -145,9 +145,11 @@ def _zenoh_config(transport: TransportConfig) -> zenoh.Config:
         # The rendezvous is taken by another peer most of the time: keep going without it.
         "listen/exit_on_failure": not (transport.mode == "peer" and transport.rendezvous),
         "connect/exit_on_failure": False,
-        # A client is nothing without its router: wait for it (a router started later is
-        # fine). Peers and routers go on at once and keep retrying in the background.
-        "connect/timeout_ms": -1 if transport.mode == "client" else 0,
+        # Never give up on an endpoint: a client waits for its router (one started later is
+        # fine); peers and routers open at once and retry in the background, so a peer whose
+        # first try found the rendezvous or a router not up yet still joins (with 0, Zenoh
+        # tries once: that peer stayed alone for good).
+        "connect/timeout_ms": -1,
         "transport/shared_memory/enabled": transport.shared_memory,
         # Zenoh creates the pool lazily by default, sending the first large messages over
         # the network; create it at start instead.

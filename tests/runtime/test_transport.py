@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import pytest
 
 from hamnet.runtime.errors import ConfigError
-from hamnet.runtime.transport import TransportConfig, zenoh_config
+from hamnet.runtime.transport import TransportConfig, free_port, open_session, zenoh_config
 
 
 def settings(config) -> dict:
@@ -67,3 +68,22 @@ def test_locators_zenoh_accepts_pass() -> None:
     endpoints = ("tcp/127.0.0.1:7447", "tcp/[::1]:7447", "udp/10.0.0.1:7447#iface=eth0",
                  "tls/example.org:7447?prio=1", "unixsock-stream//tmp/zenoh.sock")  # fmt: skip
     zenoh_config(TransportConfig(mode="client", rendezvous="", connect=endpoints))
+
+
+def test_a_peer_joins_an_endpoint_that_comes_up_after_it() -> None:
+    """A peer that starts before what it connects to (a router, or the rendezvous while its
+    holder starts) keeps trying in the background and is connected once that is up."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    early = open_session(TransportConfig(rendezvous="", connect=(endpoint,)))
+    try:
+        time.sleep(1.5)  # its first try has failed
+        late = open_session(TransportConfig(rendezvous="", listen=(endpoint,)))
+        try:
+            deadline = time.monotonic() + 20
+            while late.info.zid() not in list(early.info.peers_zid()):
+                assert time.monotonic() < deadline, "the early peer never joined"
+                time.sleep(0.1)
+        finally:
+            late.close()
+    finally:
+        early.close()
