@@ -27,7 +27,7 @@ from hamnet.bridge.driver import (
     RobotReading,
 )
 from hamnet.fr3.limits import FR3, Q_HOME, FR3Limits
-from hamnet.fr3.model import load_pinocchio, pinocchio_ee_pose
+from hamnet.fr3.model import load_pinocchio, pinocchio_ee_placement
 from hamnet.runtime.errors import ConfigError
 from hamnet.safety.fake_fr3 import FakeFR3, FakeFR3Config
 
@@ -92,7 +92,7 @@ class FakeDriver:
         if not self._connected:
             raise ConnectionError("the fake FR3 is disconnected")
         q = self._last[1].copy()
-        position, rotation = pinocchio_ee_pose(self._model, self._data, q)
+        position, rotation = pinocchio_ee_placement(self._model, self._data, q)
         dq = (self._last[1] - self._last[0]) / self.control_period_s
         return RobotReading(q, dq, self._tau.copy(), position, rotation)
 

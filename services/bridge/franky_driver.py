@@ -43,7 +43,7 @@ from hamnet.bridge.driver import (
     RobotReading,
 )
 from hamnet.fr3.limits import FR3, FR3Limits
-from hamnet.fr3.model import load_pinocchio, pinocchio_ee_pose
+from hamnet.fr3.model import load_pinocchio, pinocchio_ee_placement
 from hamnet.runtime.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -168,7 +168,7 @@ class FrankyDriver:
         state = self._state()
         self._check_link(float(state.time.to_sec()))
         q = np.asarray(state.q, dtype=np.float64)
-        position, rotation = pinocchio_ee_pose(self._model, self._data, q)
+        position, rotation = pinocchio_ee_placement(self._model, self._data, q)
         return RobotReading(q, np.asarray(state.dq, dtype=np.float64),
                             np.asarray(state.tau_J, dtype=np.float64), position, rotation)  # fmt: skip
 

@@ -61,15 +61,16 @@ def ee_pos_rot6d(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """The end effector as RobotState carries it (sim and bridge alike): (..., 9) of the
     position (..., 3), m, and the first two columns of the rotation (..., 3, 3), column after
     column (the 6D rotation the policy reads). Not a `*_pose`: those are position +
-    quaternion wxyz (7)."""
+    quaternion wxyz (7); nor a `*_placement`: that is position and the whole rotation matrix."""
     six_d = np.swapaxes(rotation[..., :, :2], -1, -2).reshape(*rotation.shape[:-2], 6)
     return np.concatenate([position, six_d], axis=-1)
 
 
-def mujoco_ee_pose(
+def mujoco_ee_placement(
     model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """End-effector pose in the world by MuJoCo.
+    """End-effector placement (position and rotation matrix, Pinocchio's word for an SE3) in
+    the world by MuJoCo.
 
     Args:
         model: a model holding the FR3 (alone or in a scene).
@@ -88,7 +89,7 @@ def mujoco_ee_jacobian(model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray
     """End-effector Jacobian by MuJoCo, world-aligned at site `ee`.
 
     Args:
-        model, data: as in `mujoco_ee_pose` (data is scratch).
+        model, data: as in `mujoco_ee_placement` (data is scratch).
         q: joint positions, (J,), rad.
     Returns:
         (6, J): rows 0-2 linear velocity (m/s), rows 3-5 angular velocity (rad/s) per rad/s.
@@ -102,10 +103,10 @@ def mujoco_ee_jacobian(model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray
     return np.vstack([jacp, jacr])[:, robot_dof_index(model)]
 
 
-def pinocchio_ee_pose(
+def pinocchio_ee_placement(
     model: pin.Model, data: pin.Data, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """End-effector pose in the world by Pinocchio: position (3,) m, rotation (3, 3)."""
+    """End-effector placement in the world by Pinocchio: position (3,) m, rotation (3, 3)."""
     pin.framesForwardKinematics(model, data, q)
     placement = data.oMf[model.getFrameId(EE_SITE)]
     return placement.translation.copy(), placement.rotation.copy()

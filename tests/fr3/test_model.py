@@ -59,8 +59,8 @@ def add_table_and_box(spec: mujoco.MjSpec, top: float, box_pos: list[float]) -> 
 def test_mujoco_and_pinocchio_give_the_same_ee_pose(mj_model, pin_model) -> None:
     data = mujoco.MjData(mj_model)
     for q in random_configurations(50):
-        mj_pos, mj_rot = fr3_model.mujoco_ee_pose(mj_model, data, q)
-        pin_pos, pin_rot = fr3_model.pinocchio_ee_pose(*pin_model, q)
+        mj_pos, mj_rot = fr3_model.mujoco_ee_placement(mj_model, data, q)
+        pin_pos, pin_rot = fr3_model.pinocchio_ee_placement(*pin_model, q)
         np.testing.assert_allclose(mj_pos, pin_pos, atol=TOLERANCE)
         np.testing.assert_allclose(mj_rot, pin_rot, atol=TOLERANCE)
 
@@ -81,12 +81,12 @@ def test_jacobian_is_the_derivative_of_the_pose(mj_model) -> None:
     eps = 1e-6
     for q in random_configurations(5, seed=2):
         jac = fr3_model.mujoco_ee_jacobian(mj_model, data, q)
-        _, rot = fr3_model.mujoco_ee_pose(mj_model, data, q)
+        _, rot = fr3_model.mujoco_ee_placement(mj_model, data, q)
         for joint in range(7):
             step = np.zeros(7)
             step[joint] = eps
-            pos_plus, rot_plus = fr3_model.mujoco_ee_pose(mj_model, data, q + step)
-            pos_minus, rot_minus = fr3_model.mujoco_ee_pose(mj_model, data, q - step)
+            pos_plus, rot_plus = fr3_model.mujoco_ee_placement(mj_model, data, q + step)
+            pos_minus, rot_minus = fr3_model.mujoco_ee_placement(mj_model, data, q - step)
             skew = (rot_plus - rot_minus) @ rot.T / (2 * eps)  # dR/dq R^T = [omega]x
             angular = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
             linear = (pos_plus - pos_minus) / (2 * eps)
@@ -157,7 +157,7 @@ def test_link_masses_are_franka_cad_masses(mj_model) -> None:
 def test_zero_configuration_matches_published_kinematics(mj_model) -> None:
     """At q = 0 the flange is at (a7, 0, d1 + d3 + d5 - d_flange) pointing down, and the
     paddle face 0.09 m further."""
-    pos, rot = fr3_model.mujoco_ee_pose(mj_model, mujoco.MjData(mj_model), np.zeros(7))
+    pos, rot = fr3_model.mujoco_ee_placement(mj_model, mujoco.MjData(mj_model), np.zeros(7))
     np.testing.assert_allclose(pos, [0.088, 0.0, 0.333 + 0.316 + 0.384 - 0.107 - 0.09], atol=1e-12)
     np.testing.assert_allclose(rot[:, 2], [0.0, 0.0, -1.0], atol=1e-12)
 
@@ -206,7 +206,7 @@ def test_limit_arrays_are_read_only() -> None:
 def test_home_is_inside_the_limits_with_the_paddle_down_in_front(mj_model) -> None:
     assert np.all(Q_HOME > FR3.q_min) and np.all(Q_HOME < FR3.q_max)
     data = mujoco.MjData(mj_model)
-    pos, rot = fr3_model.mujoco_ee_pose(mj_model, data, Q_HOME)
+    pos, rot = fr3_model.mujoco_ee_placement(mj_model, data, Q_HOME)
     assert 0.4 < pos[0] < 0.6 and abs(pos[1]) < 1e-9 and 0.35 < pos[2] < 0.6
     np.testing.assert_allclose(rot[:, 2], [0.0, 0.0, -1.0], atol=1e-9)
     mujoco.mj_forward(mj_model, data)
@@ -236,7 +236,7 @@ def test_paddle_touches_a_scene_box() -> None:
     spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
     model = fr3_model.load_mujoco()
     data = mujoco.MjData(model)
-    ee, _ = fr3_model.mujoco_ee_pose(model, data, Q_HOME)
+    ee, _ = fr3_model.mujoco_ee_placement(model, data, Q_HOME)
     add_table_and_box(spec, top=0.2, box_pos=[ee[0], ee[1], ee[2] - 0.02])
     model = spec.compile()
     data = mujoco.MjData(model)
