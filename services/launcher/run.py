@@ -24,6 +24,7 @@ from hamnet.launcher.secure import UP, security, start_router
 from hamnet.launcher.stack import ROUTER, Stack
 from hamnet.launcher.summary import Report, output_files, process_report
 from hamnet.launcher.supervisor import Outcome, Process, Supervisor
+from hamnet.launcher.tokens import note_tokens
 from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness
 from hamnet.proto.health_pb2 import Health
 from hamnet.runtime.cli import CommonConfig
@@ -133,7 +134,8 @@ def _supervise(
             return Ending("every process finished", 0)
         if duration_s is not None and time.monotonic() - started >= duration_s:
             return Ending(f"duration of {duration_s:g} s reached", 0)
-        _note_ready(processes, liveliness, stack.ready_timeout_s, warned)
+        note_tokens(processes, liveliness, health, stack.ready_timeout_s, warned,
+                    time.monotonic())  # fmt: skip
         if not all_ready and all(p.ready_s is not None for p in processes):
             all_ready = True
             log.info("stack ready: every process announced itself after %.1f s",
@@ -143,28 +145,3 @@ def _supervise(
             health.add(received.value)
     return Ending("stopped by a signal", 0)
 
-
-def _note_ready(
-    processes: list[Process], liveliness: Liveliness, timeout_s: float, warned: set[str]
-) -> None:
-    """Record the processes whose token appeared since their start; warn once about a process
-    whose token is warned, or gone while its process still runs."""
-    for process in processes:
-        if process.outcome is not Outcome.RUNNING:
-            continue
-        if process.ready_s is not None:
-            ready_at = process.started_at + process.ready_s
-            lost = liveliness.withdrawn_since(process.spec.command, process.worker, ready_at)
-            if lost and process.label not in warned:
-                warned.add(process.label)
-                log.warning("%s lost its liveliness token while running: hung or cut off "
-                            "from the network", process.label)
-            continue
-        # A service holds its token under its command's name: `hamnet echo` is `alive/echo/<w>`.
-        seen = liveliness.announced_since(process.spec.command, process.worker, process.started_at)
-        if seen is not None:
-            process.ready_s = round(seen - process.started_at, 3)
-            log.info("%s ready after %.1f s", process.label, process.ready_s)
-        elif time.monotonic() - process.started_at > timeout_s and process.label not in warned:
-            warned.add(process.label)
-            log.warning("%s has not announced itself after %.0f s", process.label, timeout_s)

@@ -47,14 +47,16 @@ class Liveliness:
             times = self._announced.get((service, worker), [])
             return next((t for t in times if t >= since), None)
 
-    def withdrawn_since(self, service: str, worker: str, since: float) -> bool:
-        """Whether the token of `service/worker` went away at or after `since`.
+    def withdrawn_at(self, service: str, worker: str, since: float) -> float | None:
+        """time.monotonic() of the first withdrawal of `service/worker`'s token seen at or
+        after `since`, or None.
 
-        Zenoh withdraws a token when its session closes or loses every link: for a process
-        that is still running, the service is hung or cut off from the network.
+        Zenoh withdraws a token when its session closes or loses every link
+        (`hamnet.launcher.tokens` says what that means for a running process).
         """
         with self._lock:
-            return any(t >= since for t in self._withdrawn.get((service, worker), []))
+            times = self._withdrawn.get((service, worker), [])
+            return next((t for t in times if t >= since), None)
 
     def announcements(self, service: str, worker: str) -> int:
         """How many times `service/worker` declared its token."""
@@ -122,6 +124,13 @@ class HealthBoard:
     def add(self, report: Health) -> None:
         """Take one report."""
         self.processes.setdefault((report.service, report.worker), HealthTotals()).add(report)
+
+    def stopping(self, service: str, worker: str) -> bool:
+        """Whether the latest report of `service/worker` says it is stopping."""
+        process = self.processes.get((service, worker))
+        return process is not None and process.last is not None and (
+            process.last.state == ServiceState.STOPPING
+        )
 
     def totals(self, service: str, worker: str) -> HealthTotals:
         """Everything `service/worker` reported (empty if nothing)."""

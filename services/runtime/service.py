@@ -121,10 +121,12 @@ class Service:
         traceback: TracebackType | None,
     ) -> None:
         self._stop.set()
-        if self._token is not None:
-            self._token.undeclare()
+        # Stopping is said before the token goes, so the launcher reads the withdrawal as a
+        # stop, not as a hang (`hamnet.launcher.tokens`).
         if self._health is not None:
             self._publish_health(ServiceState.STOPPING)
+        if self._token is not None:
+            self._token.undeclare()
         if self.inbox is not None:
             self.inbox.close()
         for publisher in self._publishers.values():
