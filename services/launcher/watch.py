@@ -43,9 +43,7 @@ class Liveliness:
 
     def announced_since(self, service: str, worker: str, since: float) -> float | None:
         """time.monotonic() of the first token of `service/worker` seen at or after `since`."""
-        with self._lock:
-            times = self._announced.get((service, worker), [])
-            return next((t for t in times if t >= since), None)
+        return self._first_since(self._announced, service, worker, since)
 
     def withdrawn_at(self, service: str, worker: str, since: float) -> float | None:
         """time.monotonic() of the first withdrawal of `service/worker`'s token seen at or
@@ -54,9 +52,13 @@ class Liveliness:
         Zenoh withdraws a token when its session closes or loses every link
         (`hamnet.launcher.tokens` says what that means for a running process).
         """
+        return self._first_since(self._withdrawn, service, worker, since)
+
+    def _first_since(
+        self, seen: dict[tuple[str, str], list[float]], service: str, worker: str, since: float
+    ) -> float | None:
         with self._lock:
-            times = self._withdrawn.get((service, worker), [])
-            return next((t for t in times if t >= since), None)
+            return next((t for t in seen.get((service, worker), []) if t >= since), None)
 
     def announcements(self, service: str, worker: str) -> int:
         """How many times `service/worker` declared its token."""
@@ -128,9 +130,8 @@ class HealthBoard:
     def stopping(self, service: str, worker: str) -> bool:
         """Whether the latest report of `service/worker` says it is stopping."""
         process = self.processes.get((service, worker))
-        return process is not None and process.last is not None and (
-            process.last.state == ServiceState.STOPPING
-        )
+        last = process.last if process is not None else None
+        return last is not None and last.state == ServiceState.STOPPING
 
     def totals(self, service: str, worker: str) -> HealthTotals:
         """Everything `service/worker` reported (empty if nothing)."""
