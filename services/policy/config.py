@@ -30,29 +30,59 @@ float32; above e^2 (sigma 7.4) the noise swamps every action component's range."
 T = TypeVar("T")
 
 
+LogStdMode = Literal["learned", "schedule"]
+"""How the Gaussian actor's log std moves (`LogStdConfig.mode`)."""
+
+Initialization = Literal["orthogonal", "torch"]
+"""How the actor and critic networks start (`ModelConfig.init`)."""
+
+
 @dataclass(frozen=True)
 class LogStdConfig:
-    """The Gaussian actor's log standard deviation follows a schedule of env_transitions
-    (hamnet.runtime.counter), not the gradient. The authors' rule (ham/scripts/train.py:
-    563-570, buffer not trained: rss_train.yaml:544-546): log std -0.4 (rss_train.yaml:269),
-    minus 0.000367 after every vectorized step k with k % 1024 == 0 of 1024 environments,
-    with no floor; the paper's Table tab:PPO gives the same two numbers."""
+    """The Gaussian actor's log standard deviation, one per action component, the same in
+    every state. learned (default): a parameter the PPO loss trains from `initial`, as
+    CleanRL and rsl_rl do: the policy cuts its own noise where that pays, instead of pushing
+    its mean past the action bounds. schedule: a buffer following env_transitions
+    (hamnet.runtime.counter): the authors' rule (ham/scripts/train.py:563-570, not trained:
+    rss_train.yaml:544-546), log std -0.4 (rss_train.yaml:269) minus 0.000367 after every
+    vectorized step k with k % 1024 == 0 of 1024 environments, no floor (paper Table
+    tab:PPO: the same two numbers); with `horizon` > 0 the schedule runs linearly from
+    `initial` to `final` over that many transitions instead, so a short run can shrink its
+    noise within its own length (the authors' spans their 2e9)."""
 
-    initial: float = -0.4
-    """log sigma before any transition (same for every action component)."""
+    mode: LogStdMode = "learned"
+    initial: float = -0.5
+    """log sigma before any transition (same for every action component): -0.5 (std 0.61)
+    learned, as CleanRL's anchor run on the easy stage (issue 27); the authors' schedule
+    starts at -0.4 (preset `LOG_STD_AUTHORS`)."""
     decay: float = -0.000367
     """Added to log sigma once per `interval` (the paper's "log std. decay factor")."""
     interval: int = from_vectorized_steps(1024)
     """env_transitions per decay: 1024 vectorized steps of 1024 environments (train.py:564)."""
+    horizon: int = 0
+    """Schedule only: > 0, go linearly from `initial` to `final` over this many
+    env_transitions, then stay (`decay` and `interval` unused); 0: the authors' decay."""
+    final: float = -1.6
+    """Schedule with a horizon: log sigma at its end (std 0.2; ours)."""
 
     def __post_init__(self) -> None:
         low, high = LOG_STD_RANGE
-        if not low <= self.initial <= high:
-            raise ValueError(f"log_std.initial must be in [{low:g}, {high:g}], got {self.initial}")
+        for name in ("initial", "final"):
+            if not low <= getattr(self, name) <= high:
+                raise ValueError(f"log_std.{name} must be in [{low:g}, {high:g}], "
+                                 f"got {getattr(self, name)}")  # fmt: skip
+        if self.mode not in get_args(LogStdMode):
+            raise ValueError(f"log_std.mode must be one of {get_args(LogStdMode)}, got {self.mode!r}")
+        if self.horizon < 0:
+            raise ValueError(f"log_std.horizon must be >= 0, got {self.horizon}")
         if not math.isfinite(self.decay) or self.decay > 0.0:
             raise ValueError(f"decay must be <= 0 (the std shrinks), got {self.decay}")
         if self.interval < 1:
             raise ValueError(f"interval must be >= 1, got {self.interval}")
+
+
+LOG_STD_AUTHORS = LogStdConfig(mode="schedule", initial=-0.4)
+"""The authors' log-std schedule (see `LogStdConfig`)."""
 
 
 @dataclass(frozen=True)
@@ -117,8 +147,15 @@ class ModelConfig:
     num_values: int = len(REWARD_NAMES)
     """R, critic heads: one per reward term (REWARD_NAMES)."""
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
+    init: Initialization = "orthogonal"
+    """orthogonal: the actor's and critic's layers orthogonal (gain sqrt 2), biases 0, the
+    actor's output layer scaled to 0.01 and the critic's to 1 (CleanRL, rsl_rl): the mean
+    starts near 0 and one Adam step at 3e-4 moves the policy by KL 0.003 (0.09 at torch's
+    default, measured on the easy stage: issue 27). torch: PyTorch's defaults (the authors')."""
 
     def __post_init__(self) -> None:
+        if self.init not in get_args(Initialization):
+            raise ValueError(f"init must be one of {get_args(Initialization)}, got {self.init!r}")
         if self.scene_input not in get_args(SceneInput):
             raise ValueError(f"scene_input must be one of {get_args(SceneInput)}, "
                              f"got {self.scene_input!r}")  # fmt: skip

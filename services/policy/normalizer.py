@@ -6,7 +6,10 @@ with a running mean and variance per column, as the authors standardise observat
 the policy, so the weights the trainer publishes carry them and the policy service
 standardises exactly as training did. The trainer folds in each rollout's observations
 after its update, so acting and evaluating one rollout see the same statistics (PPO's
-ratio starts at 1). UniCORN tokens are left alone, as the authors leave their embeddings
+ratio starts at 1). Before any statistics every input reads 0, its standardised value at
+an unknown mean: raw inputs (object angular velocity reaches 16 rad/s) never enter the
+network, and the trainer's first iteration fills the statistics before any action is
+learned from (`Runner.iterate`). UniCORN tokens are left alone, as the authors leave their embeddings
 (`constlist`, rss_train.yaml:496-510). Standardised values are clipped to +-`clip`.
 """
 
@@ -36,9 +39,12 @@ class InputNormalizer(nn.Module):
         self.register_buffer("count", torch.zeros(()))
 
     def forward(self, observation: NetworkInputs) -> NetworkInputs:
-        """The observation standardised and clipped, group by group ((B, width) each)."""
+        """The observation standardised and clipped, group by group ((B, width) each); zeros
+        before any statistics."""
         if not self.count:
-            return observation
+            return dataclasses.replace(observation, **{
+                group: torch.zeros_like(getattr(observation, group)) for group in GROUPS
+            })  # fmt: skip
         changes = {}
         for group in GROUPS:
             mean, var = getattr(self, f"{group}_mean"), getattr(self, f"{group}_var")

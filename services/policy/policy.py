@@ -3,9 +3,10 @@ actor around it (PPO's act and evaluate) and the log-std schedule.
 
 The observation is standardised by running statistics that are buffers too
 (`normalizer.InputNormalizer`): the trainer updates them, the weights carry them.
-The log std is a buffer, not a parameter: it follows `log_std_at(env_transitions)`,
-is saved with the weights, so the service samples with the trainer's current std, and is
-the same for every environment. Shapes: B batch, A action components, R reward terms,
+The log std, the same for every state, is a parameter the PPO loss trains
+(`LogStdConfig.mode` learned) or a buffer that follows `log_std_at(env_transitions)`
+(schedule); either way it is saved with the weights, so the service samples with the
+trainer's current std. Shapes: B batch, A action components, R reward terms,
 L base-network layers, M modules, H recurrent memory.
 """
 
@@ -58,8 +59,12 @@ class Evaluation:
 
 
 def log_std_at(env_transitions: int, config: LogStdConfig) -> float:
-    """log sigma after `env_transitions` (hamnet.runtime.counter): one decay per started
-    interval, as the authors decay after vectorized steps 0, 1024, 2048, ... (train.py:569)."""
+    """log sigma after `env_transitions` (hamnet.runtime.counter) on the schedule: linear to
+    `final` over a `horizon`, or one decay per started interval, as the authors decay after
+    vectorized steps 0, 1024, 2048, ... (train.py:569)."""
+    if config.horizon:
+        done = min(env_transitions / config.horizon, 1.0)
+        return config.initial + (config.final - config.initial) * done
     decays = -(-int(env_transitions) // config.interval)  # ceil
     return config.initial + config.decay * decays
 
@@ -70,7 +75,11 @@ class Policy(nn.Module):
     def __init__(self, architecture: str, config: ModelConfig, network: nn.Module) -> None:
         super().__init__()
         self.architecture, self.config, self.network = architecture, config, network
-        self.register_buffer("log_std", torch.full((config.action_dim,), config.log_std.initial))
+        log_std = torch.full((config.action_dim,), config.log_std.initial)
+        if config.log_std.mode == "learned":
+            self.log_std = nn.Parameter(log_std)
+        else:
+            self.register_buffer("log_std", log_std)
         self.normalizer = InputNormalizer(config.observation)
         """Running statistics of the observation groups, saved with the weights."""
 
@@ -86,8 +95,20 @@ class Policy(nn.Module):
         return self.log_std.new_zeros(batch, self.memory_width)
 
     def set_env_transitions(self, env_transitions: int) -> None:
-        """Move the log std to its scheduled value at the trainer's counter."""
-        self.log_std.fill_(log_std_at(env_transitions, self.config.log_std))
+        """Move a scheduled log std to its value at the trainer's counter (a learned one
+        stays where training put it)."""
+        if self.config.log_std.mode == "schedule":
+            self.log_std.fill_(log_std_at(env_transitions, self.config.log_std))
+
+    def critic_parameters(self) -> list[nn.Parameter]:
+        """Parameters only the value loss reaches (the network's `critic`): the optimizer
+        may step them at their own rate (`hamnet.trainer.ppo.optimizer_for`)."""
+        return list(self.network.critic.parameters())
+
+    def actor_parameters(self) -> list[nn.Parameter]:
+        """Every other parameter: the actor's, the log std and what both heads share."""
+        critic = {id(p) for p in self.critic_parameters()}
+        return [p for p in self.parameters() if id(p) not in critic]
 
     def act(
         self, inputs: PolicyInputs, deterministic: bool = False, generator: torch.Generator | None = None
@@ -119,5 +140,5 @@ class Policy(nn.Module):
         return (-0.5 * z.square() - self.log_std - _LOG_SQRT_2PI).sum(dim=-1)
 
     def parameter_count(self) -> int:
-        """Trainable parameters (the log std is scheduled, not trained)."""
+        """Trainable parameters (a learned log std among them)."""
         return sum(p.numel() for p in self.parameters())

@@ -15,6 +15,7 @@ from torch import nn
 
 from hamnet.policy.baselines import HyperNetwork, MonolithicMLP, SoftModularization, StateMLP
 from hamnet.policy.config import ModelConfig
+from hamnet.policy.init import initialize
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import Policy
 
@@ -76,7 +77,10 @@ def build(name: str, config: ModelConfig | None = None, seed: int | None = None)
     config = entry.config if config is None else config
     if seed is not None:
         torch.manual_seed(seed)
-    return Policy(name, config, entry.network(config))
+    network = entry.network(config)
+    if config.init == "orthogonal":
+        initialize(network)
+    return Policy(name, config, network)
 
 
 def with_changes(name: str, **changes) -> ModelConfig:

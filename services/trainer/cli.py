@@ -76,9 +76,6 @@ class TrainerConfig:
     `--ppo.*`)."""
     inprocess: bool = False
     """Collect in this process (`hamnet.trainer.rollout`) instead of from rollout workers."""
-    workers: int = 1
-    """Rollout workers (`hamnet rollout`) whose chunks make one update, `--sim.num-envs`
-    environments each."""
     max_policy_lag: int = 0
     """Learn from chunks acted up to this many versions ago (rollout workers must say the
     same); 0: synchronous, on-policy."""
@@ -109,9 +106,9 @@ class TrainerConfig:
             raise ConfigError(f"--ranks must be >= 1, got {self.ranks}")
         if self.ranks > 1 and (self.inprocess or self.algorithm.algo != "ppo"):
             raise ConfigError("--ranks shards rollout workers: it needs PPO without --inprocess")
-        if self.workers % self.ranks:
+        if self.run.workers % self.ranks:
             raise ConfigError(
-                f"--workers {self.workers} must be a multiple of --ranks {self.ranks}"
+                f"--workers {self.run.workers} must be a multiple of --ranks {self.ranks}"
             )
         if not self.worker_timeout_s > 0:
             raise ConfigError(f"--worker-timeout-s must be > 0, got {self.worker_timeout_s}")
@@ -165,7 +162,7 @@ def main(argv: Sequence[str]) -> int:
 def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ranks) -> int:
     """Train as this learner rank; the main one then evaluates and writes the summary."""
     run = config.resumed_run
-    if config.workers % ranks.size or (ranks.size > 1 and config.inprocess):
+    if config.run.workers % ranks.size or (ranks.size > 1 and config.inprocess):
         print(f"hamnet trainer: {ranks.size} learner ranks need --workers a multiple of them "
               "and no --inprocess", file=sys.stderr)  # fmt: skip
         return 2
@@ -198,7 +195,7 @@ def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> R
     run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
         return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
-    runner = Runner(run, lambda policy: Streamed(service, policy, config.workers, run.num_envs,
+    runner = Runner(run, lambda policy: Streamed(service, policy, config.run.workers, run.num_envs,
                     config.max_policy_lag, ranks=ranks, worker_timeout_s=config.worker_timeout_s),
                     resume, ranks)  # fmt: skip
     if not ranks.main:

@@ -65,7 +65,7 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
 
 def distil_with(service: Service, config: TrainerConfig, teacher: Teacher) -> DaggerRunner:
     """Distil while publishing on `service`: in-process, or from the demonstrations of
-    `config.workers` rollout workers, whose chunks of another teacher are refused."""
+    `config.run.workers` rollout workers, whose chunks of another teacher are refused."""
     run, dagger = config.resumed_run, config.algorithm.dagger
     resume = config.resume is not None
     if config.inprocess:
@@ -73,7 +73,7 @@ def distil_with(service: Service, config: TrainerConfig, teacher: Teacher) -> Da
         return publish_while(service, runner, config.weights_period_s)
 
     def streamed(student: Policy) -> Streamed:
-        return Streamed(service, student, config.workers, run.num_envs, config.max_policy_lag,
+        return Streamed(service, student, config.run.workers, run.num_envs, config.max_policy_lag,
                         worker_timeout_s=config.worker_timeout_s,
                         decoder=demonstrations_decoder(teacher.sha256), topic=DEMONSTRATIONS)  # fmt: skip
 

@@ -137,7 +137,7 @@ class DaggerRunner(Runner):
         config, student = self.config, self.policy
         student.eval()
         collected = self.source.collect(
-            student, config.steps_per_rollout, self.env_transitions, self.version
+            student, config.rollout_steps, self.env_transitions, self.version
         )
         demos: Demonstrations = collected.rollout
         collect_done = time.perf_counter()

@@ -72,7 +72,7 @@ def evaluate(
     column = REWARD_NAMES.index("goal")
     while not ended.all():
         rollout = worker.collect(
-            policy, config.steps_per_rollout, env_transitions, deterministic=True
+            policy, config.rollout_steps, env_transitions, deterministic=True
         )
         steps = zip(
             rollout.dones.numpy(), rollout.success.numpy(), rollout.rewards.numpy(), strict=True

@@ -37,15 +37,21 @@ def normalize_advantages(
     return centred / (var.sum().sqrt() + eps)
 
 
-def policy_loss(log_prob: Tensor, old_log_prob: Tensor, advantages: Tensor, clip: float) -> Tensor:
+def policy_loss(
+    log_prob: Tensor, old_log_prob: Tensor, advantages: Tensor, clip: float, per_term: bool = False
+) -> Tensor:
     """Clipped surrogate (PPO, Schulman et al. 2017, Eq. 7), negated for minimisation.
 
     Args:
         log_prob, old_log_prob: (N,) log-densities of the taken actions, now and when acting.
         advantages: (N, R) per reward term; the actor maximises their sum.
         clip: the ratio's clip range epsilon.
+        per_term: clip each term's surrogate and sum them (the authors'); else clip the
+            surrogate of the summed advantage (textbook PPO). The two agree for one term.
     """
     ratio = torch.exp(log_prob - old_log_prob)[:, None]  # (N, 1)
+    if not per_term:
+        advantages = advantages.sum(dim=1, keepdim=True)  # (N, 1)
     surrogate = torch.minimum(ratio * advantages, ratio.clamp(1 - clip, 1 + clip) * advantages)
     return -surrogate.sum(dim=1).mean()
 

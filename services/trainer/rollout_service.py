@@ -102,7 +102,7 @@ class RolloutService:
             )
             if self.policy is None or not self.service.running:
                 continue
-            steps, started = self.config.steps_per_rollout, time.monotonic()
+            steps, started = self.config.rollout_steps, time.monotonic()
             collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
             self._send(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version

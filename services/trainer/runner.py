@@ -51,7 +51,7 @@ from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.gae import gae
 from hamnet.trainer.losses import energy_loss
 from hamnet.trainer.normalization import ReturnScaler
-from hamnet.trainer.ppo import Batch, UpdateStats, update
+from hamnet.trainer.ppo import Batch, UpdateStats, optimizer_for, update
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
@@ -83,9 +83,20 @@ class RunConfig:
     (`--sim.nthread`), scenes, placement, task and curriculum: the stage's, with any change."""
     architecture: str = "hamnet"
     """Policy architecture (`hamnet policy --print-params` lists them)."""
-    steps_per_rollout: int = 8
-    """T: policy steps per environment between two updates (the authors' `rollout_size: 8`,
-    rss_train.yaml:166; the paper's "update frequency 8")."""
+    workers: int = 1
+    """Rollout workers (`hamnet rollout`) whose chunks make one update, `--sim.num-envs`
+    environments each (1 in-process). Workers take the trainer's value: with
+    `--samples-per-update` it sets their rollout length."""
+    samples_per_update: int = 8192
+    """Env transitions each update learns from, T x environments x workers: the authors'
+    1024 environments x 8 steps (rss_train.yaml:10, 166). It sets T unless
+    `--steps-per-rollout` does: at 64 environments T = 128. Tied to the environment count
+    (64 x 8 = 512), two independent batches' actor gradients agree at cosine 0.01-0.03 and
+    each update spends its KL on noise (docs/trainer.md)."""
+    steps_per_rollout: int = 0
+    """T: policy steps per environment between two updates; 0: samples_per_update /
+    (environments x workers). The authors' `rollout_size: 8` (rss_train.yaml:166, the
+    paper's "update frequency 8") is their 8192 samples at 1024 environments."""
     max_env_transitions: int = 2_048_000_000
     """Stop after this many env_transitions (the authors' 2e6 vectorized steps of 1024)."""
     max_wall_clock_s: float = math.inf
@@ -111,9 +122,10 @@ class RunConfig:
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
-    """The actor's log-std schedule over env_transitions (default the authors': -0.4, minus
-    0.000367 per 1024 x 1024 transitions, which spans their 2e9; a run of a few million
-    transitions may shrink it faster). The weights carry it to every policy that acts."""
+    """The actor's log std: learned from -0.5 (default), or a schedule over env_transitions
+    (`--log-std.mode schedule`: the authors' -0.4 minus 0.000367 per 1024 x 1024
+    transitions, which spans their 2e9; `--log-std.horizon N` shrinks it to
+    `--log-std.final` within N transitions). The weights carry it to every policy that acts."""
 
     @property
     def overlapped(self) -> bool:
@@ -128,6 +140,13 @@ class RunConfig:
         return self.sim.num_envs
 
     @property
+    def rollout_steps(self) -> int:
+        """T of every rollout: `steps_per_rollout`, or derived from `samples_per_update`."""
+        if self.steps_per_rollout:
+            return self.steps_per_rollout
+        return max(1, self.samples_per_update // (self.num_envs * self.workers))
+
+    @property
     def seed(self) -> int:
         """Seed of the sim, the networks and the action noise (the sim's)."""
         return self.sim.seed
@@ -138,14 +157,14 @@ class RunConfig:
         environments and the rollout length (the PPO settings and budgets may change)."""
         return {
             "architecture": self.architecture, "sim": self.sim,
-            "steps_per_rollout": self.steps_per_rollout, "overlapped": self.overlapped,
+            "steps_per_rollout": self.rollout_steps, "overlapped": self.overlapped,
         }  # fmt: skip
 
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
             raise ValueError(f"unknown stage {self.stage!r}; stages: {', '.join(STAGES)}")
-        if self.steps_per_rollout < 1:
-            raise ValueError("steps_per_rollout must be >= 1")
+        if self.steps_per_rollout < 0 or self.samples_per_update < 1 or self.workers < 1:
+            raise ValueError("steps_per_rollout must be >= 0, samples_per_update and workers >= 1")
         if self.overlapped and self.num_envs % 2:
             raise ValueError("overlap splits the environments in two groups: num_envs must be even")
         if self.eval_episodes < 0:
@@ -334,7 +353,9 @@ class Runner:
         # After the source: every rank subscribes to its workers' chunks before the main one
         # announces the first weights.
         ranks.broadcast(self.policy)
-        self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
+        self.optimizer = optimizer_for(
+            self.policy.actor_parameters(), self.policy.critic_parameters(), config.ppo
+        )
         self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         """The energy loss of an action mean, read as the workers' safety profile reads it."""
         envs = self.source.num_envs * ranks.size  # every rank's: they see them all
@@ -361,24 +382,30 @@ class Runner:
         return self.iteration + 1
 
     def iterate(self) -> dict[str, float]:
-        """One rollout and one PPO update; returns that iteration's metrics."""
+        """One rollout and one PPO update; returns that iteration's metrics. A fresh run's
+        first rollout only fills the input statistics (its actions saw zeros), so every
+        action learned from saw standardised inputs."""
         started = time.perf_counter()
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
         collected = self.source.collect(
-            policy, config.steps_per_rollout, self.env_transitions, self.version
+            policy, config.rollout_steps, self.env_transitions, self.version
         )
         rollout = collected.rollout
         collect_done = time.perf_counter()
         whole = self.ranks.environments(rollout)
         self.tracker.add(whole, collected.envs)
-        stats = self.learn(rollout, whole, collected.envs)
+        if policy.normalizer.count:
+            stats = self.learn(rollout, whole, collected.envs)
+        else:
+            self.scaler_warm_up(whole, collected.envs)
+            stats = UpdateStats.none(self.optimizer.param_groups[0]["lr"])
         policy.normalizer.update(whole.inputs.observation)  # after: act and evaluate agreed
         transitions = whole.actions.shape[0] * whole.actions.shape[1]
         return {
             **self.advance(transitions, started, collect_done),
-            "log_std": float(policy.log_std.mean()),
+            "log_std": float(policy.log_std.detach().mean()),
             **dataclasses.asdict(stats),
             "policy_lag": collected.policy_lag,
             "dropped_rollouts": collected.dropped,
@@ -400,6 +427,11 @@ class Runner:
             "collect_s": collected - started,
             "learn_s": done - collected,
         }
+
+    def scaler_warm_up(self, whole: Rollout, envs: torch.Tensor | None) -> None:
+        """Fold a rollout that is not learned from into the reward scaler's statistics."""
+        for t in range(len(whole.rewards)):
+            self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
 
     def learn(
         self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
@@ -555,6 +587,7 @@ def progress_line(row: dict[str, float]) -> str:
         f"it {row['iteration']} | {row['env_transitions'] / 1e6:.2f}M transitions | "
         f"{row['env_steps_per_s']:.0f} env steps/s | success {row['success_rate']:.2f} over "
         f"{row['episodes']} episodes | return {row.get('return/total', math.nan):.3f} | "
-        f"kl {row['approx_kl']:.4f} | lr {row['learning_rate']:.1e} | log std {row['log_std']:.2f}"
+        f"kl {row['approx_kl']:.4f} | clip {row['clip_fraction']:.2f} | grad agreement "
+        f"{row['gradient_agreement']:.3f} | lr {row['learning_rate']:.1e} | log std {row['log_std']:.2f}"
         f"{workers_progress(row)}"
     )

@@ -41,3 +41,14 @@ def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs
         env_code=torch.randn(batch, config.env_code_dim, generator=g),
         memory=policy.initial_memory(batch),
     )
+
+
+def informed(name: str, seed: int = 0) -> Policy:
+    """A policy whose actions vary visibly with every input: PyTorch's initialization (an
+    orthogonally initialized actor starts near 0 everywhere) and input statistics (without
+    them every input reads 0)."""
+    from hamnet.policy.registry import build, with_changes  # the registry imports networks
+
+    policy = build(name, with_changes(name, init="torch"), seed=seed)
+    policy.normalizer.update(random_inputs(policy, 64, seed=seed + 100).observation)
+    return policy

@@ -8,7 +8,7 @@ import torch
 from hamnet.policy import inputs as builder
 from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.registry import build
-from tests.policy.inputs import random_robot
+from tests.policy.inputs import informed, random_robot
 
 B = 3
 
@@ -30,7 +30,7 @@ def test_new_episodes_zero_their_previous_action_and_memory_only() -> None:
 
 
 def test_the_previous_action_changes_the_next_action() -> None:
-    policy = build("hamnet", seed=0)
+    policy = informed("hamnet")
     carry = builder.initial_carry(policy, B)
     carry = builder.begin_step(carry, torch.zeros(B, dtype=torch.int64), torch.zeros(B))
     robot = random_robot(B)

@@ -12,12 +12,13 @@ import torch
 from torch.nn import functional as F
 
 from hamnet.policy import layers
+from hamnet.policy.config import LOG_STD_AUTHORS
 from hamnet.policy.layers import MLP, CrossAttention, ModularLinear, hidden_activation
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import ARCHITECTURES, build, with_changes
 from hamnet.sim.rewards import REWARD_NAMES
-from tests.policy.inputs import random_inputs
+from tests.policy.inputs import informed, random_inputs
 
 B = 4
 
@@ -101,7 +102,7 @@ def test_one_module_without_gates_is_a_plain_mlp() -> None:
 
 @pytest.mark.parametrize("name", ["hamnet", "sm", "student"])
 def test_gradients_reach_every_module(name: str) -> None:
-    policy = build(name, seed=0)
+    policy = informed(name)
     inputs = random_inputs(policy, 16)
     if policy.config.recurrent:  # from zero memory the recurrent weights get no gradient
         memory = policy.act(inputs).memory.detach()
@@ -145,14 +146,50 @@ def test_log_prob_and_entropy_match_torch_normal() -> None:
 
 def test_log_std_schedule_counts_env_transitions_as_the_authors_vectorized_steps() -> None:
     """One decay per started 1024 x 1024 transitions, no floor: about -1.12 after 2e9."""
-    config = ARCHITECTURES["hamnet"].config.log_std
+    config = LOG_STD_AUTHORS
     assert log_std_at(0, config) == -0.4
     assert math.isclose(log_std_at(1024, config), -0.4 - 0.000367)
     assert math.isclose(log_std_at(1000 * 2**20, config), -0.4 - 0.367)
     assert math.isclose(log_std_at(2_048_000_000, config), -0.4 - 1954 * 0.000367)
-    policy = build("hamnet")
+    policy = build("hamnet", with_changes("hamnet", log_std=config))
     policy.set_env_transitions(1000 * 2**20)
     torch.testing.assert_close(policy.log_std, torch.full((21,), -0.767))
+
+
+def test_a_schedule_with_a_horizon_reaches_its_final_value_within_the_run() -> None:
+    config = dataclasses.replace(LOG_STD_AUTHORS, horizon=1000, final=-1.4)
+    assert log_std_at(0, config) == -0.4
+    assert math.isclose(log_std_at(500, config), -0.9)
+    assert log_std_at(1000, config) == log_std_at(5000, config) == -1.4
+
+
+def test_a_learned_log_std_is_trained_by_the_loss_and_kept_by_the_counter() -> None:
+    """The default log std is a parameter: a loss that rewards a narrower Gaussian moves it,
+    and the schedule's counter leaves it alone."""
+    policy = build("state-mlp", seed=0)
+    assert isinstance(policy.log_std, torch.nn.Parameter)
+    inputs = random_inputs(policy, B, seed=0)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=0.01)
+    for _ in range(5):  # the likelihood of the mean itself grows as the std shrinks
+        means = policy.act(inputs, deterministic=True).action.detach()
+        optimizer.zero_grad()
+        (-policy.evaluate(inputs, means).log_prob.mean()).backward()
+        optimizer.step()
+    assert (policy.log_std < -0.5).all()
+    before = policy.log_std.detach().clone()
+    policy.set_env_transitions(10**9)
+    torch.testing.assert_close(policy.log_std.detach(), before)
+
+
+@pytest.mark.parametrize("name", ["state-mlp", "hamnet"])
+def test_orthogonal_initialization_starts_the_action_mean_near_zero(name: str) -> None:
+    """Actor output scaled to 0.01: the mean starts near 0 whatever the inputs (torch's
+    default initialization behind LayerNorm + tanh starts it at tenths)."""
+    inputs = random_inputs(build(name, seed=0), B, seed=1)
+    ours = build(name, seed=0).act(inputs, deterministic=True).action
+    torch_init = build(name, with_changes(name, init="torch"), seed=0)
+    theirs = torch_init.act(inputs, deterministic=True).action
+    assert ours.abs().max() < 0.05 < theirs.abs().max()
 
 
 def test_student_memory_carries_information_between_steps() -> None:

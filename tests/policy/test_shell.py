@@ -18,7 +18,7 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, to_tensor
 from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
-from tests.policy.inputs import random_robot
+from tests.policy.inputs import informed, random_robot
 from tests.policy.wire import announcement, scene_message, state_message, tokens_message
 from tests.scripted import ScriptedService, wire
 
@@ -205,7 +205,7 @@ def test_student_memory_restarts_with_each_episode() -> None:
 def test_a_student_against_the_sim_sees_a_noisy_pose_unless_told_otherwise() -> None:
     """The sim's true pose stands in for the estimator's: with the error model on (the
     default) the student's action differs from the one on the exact pose; off, it equals it."""
-    policy = build("student", seed=0)
+    policy = informed("student")
     messages = [("state", state_message(0, B)), ("tokens", tokens_message(0, B))]
     exact, _ = run(policy, messages)
     noisy, _ = run(policy, messages, pose_noise=True)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from hamnet.policy.registry import build
+from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import policy_from, read_checkpoint, save_checkpoint
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.cli import main
@@ -38,8 +38,10 @@ def tiny_run(run_dir: Path, iterations: int = 1, timeout: int = 300, seed: int =
 
 @pytest.fixture(scope="module")
 def teacher_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A random teacher at PyTorch's initialization, whose means differ from state to state
+    (an orthogonally initialized actor's start near 0, nothing to imitate)."""
     path = tmp_path_factory.mktemp("teacher") / "teacher.safetensors"
-    save_checkpoint(path, build("hamnet", seed=1), 7)
+    save_checkpoint(path, build("hamnet", with_changes("hamnet", init="torch"), seed=1), 7)
     return path
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 import torch
 
@@ -80,10 +82,15 @@ def test_learning_rate_adapts_to_the_kl_within_its_bounds() -> None:
 
 
 def test_presets_differ_only_in_the_loss_weights() -> None:
-    code, paper = PPO_PRESETS["code"], PPO_PRESETS["paper"]
+    code, paper = PPO_PRESETS["authors"], PPO_PRESETS["paper"]
     assert (code.policy_coef, code.value_coef) == (0.5, 2.0)
     assert (paper.policy_coef, paper.value_coef) == (2.0, 0.5)
+    assert dataclasses.replace(paper, policy_coef=0.5, value_coef=2.0) == code
     assert code.early_stop_factor * code.kl_target == pytest.approx(0.024)  # the paper's ES target
+    small = PPO_PRESETS["small-scale"]
+    assert small == PPOConfig()
+    assert (code.minibatches, code.kl_stop, code.value_lr, code.clip_per_term) == (
+        1, "before-step", None, True)  # fmt: skip
     with pytest.raises(ValueError, match="lr"):
         PPOConfig(lr=1.0)
 
@@ -138,3 +145,18 @@ def test_the_energy_term_reads_the_joint_velocities_of_the_base_observation() ->
                              object_velocity=torch.zeros(3, 6), physics_params=torch.zeros(3, spec.physics_params))  # fmt: skip
     base = assemble(robot, torch.zeros(3, 21), spec).base
     assert torch.equal(base[:, spec.columns("base", "robot_state")][:, 7:], robot.dq)
+
+
+def test_per_term_and_summed_clipping_agree_on_one_term_and_differ_when_terms_disagree() -> None:
+    """One term: the same loss. Two terms of opposite sign with a ratio past the clip: per
+    term, the negative term still pulls the ratio back, summed it does not."""
+    log_prob, old = torch.tensor([0.5, -0.1]), torch.zeros(2)
+    one = torch.tensor([[1.0], [-2.0]])
+    assert policy_loss(log_prob, old, one, 0.2, per_term=True) == policy_loss(log_prob, old, one, 0.2)
+    two = torch.tensor([[3.0, -1.0], [3.0, -1.0]])
+    ratio = torch.tensor([0.5, -0.1], requires_grad=True)
+    policy_loss(ratio, old, two, 0.2, per_term=True).backward()
+    per_term = ratio.grad.clone()
+    ratio.grad = None
+    policy_loss(ratio, old, two, 0.2).backward()
+    assert per_term[0] > 0 and ratio.grad[0] == 0  # clipped: the summed advantage stops pushing

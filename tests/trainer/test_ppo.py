@@ -9,9 +9,10 @@ import pytest
 import torch
 from torch import Tensor, nn
 
-from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.config import AUTHORS, PPOConfig
 from hamnet.trainer.gae import gae
-from hamnet.trainer.ppo import Batch, update
+from hamnet.trainer.losses import approx_kl
+from hamnet.trainer.ppo import Batch, optimizer_for, update
 from hamnet.trainer.trees import take_rows
 
 B, T, LOG_STD = 64, 4, math.log(0.3)
@@ -104,7 +105,7 @@ def test_the_first_minibatch_neither_stops_nor_moves_the_learning_rate() -> None
     with torch.no_grad():
         old_log_prob = model.evaluate(states, actions).log_prob - 1.0
     batch = Batch(states, actions, old_log_prob, torch.randn(32, 2), torch.randn(32, 2))
-    stats = update_tiny(model, optimizer, batch)
+    stats = update_tiny(model, optimizer, batch, config=AUTHORS)
     assert stats.early_stopped and stats.gradient_steps == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
     assert stats.learning_rate == pytest.approx(2e-4)
@@ -119,7 +120,7 @@ def test_a_policy_that_stays_close_keeps_raising_the_rate_from_the_second_step()
     with torch.no_grad():
         out = model.evaluate(states, actions)
     batch = Batch(states, actions, out.log_prob, torch.zeros(16, 2), out.values)
-    stats = update_tiny(model, optimizer, batch)
+    stats = update_tiny(model, optimizer, batch, config=AUTHORS)
     assert stats.gradient_steps == 8 and not stats.early_stopped
     assert stats.learning_rate == pytest.approx(1e-5 * 1.5**7)
 
@@ -163,3 +164,67 @@ def test_the_energy_term_enters_the_update_only_when_weighted() -> None:
             if coef
             else (after == before and stats.energy_loss == 0)
         )
+
+
+def overshooting_batch(model: TinyActorCritic) -> Batch:
+    """256 samples whose large advantages, at a rate of 0.03, move the policy past the KL
+    bound within an update."""
+    torch.manual_seed(3)
+    states = torch.rand(256, 2) * 2 - 1
+    with torch.no_grad():
+        mean = model.evaluate(states, torch.zeros(256, 2)).mean
+        actions = mean + math.exp(LOG_STD) * torch.randn(256, 2)
+        old = model.evaluate(states, actions).log_prob
+    advantages = rewards_of(states, actions)
+    return Batch(states, actions, old, advantages, torch.zeros(256, 2))
+
+
+def kl_after(model: TinyActorCritic, batch: Batch) -> float:
+    with torch.no_grad():
+        return float(approx_kl(model.evaluate(batch.inputs, batch.actions).log_prob,
+                               batch.old_log_prob))  # fmt: skip
+
+
+@pytest.mark.parametrize("kl_stop", ["rollback", "before-step"])
+def test_the_update_ends_within_the_kl_bound_only_when_it_undoes_the_step_past_it(kl_stop: str) -> None:
+    """The authors' check before each step keeps the step that overshoots (their updates
+    ended at 2-4x the bound); rollback measures each step's KL and undoes one past it."""
+    model = TinyActorCritic()
+    config = PPOConfig(minibatches=1, lr=0.03, lr_bounds=(1e-6, 0.1), kl_stop=kl_stop)
+    batch = overshooting_batch(model)
+    stats = update_tiny(model, torch.optim.Adam(model.parameters(), lr=0.03), batch, config=config)
+    bound = config.early_stop_factor * config.kl_target
+    assert stats.early_stopped and stats.gradient_steps >= 1
+    if kl_stop == "rollback":
+        assert kl_after(model, batch) <= bound
+        assert stats.approx_kl == pytest.approx(kl_after(model, batch), rel=1e-5)
+    else:
+        assert kl_after(model, batch) > bound
+
+
+def test_the_critic_goes_on_alone_at_its_own_rate_once_the_actor_stops() -> None:
+    """With its own param group the critic takes every remaining minibatch's step after the
+    actor stopped; the actor's parameters stay where the update left them."""
+    model = TinyActorCritic()
+    config = PPOConfig(minibatches=1, lr=0.03, lr_bounds=(1e-6, 0.1), value_lr=1e-3)
+    optimizer = optimizer_for(model.actor.parameters(), model.critic.parameters(), config)
+    batch = overshooting_batch(model)
+    stats = update_tiny(model, optimizer, batch, config=config)
+    assert stats.early_stopped
+    assert stats.gradient_steps + stats.value_steps + 1 == config.epochs  # one step undone
+    assert optimizer.param_groups[1]["lr"] == 1e-3  # not adapted to the actor's KL
+
+
+def test_gradient_agreement_is_one_when_the_two_halves_are_the_same_samples() -> None:
+    """The diagnostic compares the actor's gradients on the two halves of the first
+    minibatch: identical halves agree exactly, independent ones much less."""
+    model = TinyActorCritic()
+    half = overshooting_batch(model)
+    twice = Batch(*(torch.cat([x, x]) for x in (half.inputs, half.actions, half.old_log_prob,
+                                                 half.advantages, half.returns)))  # fmt: skip
+    config = PPOConfig(minibatches=1, epochs=1, normalize_advantages=False)
+    same = update_tiny(model, torch.optim.Adam(model.parameters()), twice, config=config)
+    assert same.gradient_agreement == pytest.approx(1.0, abs=1e-5)
+    fresh = TinyActorCritic()
+    other = update_tiny(fresh, torch.optim.Adam(fresh.parameters()), half, config=config)
+    assert -1.0 <= other.gradient_agreement < 0.999

@@ -15,7 +15,7 @@ import torch.multiprocessing as mp
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import NetworkInputs
 from hamnet.trainer import cli
-from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.config import AUTHORS
 from hamnet.trainer.ppo import Batch, UpdateStats, update
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.trajectory import Rollout, merge_environments
@@ -23,8 +23,10 @@ from tests.trainer.test_ppo import TinyActorCritic
 
 N, SIZE = 256, 2
 """Samples of the batch; ranks."""
-CONFIG = PPOConfig(lr=4e-3)
-"""A rate at which the policy moves enough to raise the rate and stop early at step 3."""
+CONFIG = dataclasses.replace(AUTHORS, lr=4e-3, kl_stop="rollback")
+"""The authors' update with a rate at which the policy moves enough to raise the rate and
+stop early (one minibatch: a single learner's permutation is not the ranks' union of
+theirs), its step past the bound undone."""
 
 
 def fixed_batch() -> Batch:

@@ -161,3 +161,41 @@ def test_the_held_out_goal_return_sums_the_first_episodes_goal_term() -> None:
     held_out = evaluate(policy, config, episodes=2, env_transitions=0)
     assert abs(held_out.goal_return) < 0.01
     assert held_out.success_rate == success_rate(policy, config, episodes=2, env_transitions=0)
+
+
+def test_a_fresh_run_fills_the_input_statistics_before_any_action_it_learns_from(
+    tmp_path: Path,
+) -> None:
+    """The first rollout (acted on zeros: no statistics yet) only fills the statistics; the
+    second, acted on standardised inputs, is the first one learned from."""
+    config = RunConfig(sim=tiny_sim(), architecture="state-mlp", steps_per_rollout=2,
+                       run_dir=tmp_path, max_env_transitions=8, eval_episodes=0)  # fmt: skip
+    runner = Runner(config)
+    before = [p.detach().clone() for p in runner.policy.parameters()]
+    first = runner.iterate()
+    assert runner.policy.normalizer.count == B * 2 and first["gradient_steps"] == 0
+    assert all(torch.equal(a, b) for a, b in zip(before, runner.policy.parameters(), strict=True))
+    second = runner.iterate()
+    assert second["gradient_steps"] >= 1 and runner.policy.normalizer.count == 2 * B * 2
+
+
+def test_the_samples_per_update_set_the_rollout_length_whatever_the_environment_count() -> None:
+    """T x environments x workers stays the authors' 8192 samples per update."""
+    for envs, workers in ((64, 1), (16, 1), (16, 2), (128, 4)):
+        sim = stage_config("easy", num_envs=envs)
+        config = RunConfig(sim=sim, workers=workers)
+        assert config.rollout_steps * envs * workers == 8192
+    explicit = RunConfig(sim=tiny_sim(), steps_per_rollout=3)
+    assert explicit.rollout_steps == 3 and explicit.identity["steps_per_rollout"] == 3
+
+
+def test_the_runner_learns_the_critic_at_its_own_rate(tmp_path: Path) -> None:
+    """The optimizer's second param group is the critic's, at `value_lr`."""
+    config = RunConfig(sim=tiny_sim(), architecture="state-mlp", steps_per_rollout=2,
+                       run_dir=tmp_path, eval_episodes=0)  # fmt: skip
+    runner = Runner(config)
+    critic = {id(p) for p in runner.policy.network.critic.parameters()}
+    groups = runner.optimizer.param_groups
+    assert {id(p) for p in groups[1]["params"]} == critic
+    assert groups[1]["lr"] == config.ppo.value_lr
+    assert any(p is runner.policy.log_std for p in groups[0]["params"])  # learned by default
