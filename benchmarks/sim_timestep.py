@@ -4,7 +4,9 @@ and integrator over the questions that decide it.
 Consumes the project's FR3 model; produces four tables and one JSON line:
 - impedance loop: worst joint error over the last 0.5 s of a 3 s, 0.2 rad step, for the
   extreme gains, nominal armature and the low end of its per-episode randomization
-  (`robot.JointDynamicsRandomization`), torque recomputed every step or held for 80 Hz;
+  (`robot.JointDynamicsRandomization`), with the identified joint friction and with none
+  (the floor of the compensated arm's, the sim's default), torque recomputed every step or
+  held for 80 Hz;
 - box drop: speed and penetration of a 5 cm box 1.5 s after falling onto a table;
 - paddle sweep: a 5 cm box swept by the paddle at about 1.2 m/s, final position against a
   0.2 ms reference and peak box speed (an ejected box shows up as metres and m/s);
@@ -50,11 +52,15 @@ def scene(timestep: float, integrator: int, box_pos: list[float], top: float) ->
     return spec.compile()
 
 
-def step_error(timestep: float, kp: float, rho: float, armature: float, hold: int) -> float:
-    """Worst joint error (rad) over the last 0.5 s of a 3 s, 0.2 rad step on every joint."""
+def step_error(
+    timestep: float, kp: float, rho: float, armature: float, friction: float, hold: int
+) -> float:
+    """Worst joint error (rad) over the last 0.5 s of a 3 s, 0.2 rad step on every joint,
+    with the model file's armature and Coulomb friction scaled by `armature`, `friction`."""
     model = fr3_model.load_mujoco()
     model.opt.timestep = timestep
     model.dof_armature[:] *= armature
+    model.dof_frictionloss[:] *= friction
     data = mujoco.MjData(model)
     data.qpos[:] = Q_HOME
     q_ref = Q_HOME + 0.2
@@ -111,17 +117,20 @@ def main(timesteps: tuple[float, ...], integrators: dict[str, int]) -> dict:
     implicit = INTEGRATORS["implicitfast"]
     print("impedance step: worst error in the last 0.5 s (rad), kp=200")
     loop = {}
-    for armature in (1.0, JointDynamicsRandomization().armature[0]):
-        for timestep in timesteps:
-            row = {
-                f"rho={rho} {'80Hz' if hold > 1 else 'every step'}": step_error(
-                    timestep, 200.0, rho, armature, hold
-                )
-                for rho in (0.3, 2.0)
-                for hold in (1, max(1, round(0.0125 / timestep)))
-            }
-            loop[f"armature x{armature} dt={timestep * 1e3:g}ms"] = row
-            print(f"  armature x{armature} dt={timestep * 1e3:g} ms", row)
+    ranges = JointDynamicsRandomization()
+    for friction in (1.0, ranges.friction_scale[0]):
+        for armature in (1.0, ranges.armature[0]):
+            for timestep in timesteps:
+                row = {
+                    f"rho={rho} {'80Hz' if hold > 1 else 'every step'}": step_error(
+                        timestep, 200.0, rho, armature, friction, hold
+                    )
+                    for rho in (0.3, 2.0)
+                    for hold in (1, max(1, round(0.0125 / timestep)))
+                }
+                name = f"friction x{friction:g} armature x{armature} dt={timestep * 1e3:g}ms"
+                loop[name] = row
+                print(f"  {name}", row)
     print("box drop after 1.5 s")
     drops = {f"{t * 1e3:g}ms": box_drop(t, implicit) for t in timesteps}
     for name, result in drops.items():

@@ -13,7 +13,11 @@ reference it was holding then; a table, then one JSON line; `--out` writes the J
 
 Our sim executes a command as `VectorEnv.step` does (`BatchPhysics.set_gains` and `step`),
 without episodes: the arm alone, every contact other than the arm's own pairs switched off
-(no table, no object), nominal joint dynamics (no randomization). The sim's physics step is
+(no table, no object), nominal joint dynamics (no randomization). Its joint friction is the
+identified one by default (`--friction-mode`): franky-sim's arm carries Menagerie's
+identified friction and adds only gravity to the commanded torques, so it stands for an FR3
+that does not compensate its own friction; the sim's training default, the compensated arm
+a real FR3 presents behind libfranka, differs from franky-sim by that. The sim's physics step is
 2.5 ms, so it follows the 1 kHz references by the sample in effect at the middle of each
 step (`at_physics_steps`). Both follow the same law, kp (q_ref - q) - kd dq on top of
 gravity compensation (the franky driver sends no reference velocity, for this reason).
@@ -42,6 +46,7 @@ from hamnet.safety.trajectory import TrajectoryConfig
 from hamnet.sim.env import Command
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
+from hamnet.sim.robot import JOINT_FRICTION, FrictionMode
 from hamnet.sim.world import build_world
 
 STALL_S = 5.0
@@ -63,6 +68,9 @@ class GapConfig:
     """Policy period, s (the paper's 10 Hz); references at libfranka's 1 kHz."""
     action_std: float = 0.7
     """Standard deviation of the random actions before their clip to [-1, 1]."""
+    friction_mode: FrictionMode = "identified"
+    """Our sim's joint friction (`hamnet.sim.robot.JOINT_FRICTION`, nominal): identified, as
+    franky-sim's arm has it, or compensated, as the sim trains by default."""
     out: Path | None = None
     """Folder for bridge-gap.json and bridge-gap.png; nothing written when unset."""
 
@@ -71,6 +79,8 @@ class GapConfig:
             raise ConfigError(f"--steps must be >= 1, got {self.steps}")
         if not self.action_std > 0.0:
             raise ConfigError("--action-std must be > 0")
+        if self.friction_mode not in JOINT_FRICTION:
+            raise ConfigError(f"--friction-mode: no mode {self.friction_mode!r}")
 
 
 @dataclass(frozen=True)
@@ -88,11 +98,13 @@ class Run:
 
 class ArmSim:
     """Our sim's arm alone: one environment of the sim's world and physics, contacts off
-    except the arm's own pairs."""
+    except the arm's own pairs, with the nominal joint friction of `friction_mode`."""
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, friction_mode: FrictionMode = "identified") -> None:
         self.world = world = build_world(ObjectSet.procedural(1, seed))
         self.physics = BatchPhysics(world, 1, nthread=1)
+        nominal = np.array([[1.0, 1.0, JOINT_FRICTION[friction_mode].nominal]])  # (1, 3)
+        self.physics.set_joint_dynamics(np.array([0]), nominal)
         others = np.setdiff1d(np.arange(world.model.ngeom), self.physics.robot_geoms)
         self.physics.fields["geom_contype"][:, others] = 0
         self.physics.fields["geom_conaffinity"][:, others] = 0
@@ -140,7 +152,7 @@ def at_physics_steps(q_ref: np.ndarray, sample_period_s: float, timestep: float)
 
 def plan(q0: np.ndarray, config: GapConfig) -> Run:
     """Random actions through the safety filter, closed-loop on our sim from q0 (J,)."""
-    sim = ArmSim(config.seed)
+    sim = ArmSim(config.seed, config.friction_mode)
     sim.reset(q0)
     trajectory = TrajectoryConfig(
         control_rate_hz=1.0 / CONTROL_PERIOD_S, policy_period_s=config.policy_period_s

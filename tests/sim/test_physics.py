@@ -194,7 +194,7 @@ def test_episodes_report_their_joint_dynamics_factors() -> None:
     for name, field, bounds in (
         ("joint_armature_scale", "dof_armature", ranges.armature),
         ("joint_damping_scale", "dof_damping", ranges.damping),
-        ("joint_friction_scale", "dof_frictionloss", ranges.friction),
+        ("joint_friction_scale", "dof_frictionloss", ranges.friction_scale),
     ):
         assert ((params[name] >= bounds[0]) & (params[name] <= bounds[1])).all()
         assert np.ptp(params[name]) > 0.05
