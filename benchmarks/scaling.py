@@ -71,7 +71,7 @@ def rate(config: RunConfig, workers: int, iterations: int, tls_dir: Path | None)
                                 tls_dir=tls_dir)  # fmt: skip
     secure = [] if tls_dir is None else ["--tls-dir", str(tls_dir)]
     run = ["--architecture", config.architecture, "--sim.num-envs", str(config.num_envs),
-           "--sim.nthread", "1", "--steps-per-rollout", str(config.steps_per_rollout)]  # fmt: skip
+           "--sim.nthread", "1", "--steps-per-rollout", str(config.rollout_steps)]  # fmt: skip
     if config.random_encoder:
         run.append("--random-encoder")
     processes = [spawn(["router", "--listen", endpoint, "--namespace", client.namespace, *secure])]
@@ -87,7 +87,7 @@ def rate(config: RunConfig, workers: int, iterations: int, tls_dir: Path | None)
             elapsed = time.perf_counter() - started
     finally:
         stop(processes)
-    steps = iterations * workers * config.num_envs * config.steps_per_rollout
+    steps = iterations * workers * config.num_envs * config.rollout_steps
     learning = sum(row["learn_s"] for row in rows)
     return {"env_steps_per_s": steps / elapsed, "learner_share": learning / elapsed}
 
@@ -119,7 +119,7 @@ def main() -> dict:
     architecture = args.architecture or ("state-mlp" if args.quick else "hamnet")
     with TemporaryDirectory() as scratch:
         config = RunConfig(sim=stage_config("easy", num_envs=args.num_envs, nthread=1),
-                           architecture=architecture, random_encoder=True,
+                           architecture=architecture, random_encoder=True, steps_per_rollout=8,
                            run_dir=Path(scratch) / "run", eval_episodes=0)  # fmt: skip
         plain = {}
         for workers in WORKERS:
@@ -141,7 +141,7 @@ def main() -> dict:
         **header("scaling", args.quick),
         "architecture": architecture,
         "num_envs_per_worker": args.num_envs,
-        "steps_per_rollout": config.steps_per_rollout,
+        "steps_per_rollout": config.rollout_steps,
         "iterations": iterations,
         "env_steps_per_s": {str(w): round(r["env_steps_per_s"], 1) for w, r in plain.items()},
         "learner_share": {str(w): round(r["learner_share"], 3) for w, r in plain.items()},

@@ -54,6 +54,10 @@ from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
 from hamnet.trainer.stream import Streamed
 
+BENCH_STEPS = 8
+"""T of the benchmark's iterations (the authors' rollout length): short iterations keep
+`--quick` under a minute; the rate per sample does not depend on T (the learner's cost is
+epochs x samples either way)."""
 CHAIN_LAG = 8
 """Versions a chain's chunk may lag the trainer (as tests/stack/test_chain_rollouts.py)."""
 
@@ -78,7 +82,7 @@ def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
     started = time.perf_counter()
     for _ in range(iterations):
         runner.iterate()
-    steps = iterations * config.num_envs * config.steps_per_rollout
+    steps = iterations * config.num_envs * config.rollout_steps
     return steps / (time.perf_counter() - started), runner
 
 
@@ -99,7 +103,7 @@ def remote_rate(
     processes = [spawn(command, transport) for command in commands]
     try:
         with Service(ServiceIdentity("trainer", "bench"), transport) as service:
-            config = RunConfig(sim=sim, run_dir=run_dir)
+            config = RunConfig(sim=sim, run_dir=run_dir, steps_per_rollout=BENCH_STEPS)
             runner = Runner(config, lambda policy: Streamed(
                 service, policy, workers, sim.num_envs, max_policy_lag))  # fmt: skip
             timer = None if deadline_s is None else threading.Timer(deadline_s, service.stop)
@@ -115,7 +119,7 @@ def remote_rate(
             started = time.perf_counter()
             for _ in range(iterations):
                 runner.iterate()
-            steps = iterations * workers * sim.num_envs * config.steps_per_rollout
+            steps = iterations * workers * sim.num_envs * config.rollout_steps
             return steps / (time.perf_counter() - started)
     finally:
         stop(processes)
@@ -125,8 +129,8 @@ def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) 
     """Env steps/s of the loop learning from `workers` rollout worker processes of
     `sim.num_envs / workers` environments each, after one warm-up iteration."""
     each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
-    commands = [["rollout", "--worker", str(k), "--sim.num-envs", str(each.num_envs)]
-                for k in range(workers)]  # fmt: skip
+    commands = [["rollout", "--worker", str(k), "--sim.num-envs", str(each.num_envs),
+                 "--steps-per-rollout", str(BENCH_STEPS)] for k in range(workers)]  # fmt: skip
     rate = remote_rate(each, commands, workers, 0, iterations, run_dir)
     assert rate is not None  # no deadline
     return rate
@@ -135,7 +139,7 @@ def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) 
 def chain_rate(sim: SimConfig, iterations: int, run_dir: Path, deadline_s: float) -> float | None:
     """Env steps/s of the loop learning from the service chain's chunks (None: no update
     within `deadline_s`)."""
-    horizon = str(RunConfig().steps_per_rollout)
+    horizon = str(BENCH_STEPS)
     commands = [
         ["sim", "--stage", "easy", "--num-envs", str(sim.num_envs)],
         ["perception"],
@@ -203,10 +207,11 @@ def main() -> dict:
     worker_counts = (1,) if args.quick else (1, 2)
     with TemporaryDirectory() as run_dir:
         sim = stage_config("easy", num_envs=num_envs)
-        config = RunConfig(sim=sim, run_dir=Path(run_dir))
+        config = RunConfig(sim=sim, run_dir=Path(run_dir), steps_per_rollout=BENCH_STEPS)
         inprocess, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
-        sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False)
+        sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False,
+                                      steps_per_rollout=BENCH_STEPS)
         sequential, runner = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
         shares = component_shares(runner, iterations)

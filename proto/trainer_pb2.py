@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from hamnet.proto import common_pb2 as hamnet_dot_proto_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1ahamnet/proto/trainer.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\xaf\x01\n\x13WeightsAnnouncement\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07version\x18\x02 \x01(\x04\x12\x14\n\x0c\x61rchitecture\x18\x03 \x01(\t\x12\x13\n\x0b\x63onfig_json\x18\x04 \x01(\t\x12\x13\n\x0bsafetensors\x18\x05 \x01(\x0c\x12\x0e\n\x06sha256\x18\x06 \x01(\t\x12\x17\n\x0f\x65nv_transitions\x18\x07 \x01(\x04\"Q\n\x08Schedule\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x17\n\x0f\x65nv_transitions\x18\x02 \x01(\x04J\x04\x08\x03\x10\x04R\x06values\"\x9b\x01\n\x07Metrics\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x11\n\titeration\x18\x02 \x01(\x04\x12-\n\x07scalars\x18\x03 \x03(\x0b\x32\x1c.hamnet.Metrics.ScalarsEntry\x1a.\n\x0cScalarsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"\xcb\x01\n\x0cRolloutChunk\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07horizon\x18\x02 \x01(\r\x12\x32\n\x07tensors\x18\x03 \x03(\x0b\x32!.hamnet.RolloutChunk.TensorsEntry\x12\x16\n\x0eteacher_sha256\x18\x04 \x01(\t\x1a>\n\x0cTensorsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x1d\n\x05value\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor:\x02\x38\x01\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1ahamnet/proto/trainer.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\xc6\x01\n\x13WeightsAnnouncement\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07version\x18\x02 \x01(\x04\x12\x14\n\x0c\x61rchitecture\x18\x03 \x01(\t\x12\x13\n\x0b\x63onfig_json\x18\x04 \x01(\t\x12\x13\n\x0bsafetensors\x18\x05 \x01(\x0c\x12\x0e\n\x06sha256\x18\x06 \x01(\t\x12\x17\n\x0f\x65nv_transitions\x18\x07 \x01(\x04\x12\x15\n\rrollout_steps\x18\x08 \x01(\r\"Q\n\x08Schedule\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x17\n\x0f\x65nv_transitions\x18\x02 \x01(\x04J\x04\x08\x03\x10\x04R\x06values\"\x9b\x01\n\x07Metrics\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x11\n\titeration\x18\x02 \x01(\x04\x12-\n\x07scalars\x18\x03 \x03(\x0b\x32\x1c.hamnet.Metrics.ScalarsEntry\x1a.\n\x0cScalarsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"\xcb\x01\n\x0cRolloutChunk\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12\x0f\n\x07horizon\x18\x02 \x01(\r\x12\x32\n\x07tensors\x18\x03 \x03(\x0b\x32!.hamnet.RolloutChunk.TensorsEntry\x12\x16\n\x0eteacher_sha256\x18\x04 \x01(\t\x1a>\n\x0cTensorsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x1d\n\x05value\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor:\x02\x38\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -37,15 +37,15 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_ROLLOUTCHUNK_TENSORSENTRY']._loaded_options = None
   _globals['_ROLLOUTCHUNK_TENSORSENTRY']._serialized_options = b'8\001'
   _globals['_WEIGHTSANNOUNCEMENT']._serialized_start=66
-  _globals['_WEIGHTSANNOUNCEMENT']._serialized_end=241
-  _globals['_SCHEDULE']._serialized_start=243
-  _globals['_SCHEDULE']._serialized_end=324
-  _globals['_METRICS']._serialized_start=327
-  _globals['_METRICS']._serialized_end=482
-  _globals['_METRICS_SCALARSENTRY']._serialized_start=436
-  _globals['_METRICS_SCALARSENTRY']._serialized_end=482
-  _globals['_ROLLOUTCHUNK']._serialized_start=485
-  _globals['_ROLLOUTCHUNK']._serialized_end=688
-  _globals['_ROLLOUTCHUNK_TENSORSENTRY']._serialized_start=626
-  _globals['_ROLLOUTCHUNK_TENSORSENTRY']._serialized_end=688
+  _globals['_WEIGHTSANNOUNCEMENT']._serialized_end=264
+  _globals['_SCHEDULE']._serialized_start=266
+  _globals['_SCHEDULE']._serialized_end=347
+  _globals['_METRICS']._serialized_start=350
+  _globals['_METRICS']._serialized_end=505
+  _globals['_METRICS_SCALARSENTRY']._serialized_start=459
+  _globals['_METRICS_SCALARSENTRY']._serialized_end=505
+  _globals['_ROLLOUTCHUNK']._serialized_start=508
+  _globals['_ROLLOUTCHUNK']._serialized_end=711
+  _globals['_ROLLOUTCHUNK_TENSORSENTRY']._serialized_start=649
+  _globals['_ROLLOUTCHUNK_TENSORSENTRY']._serialized_end=711
 # @@protoc_insertion_point(module_scope)

@@ -8,7 +8,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class WeightsAnnouncement(_message.Message):
-    __slots__ = ("header", "version", "architecture", "config_json", "safetensors", "sha256", "env_transitions")
+    __slots__ = ("header", "version", "architecture", "config_json", "safetensors", "sha256", "env_transitions", "rollout_steps")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     VERSION_FIELD_NUMBER: _ClassVar[int]
     ARCHITECTURE_FIELD_NUMBER: _ClassVar[int]
@@ -16,6 +16,7 @@ class WeightsAnnouncement(_message.Message):
     SAFETENSORS_FIELD_NUMBER: _ClassVar[int]
     SHA256_FIELD_NUMBER: _ClassVar[int]
     ENV_TRANSITIONS_FIELD_NUMBER: _ClassVar[int]
+    ROLLOUT_STEPS_FIELD_NUMBER: _ClassVar[int]
     header: _common_pb2.Header
     version: int
     architecture: str
@@ -23,7 +24,8 @@ class WeightsAnnouncement(_message.Message):
     safetensors: bytes
     sha256: str
     env_transitions: int
-    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., version: _Optional[int] = ..., architecture: _Optional[str] = ..., config_json: _Optional[str] = ..., safetensors: _Optional[bytes] = ..., sha256: _Optional[str] = ..., env_transitions: _Optional[int] = ...) -> None: ...
+    rollout_steps: int
+    def __init__(self, header: _Optional[_Union[_common_pb2.Header, _Mapping]] = ..., version: _Optional[int] = ..., architecture: _Optional[str] = ..., config_json: _Optional[str] = ..., safetensors: _Optional[bytes] = ..., sha256: _Optional[str] = ..., env_transitions: _Optional[int] = ..., rollout_steps: _Optional[int] = ...) -> None: ...
 
 class Schedule(_message.Message):
     __slots__ = ("header", "env_transitions")

@@ -1,8 +1,9 @@
 """A rollout worker's loop (`hamnet rollout`): act with the trainer's newest weights in B
 in-process environments and stream each rollout as a RolloutChunk.
 
-Consumes `trainer/weights` (WeightsAnnouncement: the weights, their version and the schedule
-counter they act at); produces `trainer/<w>/rollout` (RolloutChunk, header.policy_version =
+Consumes `trainer/weights` (WeightsAnnouncement: the weights, their version, the schedule
+counter they act at and the rollout length the trainer learns from, which the worker acts
+whatever its own `--steps-per-rollout`); produces `trainer/<w>/rollout` (RolloutChunk, header.policy_version =
 the version that acted). The cores are the in-process trainer's (`InProcess`: VectorEnv,
 Perception, the policy's input builder, the safety filter's training profile), so a worker
 collects exactly what `hamnet trainer --inprocess` would. Worker k's environments are seeded
@@ -89,6 +90,8 @@ class RolloutService:
         self.acted = 0
         """Version that acted in the last chunk sent (0: none sent)."""
         self.env_transitions = 0
+        self.rollout_steps = 0
+        """T the trainer asked for in its newest announcement (0: none; the run's own)."""
         self.sent = self.rejected = 0
 
     def run(self) -> None:
@@ -102,7 +105,7 @@ class RolloutService:
             )
             if self.policy is None or not self.service.running:
                 continue
-            steps, started = self.config.rollout_steps, time.monotonic()
+            steps, started = self.rollout_steps or self.config.rollout_steps, time.monotonic()
             collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
             self._send(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
@@ -170,3 +173,4 @@ class RolloutService:
             )
             return
         self.version, self.env_transitions = message.version, message.env_transitions
+        self.rollout_steps = message.rollout_steps

@@ -36,7 +36,7 @@ from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
-from hamnet.policy.config import LogStdConfig
+from hamnet.policy.config import Initialization, LogStdConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture, build, with_changes
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
@@ -85,8 +85,8 @@ class RunConfig:
     """Policy architecture (`hamnet policy --print-params` lists them)."""
     workers: int = 1
     """Rollout workers (`hamnet rollout`) whose chunks make one update, `--sim.num-envs`
-    environments each (1 in-process). Workers take the trainer's value: with
-    `--samples-per-update` it sets their rollout length."""
+    environments each (1 in-process). A trainer's own: its workers act as many steps as its
+    announcements ask (`WeightsAnnouncement.rollout_steps`)."""
     samples_per_update: int = 8192
     """Env transitions each update learns from, T x environments x workers: the authors'
     1024 environments x 8 steps (rss_train.yaml:10, 166). It sets T unless
@@ -121,6 +121,9 @@ class RunConfig:
     eval_episodes: int = 64
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
+    init: Initialization = "orthogonal"
+    """How the actor and critic start: orthogonal (output layers 0.01 and 1) or torch's
+    default, the authors' (`hamnet.policy.init`)."""
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
     """The actor's log std: learned from -0.5 (default), or a schedule over env_transitions
     (`--log-std.mode schedule`: the authors' -0.4 minus 0.000367 per 1024 x 1024
@@ -346,7 +349,7 @@ class Runner:
         torch.set_num_threads(1)
         self.policy = build(
             config.architecture,
-            with_changes(config.architecture, log_std=config.log_std),
+            with_changes(config.architecture, log_std=config.log_std, init=config.init),
             config.seed,
         )
         self.source = InProcess(config) if source is None else source(self.policy)

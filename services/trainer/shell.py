@@ -27,14 +27,18 @@ SCHEDULE = contract.topic("trainer/schedule")
 METRICS = contract.topic("trainer/metrics")
 
 
-def encode_weights(policy: Policy, version: int, env_transitions: int) -> WeightsAnnouncement:
+def encode_weights(
+    policy: Policy, version: int, env_transitions: int, rollout_steps: int = 0
+) -> WeightsAnnouncement:
     """WeightsAnnouncement of `policy` as `version` (header.step = the version), acting at
-    the schedule counter `env_transitions`."""
+    the schedule counter `env_transitions`, for rollouts of `rollout_steps` steps (0: none
+    asked for)."""
     data = to_bytes(policy, version)
     return WeightsAnnouncement(
         header=Header(step=version, policy_version=version), version=version,
         architecture=policy.architecture, config_json=policy.config.to_json(),
         safetensors=data, sha256=sha256(data), env_transitions=int(env_transitions),
+        rollout_steps=rollout_steps,
     )  # fmt: skip
 
 

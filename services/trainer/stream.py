@@ -114,7 +114,7 @@ class Streamed:
     def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
         """Announce `policy` as `version`, then wait for a fitting chunk from each worker the
         iteration waits for (`Roster`), and learn from those queued."""
-        announcement = encode_weights(policy, version, env_transitions)
+        announcement = encode_weights(policy, version, env_transitions, steps)
         if self.weights is not None:
             self.weights.put(announcement)
         announced = waiting_since = time.monotonic()

@@ -92,8 +92,11 @@ def test_a_streamed_run_equals_the_in_process_run(
 def test_two_workers_make_one_update_of_both_environments(
     spawn, transport: TransportConfig, tmp_path
 ) -> None:
+    """The workers are not told the rollout length (on their own they would act 8192 / B
+    steps): they act the T the trainer's announcements ask for."""
+    own = RUN[: RUN.index("--steps-per-rollout")]
     for worker in ("0", "1"):
-        spawn("rollout", "--worker", worker, *RUN, *transport_args(transport))
+        spawn("rollout", "--worker", worker, *own, *transport_args(transport))
     finish(
         trainer(
             spawn,

@@ -89,8 +89,8 @@ def test_presets_differ_only_in_the_loss_weights() -> None:
     assert code.early_stop_factor * code.kl_target == pytest.approx(0.024)  # the paper's ES target
     small = PPO_PRESETS["small-scale"]
     assert small == PPOConfig()
-    assert (code.minibatches, code.kl_stop, code.value_lr, code.clip_per_term) == (
-        1, "before-step", None, True)  # fmt: skip
+    assert (code.minibatches, code.kl_stop, code.lr_schedule, code.value_lr, code.clip_per_term) == (
+        1, "before-step", "adaptive", None, True)  # fmt: skip
     with pytest.raises(ValueError, match="lr"):
         PPOConfig(lr=1.0)
 
