@@ -207,7 +207,7 @@ def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> R
 def publish_while(service: Service, runner: Runner, weights_period_s: float) -> Runner:
     """Run `runner` while `service` runs, publishing its weights (every `weights_period_s`
     and at the end), counter and metrics."""
-    publisher = TrainerPublisher(service, weights_period_s)
+    publisher = TrainerPublisher(service, weights_period_s, runner.config.rollout_steps)
     runner.run(lambda row: publisher.publish(runner.policy, row), lambda: service.running)
     if runner.last_row:
         publisher.publish(runner.policy, runner.last_row, final=True)

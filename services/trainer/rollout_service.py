@@ -91,7 +91,7 @@ class RolloutService:
         """Version that acted in the last chunk sent (0: none sent)."""
         self.env_transitions = 0
         self.rollout_steps = 0
-        """T the trainer asked for in its newest announcement (0: none; the run's own)."""
+        """T the trainer's announcements ask for (0: none has; the run's own)."""
         self.sent = self.rejected = 0
 
     def run(self) -> None:
@@ -173,4 +173,4 @@ class RolloutService:
             )
             return
         self.version, self.env_transitions = message.version, message.env_transitions
-        self.rollout_steps = message.rollout_steps
+        self.rollout_steps = message.rollout_steps or self.rollout_steps

@@ -54,8 +54,12 @@ def encode_metrics(row: Mapping[str, object], iteration: int) -> Metrics:
 class TrainerPublisher:
     """Publishes a run's weights, counter and metrics from its iterations."""
 
-    def __init__(self, service: Service, weights_period_s: float = 10.0) -> None:
+    def __init__(
+        self, service: Service, weights_period_s: float = 10.0, rollout_steps: int = 0
+    ) -> None:
+        """`rollout_steps`: the run's T, which its announcements ask rollout workers to act."""
         ns = service.namespace
+        self.rollout_steps = rollout_steps
         self.weights = service.publisher(WEIGHTS.key(ns))
         self.schedule = service.publisher(SCHEDULE.key(ns))
         self.metrics = service.publisher(METRICS.key(ns))
@@ -66,7 +70,8 @@ class TrainerPublisher:
         """One iteration's messages; the weights (version: updates + 1) when due (or `final`)."""
         iteration = int(row["iteration"])
         if final or time.monotonic() - self._last_weights >= self.weights_period_s:
-            self.weights.put(encode_weights(policy, iteration + 1, int(row["env_transitions"])))
+            self.weights.put(encode_weights(policy, iteration + 1, int(row["env_transitions"]),
+                                            self.rollout_steps))  # fmt: skip
             self._last_weights = time.monotonic()
         self.schedule.put(encode_schedule(int(row["env_transitions"]), iteration))
         self.metrics.put(encode_metrics(row, iteration))
