@@ -40,7 +40,10 @@ pip=(.venv/bin/python -m pip --disable-pip-version-check -q)
 echo "==> installing PyTorch (${HAMNET_TORCH:-torch==2.13.0})"
 "${pip[@]}" install "${HAMNET_TORCH:-torch==2.13.0}"
 echo "==> installing hamnet and its dependencies"
-"${pip[@]}" install -e '.[dev]'
+# The reference extra (gymnasium, Stable-Baselines3: a few MB beside MuJoCo, which hamnet
+# already needs) lets `bash scripts/test.sh -m slow` run the outside-PPO check. PyTorch is
+# named again so that no extra can swap the pinned CPU build for another: pip refuses instead.
+"${pip[@]}" install -e '.[dev,reference]' "${HAMNET_TORCH:-torch==2.13.0}"
 .venv/bin/python -c 'import open3d, mujoco, pinocchio, ruckig, rerun, mcap, torch, zenoh' \
   || { echo "an installed dependency does not import" >&2; exit 1; }
 echo "==> ready: $(.venv/bin/hamnet --version)"
