@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 AUTHORS_FLAGS = (
     "--ppo.minibatches", "1", "--ppo.kl-stop", "before-step", "--ppo.lr-schedule", "adaptive",
     "--ppo.value-lr", "None",
-    "--ppo.clip-per-term", "True", "--samples-per-update", "512", "--init", "torch",
+    "--ppo.clip-per-term", "--samples-per-update", "512", "--init", "torch",
     "--log-std.mode", "schedule", "--log-std.initial", "-0.4",
 )  # fmt: skip
 """The trainer before issue 27: the authors' update (`PPO_PRESETS["authors"]`) on 64 x 8
