@@ -188,28 +188,31 @@ def diagnostics(updates: list[dict[str, float]]) -> dict[str, float]:
     }
 
 
-def plot(
-    path: Path,
-    task: str,
-    env_steps: int,
-    curves: dict[str, list[list[float | None]]],
-    random_return: float,
-) -> None:
-    """Mean and range over seeds of each implementation's curve against env steps."""
+def plot(path: Path, figures: dict) -> None:
+    """Mean and range over seeds of each implementation's curve (`figures["curves"]`)
+    against env steps, with the random policy's return."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    x = (np.arange(BINS) + 0.5) * env_steps / BINS
+    env_steps, bins = figures["env_steps"], len(figures["curves"]["ours"][str(figures["seeds"][0])])
+    x = (np.arange(bins) + 0.5) * env_steps / bins
+    labels = {
+        "ours": f"ours (hamnet.trainer, {figures['settings']['ours']['ppo_settings']} PPO)",
+        "reference": f"reference ({figures['reference_package']} {figures['reference_version']})",
+    }
     figure, axis = plt.subplots(figsize=(7, 4.5))
-    for name, per_seed in curves.items():
-        y = np.array([[np.nan if v is None else v for v in c] for c in per_seed])  # (seeds, BINS)
-        axis.plot(x, np.nanmean(y, 0), label=name)
+    for name, per_seed in figures["curves"].items():
+        y = np.array([[np.nan if v is None else v for v in c] for c in per_seed.values()])
+        axis.plot(x, np.nanmean(y, 0), label=labels[name])  # y: (seeds, bins)
         axis.fill_between(x, np.nanmin(y, 0), np.nanmax(y, 0), alpha=0.25)
-    axis.axhline(random_return, color="grey", linestyle="--", label="random actions")
+    axis.axhline(figures["random_return"], color="grey", linestyle="--", label="random actions")
+    seeds = ", ".join(map(str, figures["seeds"]))
     axis.set(
-        xlabel="env steps", ylabel="episode return", title=f"{task}: PPO, mean and range over seeds"
+        xlabel="env steps",
+        ylabel="episode return",
+        title=f"{figures['task']}: PPO, mean and range over seeds {seeds}",
     )
     axis.legend()
     figure.tight_layout()
@@ -307,14 +310,7 @@ def write(out: Path, figures: dict) -> None:
     """`<out>.json` with every figure and `<out>.png` with the curves."""
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(figures, indent=1) + "\n")
-    curves = {name: list(per_seed.values()) for name, per_seed in figures["curves"].items()}
-    plot(
-        out.with_suffix(".png"),
-        figures["task"],
-        figures["env_steps"],
-        curves,
-        figures["random_return"],
-    )
+    plot(out.with_suffix(".png"), figures)
     progress(f"wrote {out.with_suffix('.json')} and {out.with_suffix('.png')}")
 
 
