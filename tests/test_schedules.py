@@ -16,7 +16,8 @@ import torch
 
 from hamnet.fr3.limits import Q_HOME
 from hamnet.policy.policy import log_std_at
-from hamnet.policy.registry import build
+from hamnet.policy.config import LOG_STD_AUTHORS
+from hamnet.policy.registry import build, with_changes
 from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
@@ -32,6 +33,11 @@ from tests.scripted import ScriptedService, wire
 
 VECTORIZED_STEPS = (0, 1_000, 100_000, 1_953_125, 2_000_000)
 """Counters in the authors' unit; 1_953_125 x 1024 = 2e9 transitions, 2e6 ends their run."""
+
+
+def scheduled(seed: int | None = None):
+    """The MLP baseline with the authors' log-std schedule (the default log std is learned)."""
+    return build("mlp", with_changes("mlp", log_std=LOG_STD_AUTHORS), seed=seed)
 
 
 def authors_log_std(steps: int) -> float:
@@ -73,7 +79,7 @@ def test_sim_safety_and_policy_agree_at_the_counter(steps: int) -> None:
     assert schedule.xi_small == pytest.approx(authors_anneal(steps, 0.21, 0.08))
     assert schedule.eps_x == pytest.approx(authors_anneal(steps, 0.24, 0.12))
 
-    policy = build("mlp")
+    policy = scheduled()
     policy.set_env_transitions(counter)
     expected = torch.full_like(policy.log_std, authors_log_std(steps))
     torch.testing.assert_close(policy.log_std, expected)
@@ -82,7 +88,7 @@ def test_sim_safety_and_policy_agree_at_the_counter(steps: int) -> None:
 def test_log_std_after_two_billion_transitions() -> None:
     """The issue's figure: about -1.12 at the end of the authors' 2e6 x 1024 transitions,
     with no floor on the way (exploration is not collapsed after 3% of training)."""
-    policy = build("mlp")
+    policy = scheduled()
     policy.set_env_transitions(2_048_000_000)
     assert float(policy.log_std[0]) == pytest.approx(-1.117, abs=1e-3)
     policy.set_env_transitions(61_440_000)  # 3% of training
@@ -95,7 +101,7 @@ def test_policy_service_follows_the_counter_across_new_weights() -> None:
     counter = 500 * 2**20
     messages = iter([
         ("schedule", Schedule(env_transitions=counter)),
-        ("weights", announcement(build("mlp", seed=1), 1)),
+        ("weights", announcement(scheduled(seed=1), 1)),
     ])  # fmt: skip
 
     def script(published):
@@ -104,7 +110,7 @@ def test_policy_service_follows_the_counter_across_new_weights() -> None:
 
     service = ScriptedService(script, identity=ServiceIdentity("policy", "0"))
     config = PolicyLoopConfig(student_pose_noise=False)
-    shell = PolicyShell(service, build("mlp", seed=0), 0, config)
+    shell = PolicyShell(service, scheduled(seed=0), 0, config)
     shell.run()
     assert shell.version == 1 and shell.env_transitions == counter
     want = log_std_at(counter, shell.policy.config.log_std)

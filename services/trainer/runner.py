@@ -359,6 +359,9 @@ class Runner:
         self.optimizer = optimizer_for(
             self.policy.actor_parameters(), self.policy.critic_parameters(), config.ppo
         )
+        self.shuffle = torch.Generator().manual_seed(config.seed)
+        """Draws the update's minibatches: its own stream, so a run from rollout workers
+        shuffles as the same run in one process does (whose cores draw from torch's)."""
         self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         """The energy loss of an action mean, read as the workers' safety profile reads it."""
         envs = self.source.num_envs * ranks.size  # every rank's: they see them all
@@ -471,6 +474,7 @@ class Runner:
             batch,
             self.action_bounds,
             ppo,
+            generator=self.shuffle,
             energy=self.energy,
             ranks=self.ranks,
         )
@@ -495,13 +499,14 @@ class Runner:
 
     def snapshot(self) -> Snapshot:
         """Everything but the policy's weights that the run continues from: Adam's state and
-        learning rate, reward scaler, episode tracker, torch's global RNG, counters, the run's
+        learning rate, reward scaler, episode tracker, torch's global RNG and the minibatches'
+        generator, counters, the run's
         identity and, from an in-process source, every worker's state."""
         parts = {
             "optimizer": resume.optimizer_snapshot(self.optimizer),
             "scaler": self.scaler.snapshot(),
             "tracker": self.tracker.snapshot(),
-            "torch": ({"rng": torch.get_rng_state()}, {}),
+            "torch": ({"rng": torch.get_rng_state(), "shuffle": self.shuffle.get_state()}, {}),
         }
         if isinstance(self.source, Resumable):  # streamed: the workers simply go on
             parts["source"] = self.source.snapshot()
@@ -532,6 +537,7 @@ class Runner:
         except ValueError as error:
             raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
         torch.set_rng_state(torch.tensor(arrays["torch.rng"]))
+        self.shuffle.set_state(torch.tensor(arrays["torch.shuffle"]))
         self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
         self.wall_clock_s = counters["wall_clock_s"]
         if self.ranks.main:
