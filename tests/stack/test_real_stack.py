@@ -19,6 +19,8 @@ import pytest
 import yaml
 
 from hamnet.fr3.limits import FR3
+from hamnet.policy.registry import build, with_changes
+from hamnet.policy.weights import save_checkpoint
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafeCommand, SafetyEvent, SafetyEventKind
@@ -49,9 +51,11 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
                                       "franky.link-timeout-s": 1.0, "franky.deadline-s": 2.0})  # fmt: skip
     services["camera"]["args"] = {"source": "sim"}
     services["perception"]["args"].update(segmenter="mask")
-    # Sampled, not the mean: random weights start the mean near 0 (orthogonal output layer)
-    # and the arm must move for the test to see it follow.
-    services["policy"]["args"] = {"random-init": "student"}
+    # Random weights at PyTorch's initialization, whose mean drives the arm (an orthogonal
+    # output layer, the default, starts it near 0 and the test must see the arm follow).
+    weights = folder / "student.safetensors"
+    save_checkpoint(weights, build("student", with_changes("student", init="torch"), seed=0), 1)
+    services["policy"]["args"] = {"weights": str(weights), "deterministic": True}
     # The test kills the policy to see the watchdog bring the arm to rest: restarted, as the
     # stack file's default would, it acts again and safety rightly follows it.
     services["policy"]["restart"] = {"max_restarts": 0}
