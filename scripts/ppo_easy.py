@@ -91,16 +91,9 @@ def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dic
     sim = dataclasses.replace(stage_sim(summary["stage"]), seed=seed)
     encoder = summary.get("encoder_checkpoint")  # the one the run trained on; None: random
     config = RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"],
-                       random_encoder=encoder is None, **({"encoder_checkpoint": Path(encoder)} if encoder else {}))  # fmt: skip
+                       random_encoder=encoder is None, **({"encoder_checkpoint": ROOT / encoder} if encoder else {}))  # fmt: skip
     held_out = evaluate(policy, config, episodes, summary["env_steps"])
     return {"success_rate": held_out.success_rate, "goal_return": held_out.goal_return}
-
-
-def shown_path(path: str | None) -> str | None:
-    """`path` relative to the repository when inside it (None: a random encoder)."""
-    if path is None or not Path(path).is_relative_to(ROOT):
-        return path
-    return str(Path(path).relative_to(ROOT))
 
 
 def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
@@ -169,7 +162,7 @@ def main() -> int:
         },
         "stage": ours["stage"],
         "stage_definition": ours["stage_definition"],
-        "encoder_checkpoint": shown_path(ours.get("encoder_checkpoint")),
+        "encoder_checkpoint": ours.get("encoder_checkpoint"),
         "env_steps": ours["env_steps"],
         "baseline_env_steps": baseline["env_steps"],
         "wall_clock_s": ours["wall_clock_s"],

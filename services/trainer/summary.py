@@ -27,6 +27,17 @@ def commit() -> str:
     return result.stdout.strip()
 
 
+CHECKOUT = Path(__file__).resolve().parents[2]
+"""The repository this package runs from (an editable install's checkout)."""
+
+
+def repository_path(path: Path | str) -> str:
+    """`path` relative to the checkout when inside it (result files must not name one
+    machine's folders), else as given."""
+    resolved = Path(path).resolve()
+    return str(resolved.relative_to(CHECKOUT)) if resolved.is_relative_to(CHECKOUT) else str(path)
+
+
 DAGGER_KEYS = ("beta", "student_share", "imitation_loss", "student_episode_success")
 """Curve keys of a DAgger run, kept where its rows have them."""
 
@@ -54,7 +65,9 @@ def write_summary(
             "curriculum": dataclasses.asdict(sim.curriculum),
         },
         "architecture": config.architecture,
-        "encoder_checkpoint": None if config.random_encoder else str(config.encoder_checkpoint),
+        "encoder_checkpoint": (
+            None if config.random_encoder else repository_path(config.encoder_checkpoint)
+        ),
         "num_envs": config.num_envs,
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,

@@ -29,3 +29,12 @@ def test_a_tiny_run_writes_metrics_checkpoint_summary_and_curves(tmp_path: Path)
 def test_plot_of_a_folder_without_metrics_says_so(tmp_path: Path, capsys) -> None:
     assert main(["plot", str(tmp_path)]) == 2
     assert "metrics.jsonl" in capsys.readouterr().out
+
+
+def test_result_files_name_the_shipped_encoder_relative_to_the_repository(tmp_path: Path) -> None:
+    """A summary (and the results written from it) must not name one machine's folders."""
+    from hamnet.perception.checkpoint import SHIPPED_ENCODER
+    from hamnet.trainer.summary import repository_path
+
+    assert repository_path(SHIPPED_ENCODER) == "services/perception/weights/unicorn.safetensors"
+    assert repository_path(tmp_path / "other.safetensors") == str(tmp_path / "other.safetensors")
