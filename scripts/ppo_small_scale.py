@@ -75,7 +75,9 @@ def run_variant(name: str, flags: tuple[str, ...], args: argparse.Namespace) -> 
                str(args.eval_episodes), "--run-dir", str(folder), *flags]  # fmt: skip
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
     log = (args.runs / f"{name}.log").open("w")
-    return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT, env=environment)
+    return subprocess.Popen(
+        command, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT, env=environment
+    )
 
 
 def train(args: argparse.Namespace) -> None:

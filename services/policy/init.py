@@ -27,7 +27,8 @@ CRITIC_OUTPUT_GAIN = 1.0
 
 def initialize(network: nn.Module) -> None:
     """Re-initialize `network.actor` and `network.critic` in place (see the module)."""
-    for head, output_gain in ((network.actor, ACTOR_OUTPUT_GAIN), (network.critic, CRITIC_OUTPUT_GAIN)):
+    heads = ((network.actor, ACTOR_OUTPUT_GAIN), (network.critic, CRITIC_OUTPUT_GAIN))
+    for head, output_gain in heads:
         layers = [m for m in head.modules() if isinstance(m, (nn.Linear, ModularLinear))]
         output = getattr(head, "output", layers[-1])  # a routed base names its output layer
         for layer in layers:

@@ -159,54 +159,59 @@ def update(
     n, lr = batch.actions.shape[0], optimizer.param_groups[0]["lr"]
     steps = value_steps = 0
     stopped, kept, before, agreement = False, {}, None, math.nan
-    for _ in range(config.epochs):
-        for rows in _minibatches(n, config, generator):
-            if stopped and not critic_alone:
-                break
-            first = steps == 0 and not stopped
-            parts, diagnostics = losses(rows.chunk(2) if first and len(rows) > 1 else (rows,))
-            kl = diagnostics["kl"] if steps and not stopped else None
-            if kl is not None:
-                stopped = config.kl_stop != "off" and kl > bound
-                if stopped and config.kl_stop == "rollback":
-                    _restore(actor, before)
-                    steps -= 1
-                    if critic_alone:  # the critic's step needs a graph of the restored actor
-                        parts, _ = losses((rows,))
-                else:
+    try:
+        for _ in range(config.epochs):
+            for rows in _minibatches(n, config, generator):
+                if stopped and not critic_alone:
+                    break
+                first = steps == 0 and not stopped
+                parts, diagnostics = losses(rows.chunk(2) if first and len(rows) > 1 else (rows,))
+                kl = diagnostics["kl"] if steps and not stopped else None
+                if kl is not None:
+                    stopped = config.kl_stop != "off" and kl > bound
+                    if stopped and critic_alone:  # the critic's steps need no actor gradient
+                        _freeze(actor, True)
+                    if stopped and config.kl_stop == "rollback":
+                        _restore(actor, before)
+                        steps -= 1
+                        if critic_alone:  # the critic's step needs a graph of the restored actor
+                            parts, _ = losses((rows,))
+                    else:
+                        kept = diagnostics
+                    if stopped and config.lr_schedule == "adaptive":
+                        lr = _adapt(optimizer, lr, kl, config)
+                elif first:
                     kept = diagnostics
-                if stopped and config.lr_schedule == "adaptive":
+                if stopped and not critic_alone:
+                    break
+                if config.kl_stop == "rollback" and not stopped:
+                    before = [p.detach().clone() for p in actor]
+                optimizer.zero_grad(set_to_none=True)
+                gradients = []
+                for weight, terms in parts:
+                    loss = config.value_coef * terms["value"]
+                    if not stopped:
+                        loss = loss + (config.policy_coef * terms["policy"]
+                                       + config.bound_coef * terms["bound"]
+                                       + config.energy_coef * terms.get("energy", 0.0))  # fmt: skip
+                    (weight * loss).backward()
+                    gradients.append(_flat_gradient(actor))
+                if len(gradients) == 2:
+                    agreement = _cosine(gradients[0], gradients[1] - gradients[0])
+                if stopped:
+                    for p in actor:
+                        p.grad = None  # the critic's group alone steps
+                ranks.average_gradients(parameters, len(rows))
+                torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
+                optimizer.step()
+                if stopped:
+                    value_steps += 1
+                    continue
+                steps += 1
+                if kl is not None and config.lr_schedule == "adaptive":  # the authors' order
                     lr = _adapt(optimizer, lr, kl, config)
-            elif first:
-                kept = diagnostics
-            if stopped and not critic_alone:
-                break
-            if config.kl_stop == "rollback" and not stopped:
-                before = [p.detach().clone() for p in actor]
-            optimizer.zero_grad(set_to_none=True)
-            gradients = []
-            for weight, terms in parts:
-                loss = config.value_coef * terms["value"]
-                if not stopped:
-                    loss = loss + (config.policy_coef * terms["policy"]
-                                   + config.bound_coef * terms["bound"]
-                                   + config.energy_coef * terms.get("energy", 0.0))  # fmt: skip
-                (weight * loss).backward()
-                gradients.append(_flat_gradient(actor))
-            if len(gradients) == 2:
-                agreement = _cosine(gradients[0], gradients[1] - gradients[0])
-            if stopped:
-                for p in actor:
-                    p.grad = None  # the critic's group alone steps
-            ranks.average_gradients(parameters, len(rows))
-            torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
-            optimizer.step()
-            if stopped:
-                value_steps += 1
-                continue
-            steps += 1
-            if kl is not None and config.lr_schedule == "adaptive":  # the authors' order
-                lr = _adapt(optimizer, lr, kl, config)
+    finally:
+        _freeze(actor, False)
     if config.kl_stop == "rollback" and steps and not stopped:
         with torch.no_grad():  # the last step's KL, on a minibatch drawn afresh
             _, diagnostics = losses((next(iter(_minibatches(n, config, generator))),))
@@ -220,7 +225,9 @@ def update(
                        steps, stopped, kept.get("energy", 0.0), value_steps, agreement)  # fmt: skip
 
 
-def _minibatches(n: int, config: PPOConfig, generator: torch.Generator | None) -> tuple[Tensor, ...]:
+def _minibatches(
+    n: int, config: PPOConfig, generator: torch.Generator | None
+) -> tuple[Tensor, ...]:
     """One epoch's minibatches of row indices (in order when there is one)."""
     order = torch.randperm(n, generator=generator) if config.minibatches > 1 else torch.arange(n)
     return order.chunk(config.minibatches)
@@ -272,6 +279,14 @@ def _cosine(a: Tensor, b: Tensor) -> float:
     """Cosine similarity of two vectors (NaN when either is zero)."""
     norms = a.norm() * b.norm()
     return float(a @ b / norms) if norms > 0 else math.nan
+
+
+def _freeze(parameters: list[Tensor], frozen: bool) -> None:
+    """Keep autograd out of (or let it back into) `parameters`: once the actor stops, the
+    critic's steps through the networks both share would otherwise pay for gradients that
+    are thrown away."""
+    for p in parameters:
+        p.requires_grad_(not frozen)
 
 
 def _restore(parameters: list[Tensor], values: list[Tensor] | None) -> None:
