@@ -7,9 +7,12 @@ the plain state-based PPO baseline, on the same stage for the same wall-clock bu
 
 Both runs go side by side, so each has about one of the machine's two cores (the baseline in
 one process; HAMnet as `hamnet trainer` plus one `hamnet rollout` worker over Zenoh on
-loopback). Each writes its run folder (metrics.jsonl, checkpoints, summary.json with the
-deterministic policy's success rate on held-out episodes) under `--runs`; this script then
-writes the result JSON and the curves next to it.
+loopback, with `hamnet monitor` saving the Rerun view of its training to
+`<runs>/monitor.rrd`). Each writes its run folder (metrics.jsonl, checkpoints, summary.json
+with the deterministic policy's success rate on held-out episodes) under `--runs`; this
+script then evaluates both final policies again on `--eval-episodes` held-out episodes
+(success rate, share within 0.05 m, median object-goal distance at the end and at the
+start) and writes the result JSON and the curves next to it.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import sys
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -64,6 +68,9 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
         folder.mkdir(parents=True, exist_ok=True)  # names as in main()
     streaming = ["--max-policy-lag", str(lag), *network]
     worker = hamnet("rollout", "--worker", "0", *common, *streaming, log=runs / "rollout.log")
+    monitor = hamnet(
+        "monitor", "--save", str(runs / "monitor.rrd"), *network, log=runs / "monitor.log"
+    )
     trainers = [
         hamnet("trainer", "--workers", "1", *common, "--run-dir", str(dirs["hamnet"]), *streaming,
                log=runs / "hamnet.log"),
@@ -75,10 +82,16 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
             if process.wait() != 0:
                 raise SystemExit(f"a run failed: see {runs}/*.log")
     finally:
-        for process in (*trainers, worker):
+        for process in (*trainers, worker, monitor):
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGTERM)
         worker.wait(timeout=30)
+        monitor.wait(timeout=30)
+
+
+TIGHT_RADIUS = 0.05
+"""The authors' success radius (rss_train.yaml:122): the share of held-out episodes within it
+is reported beside the stage's 0.1 m success."""
 
 
 def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dict[str, float]:
@@ -93,7 +106,13 @@ def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dic
     config = RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"],
                        random_encoder=encoder is None, **({"encoder_checkpoint": ROOT / encoder} if encoder else {}))  # fmt: skip
     held_out = evaluate(policy, config, episodes, summary["env_steps"])
-    return {"success_rate": held_out.success_rate, "goal_return": held_out.goal_return}
+    return {
+        "success_rate": held_out.success_rate,
+        "goal_return": held_out.goal_return,
+        "within_tight_radius": held_out.within(TIGHT_RADIUS),
+        "median_final_distance_m": float(np.median(held_out.final_distance)),
+        "median_start_distance_m": float(np.median(held_out.start_distance)),
+    }
 
 
 def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> None:
@@ -155,6 +174,11 @@ def main() -> int:
         "final_goal_return": again["hamnet"]["goal_return"],
         "baseline_final_goal_return": again["baseline"]["goal_return"],
         "eval_episodes": args.eval_episodes,
+        "within_0.05m": again["hamnet"]["within_tight_radius"],
+        "baseline_within_0.05m": again["baseline"]["within_tight_radius"],
+        "median_final_distance_m": again["hamnet"]["median_final_distance_m"],
+        "baseline_median_final_distance_m": again["baseline"]["median_final_distance_m"],
+        "median_start_distance_m": again["hamnet"]["median_start_distance_m"],
         "trainers_own_evaluation": {
             "episodes": ours["eval_episodes"],
             "hamnet": ours["final_success_rate"],
@@ -186,6 +210,9 @@ def main() -> int:
     shown = (
         "final_success_rate",
         "baseline_final_success_rate",
+        "within_0.05m",
+        "median_final_distance_m",
+        "median_start_distance_m",
         "final_goal_return",
         "env_steps",
         "baseline_env_steps",

@@ -2,7 +2,9 @@
 the figure a learning result reports (`final_success_rate`), with the mean goal-reaching
 return of the same episodes (`final_goal_return`): the shaping term's episode sum is
 lambda_r (phi(s_T) - phi(s_0)), positive when the object ends nearer its goal than it
-started, 0 when it never moves, so it shows pushing long before successes do.
+started, 0 when it never moves, so it shows pushing long before successes do. Each
+episode's object-goal distance at its start and its end say the same in metres, and how
+many episodes would pass a tighter threshold than the stage's.
 
 The episodes are drawn from the same stage as training but from another seed, so no scene,
 object or start of the evaluation was seen in training. Every environment plays exactly one
@@ -16,7 +18,9 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
+from hamnet.messages.robot_state import Observation
 from hamnet.perception.config import CloudConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
@@ -34,6 +38,14 @@ class HeldOut:
     success_rate: float
     goal_return: float
     """Mean episode sum of the goal-reaching reward term."""
+    start_distance: np.ndarray
+    """(episodes,) object-goal distance of each episode's first state, m."""
+    final_distance: np.ndarray
+    """(episodes,) object-goal distance of each episode's last state, m."""
+
+    def within(self, radius: float) -> float:
+        """Share of the episodes whose object ended within `radius` of its goal, m."""
+        return float((self.final_distance <= radius).mean())
 
 
 def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitions: int) -> float:
@@ -41,6 +53,7 @@ def success_rate(policy: Policy, config: RunConfig, episodes: int, env_transitio
     return evaluate(policy, config, episodes, env_transitions).success_rate
 
 
+@torch.no_grad()
 def evaluate(
     policy: Policy,
     config: RunConfig,
@@ -69,17 +82,22 @@ def evaluate(
     ended = np.zeros(episodes, dtype=bool)
     succeeded = np.zeros(episodes, dtype=bool)
     goal = np.zeros(episodes)
+    start = _distance(worker.observation)
+    final = np.zeros(episodes)
     column = REWARD_NAMES.index("goal")
     while not ended.all():
-        rollout = worker.collect(
-            policy, config.rollout_steps, env_transitions, deterministic=True
-        )
-        steps = zip(
-            rollout.dones.numpy(), rollout.success.numpy(), rollout.rewards.numpy(), strict=True
-        )
-        for dones, success, rewards in steps:
-            goal += np.where(ended, 0.0, rewards[:, column])  # (B,) the first episode's steps only
-            first = dones & ~ended  # (B,) episodes ending for the first time
-            succeeded |= first & success
-            ended |= dones
-    return HeldOut(float(succeeded.mean()), float(goal.mean()))
+        pending = worker.act(policy, env_transitions, deterministic=True)
+        result = worker.env.step(pending.command)
+        worker.observe(policy, pending, result)
+        goal += np.where(ended, 0.0, result.reward_terms[:, column])  # the first episodes only
+        dones = result.terminated | result.truncated
+        first = dones & ~ended  # (B,) episodes ending for the first time
+        succeeded |= first & result.success
+        final[first] = _distance(result.final_observation)[first]
+        ended |= dones
+    return HeldOut(float(succeeded.mean()), float(goal.mean()), start, final)
+
+
+def _distance(observation: Observation) -> np.ndarray:
+    """(B,) distance of each object's centre from its goal position, m."""
+    return np.linalg.norm(observation.object_pose[:, :3] - observation.goal_pose[:, :3], axis=1)

@@ -160,6 +160,9 @@ def test_the_held_out_goal_return_sums_the_first_episodes_goal_term() -> None:
     config = RunConfig(architecture="state-mlp", sim=tiny_sim(), steps_per_rollout=4)
     held_out = evaluate(policy, config, episodes=2, env_transitions=0)
     assert abs(held_out.goal_return) < 0.01
+    # Unpushed, each object ends about where it started: at least the stage's 15 cm away.
+    np.testing.assert_allclose(held_out.final_distance, held_out.start_distance, atol=0.02)
+    assert (held_out.start_distance >= 0.15 - 1e-6).all() and held_out.within(0.05) == 0.0
     assert held_out.success_rate == success_rate(policy, config, episodes=2, env_transitions=0)
 
 
