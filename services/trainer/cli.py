@@ -60,6 +60,7 @@ from hamnet.trainer.ranks import ONE, Ranks, from_environment
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.runner import RunConfig, Runner, stage_sim
 from hamnet.trainer.shell import TrainerPublisher
+from hamnet.trainer.stopping import until_signalled
 from hamnet.trainer.stream import Streamed
 from hamnet.trainer.summary import commit, write_summary
 
@@ -170,22 +171,29 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
         identity = ServiceIdentity(identity.service, f"{identity.worker}-rank{ranks.rank}")
     try:
         if config.inprocess and not config.publish:
-            runner = Runner(run, resume=config.resume is not None)
-            runner.run()
+            with until_signalled() as running:
+                runner = Runner(run, resume=config.resume is not None)
+                runner.run(running=running)
+                stopped = not running()
         else:
             with Service(identity, config.common.transport) as service:
                 runner = train_with(service, config, ranks)
+                stopped = not service.running
     except ResumeError as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
     if not ranks.main:
         return 0
     held_out = None
-    if run.eval_episodes:
+    if stopped:  # the launcher's grace period leaves no time for the evaluation
+        log.info("stopped: checkpoint, metrics and summary written without the held-out "
+                 "evaluation; `hamnet trainer --resume %s --max-wall-clock-s 0` (the run's other "
+                 "flags unchanged) evaluates it", run.run_dir)  # fmt: skip
+    elif run.eval_episodes:
         held_out = evaluate(runner.policy, run, run.eval_episodes, runner.env_transitions)
         log.info("on %d held-out episodes: success rate %.3f, goal return %.4f", run.eval_episodes,
                  held_out.success_rate, held_out.goal_return)  # fmt: skip
-    print(write_summary(run, held_out, code))
+    print(write_summary(run, held_out, code, {"stopped_by_signal": stopped}))
     return 0
 
 

@@ -30,6 +30,7 @@ from hamnet.trainer.losses import (
     value_loss,
 )
 from hamnet.trainer.ranks import ONE, Ranks
+from hamnet.trainer.stopping import always, check
 from hamnet.trainer.trees import take_rows
 
 
@@ -121,6 +122,7 @@ def update(
     generator: torch.Generator | None = None,
     energy: Callable[[Tensor, Tensor], Tensor] | None = None,
     ranks: Ranks = ONE,
+    running: Callable[[], bool] = always,
 ) -> UpdateStats:
     """Run up to `config.epochs` epochs of `config.minibatches` gradient steps on `batch`.
 
@@ -145,6 +147,8 @@ def update(
         ranks: the learner's processes, `batch` being this one's shard: the advantages'
             statistics, every minibatch's diagnostics (so the KL's decisions) and the
             gradients are those of all shards together (`hamnet.trainer.ranks`).
+        running: checked before every minibatch: InterruptedError once it turns False (the
+            caller goes back to the parameters from before the update).
     """
     parameters = list(parameters)
     actor: list[Tensor] = list(optimizer.param_groups[0]["params"])
@@ -162,6 +166,7 @@ def update(
     try:
         for _ in range(config.epochs):
             for rows in _minibatches(n, config, generator):
+                check(running)
                 if stopped and not critic_alone:
                     break
                 first = steps == 0 and not stopped

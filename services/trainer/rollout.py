@@ -17,6 +17,7 @@ Shapes: T steps, B environments, A action, R reward terms.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -43,6 +44,7 @@ from hamnet.trainer.resume import (
     set_generator_state,
     tensor_dataclass,
 )
+from hamnet.trainer.stopping import always, check
 from hamnet.trainer.trajectory import Rollout, cat_rows, merge_environments
 from hamnet.trainer.trees import take_rows
 
@@ -76,11 +78,13 @@ def collect_overlapped(
     policy: Policy,
     steps: int,
     env_transitions: int,
+    running: Callable[[], bool] = always,
 ) -> Rollout:
     """`collect` of two workers whose physics and networks overlap: while one group's
     physics steps in a background thread (MuJoCo releases the GIL), the other group's
     perception, policy and safety run, so both cores stay busy. Environments of the first
-    worker come first in the merged rollout."""
+    worker come first in the merged rollout. InterruptedError, between two steps, once
+    `running()` turns False."""
     first, second = workers
     count = first.env.num_envs + second.env.num_envs
     records: tuple[list, list] = ([], [])
@@ -89,6 +93,7 @@ def collect_overlapped(
         stepping = physics.submit(first.env.step, pending[0].command)
         pending.append(second.act(policy, env_transitions))
         for t in range(steps):
+            check(running)
             for index, (worker, other) in enumerate(((first, second), (second, first))):
                 result = stepping.result()
                 if index == 0 or t + 1 < steps:  # the other group's physics, in the background
@@ -127,7 +132,12 @@ class RolloutWorker:
 
     @torch.no_grad()
     def collect(
-        self, policy: Policy, steps: int, env_transitions: int, deterministic: bool = False
+        self,
+        policy: Policy,
+        steps: int,
+        env_transitions: int,
+        deterministic: bool = False,
+        running: Callable[[], bool] = always,
     ) -> Rollout:
         """Act `steps` times in every environment with `policy`.
 
@@ -136,9 +146,11 @@ class RolloutWorker:
             steps: T.
             env_transitions: the schedule counter at the start (safety's xi annealing).
             deterministic: act with the mean (evaluation) instead of sampling.
+            running: checked before every step: InterruptedError once it turns False.
         """
         records = []
         for t in range(steps):
+            check(running)
             pending = self.act(policy, env_transitions + t * self.env.num_envs, deterministic)
             records.append(self.observe(policy, pending, self.env.step(pending.command)))
         return self.finish(policy, records)

@@ -106,7 +106,11 @@ class RolloutService:
             if self.policy is None or not self.service.running:
                 continue
             steps, started = self.rollout_steps or self.config.rollout_steps, time.monotonic()
-            collected = self.source.collect(self.policy, steps, self.env_transitions, self.version)
+            try:  # a stopped worker leaves its unfinished chunk at once
+                collected = self.source.collect(self.policy, steps, self.env_transitions,
+                                                self.version, lambda: self.service.running)  # fmt: skip
+            except InterruptedError:
+                break
             self._send(self.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
             self.env_transitions += steps * self.source.num_envs  # runs on between updates

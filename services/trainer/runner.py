@@ -16,6 +16,7 @@ log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import json
 import logging
@@ -55,6 +56,7 @@ from hamnet.trainer.ppo import Batch, UpdateStats, optimizer_for, update
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.resume import Arrays, Resumable, ResumeError, Snapshot, nest, part
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
+from hamnet.trainer.stopping import always
 from hamnet.trainer.trajectory import Rollout
 from hamnet.trainer.workers import progress as workers_progress
 
@@ -295,9 +297,13 @@ class RolloutSource(Protocol):
     def num_envs(self) -> int:
         """B: environments of every rollout, in a fixed order."""
 
-    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+    def collect(
+        self, policy: Policy, steps: int, env_transitions: int, version: int,
+        running: Callable[[], bool] = always,
+    ) -> Collected:  # fmt: skip
         """T = `steps` steps of every environment, acted by `policy` (weights `version`,
-        its log std set for the counter `env_transitions`) or by an older version of it."""
+        its log std set for the counter `env_transitions`) or by an older version of it;
+        InterruptedError once `running()` turns False before it is complete."""
 
 
 class InProcess:
@@ -321,12 +327,15 @@ class InProcess:
         for i, worker in enumerate(self.workers):
             worker.restore(*part(arrays, meta, f"worker{i}"))
 
-    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+    def collect(
+        self, policy: Policy, steps: int, env_transitions: int, version: int,
+        running: Callable[[], bool] = always,
+    ) -> Collected:  # fmt: skip
         if self.overlapped:
             return Collected(
-                collect_overlapped(tuple(self.workers), policy, steps, env_transitions)
+                collect_overlapped(tuple(self.workers), policy, steps, env_transitions, running)
             )
-        return Collected(self.workers[0].collect(policy, steps, env_transitions))
+        return Collected(self.workers[0].collect(policy, steps, env_transitions, running=running))
 
 
 class Runner:
@@ -373,6 +382,9 @@ class Runner:
         """Wall-clock time of the run at its latest iteration, over every resume, s."""
         self.last_row: dict[str, float] = {}
         """The metrics of the latest iteration (empty before the first)."""
+        self.interrupted = False
+        """The last `run` was stopped in the middle of an iteration (and went back to its
+        start) or while waiting for workers."""
         self.action_bounds = (
             -torch.ones(self.policy.config.action_dim),
             torch.ones(self.policy.config.action_dim),
@@ -387,23 +399,24 @@ class Runner:
         """Version of the current weights: the updates made so far plus one."""
         return self.iteration + 1
 
-    def iterate(self) -> dict[str, float]:
+    def iterate(self, running: Callable[[], bool] = always) -> dict[str, float]:
         """One rollout and one PPO update; returns that iteration's metrics. A fresh run's
         first rollout only fills the input statistics (its actions saw zeros), so every
-        action learned from saw standardised inputs."""
+        action learned from saw standardised inputs. InterruptedError, with the iteration
+        half done, once `running()` turns False (`run` goes back to before it)."""
         started = time.perf_counter()
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
         policy.eval()
         collected = self.source.collect(
-            policy, config.rollout_steps, self.env_transitions, self.version
+            policy, config.rollout_steps, self.env_transitions, self.version, running
         )
         rollout = collected.rollout
         collect_done = time.perf_counter()
         whole = self.ranks.environments(rollout)
         self.tracker.add(whole, collected.envs)
         if policy.normalizer.count:
-            stats = self.learn(rollout, whole, collected.envs)
+            stats = self.learn(rollout, whole, collected.envs, running)
         else:
             self.scaler_warm_up(whole, collected.envs)
             stats = UpdateStats.none(self.optimizer.param_groups[0]["lr"])
@@ -440,11 +453,15 @@ class Runner:
             self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
 
     def learn(
-        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+        self,
+        rollout: Rollout,
+        whole: Rollout | None = None,
+        envs: torch.Tensor | None = None,
+        running: Callable[[], bool] = always,
     ) -> UpdateStats:
         """Scale rewards, bootstrap, GAE per term, one PPO update of this rank's `rollout`;
         `whole` (default `rollout`): every rank's environments, which the scaler sees; `envs`:
-        which environments they are (None: all)."""
+        which environments they are (None: all); `running`: stops the update (`ppo.update`)."""
         whole = rollout if whole is None else whole
         scaled = torch.stack([self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
                               for t in range(len(whole.rewards))])  # fmt: skip
@@ -477,6 +494,7 @@ class Runner:
             generator=self.shuffle,
             energy=self.energy,
             ranks=self.ranks,
+            running=running,
         )
 
     def progress(self, row: dict[str, float]) -> str:
@@ -515,6 +533,23 @@ class Runner:
                     "wall_clock_s": self.wall_clock_s}  # fmt: skip
         return arrays, {**meta, "counters": counters, "run": resume.as_json(self.config.identity)}
 
+    def state(self) -> Snapshot:
+        """The whole run in memory, copied: its snapshot and the policy's weights."""
+        arrays, meta = self.snapshot()
+        weights = {f"policy.{name}": value for name, value in self.policy.state_dict().items()}
+        copied = {name: value.clone() if isinstance(value, torch.Tensor) else np.array(value)
+                  for name, value in {**arrays, **weights}.items()}  # fmt: skip
+        return copied, copy.deepcopy(meta)
+
+    def load_state(self, state: Snapshot) -> None:
+        """Go back to `state` (from `state()`): the weights, then the snapshot's parts."""
+        arrays, meta = state
+        prefix = "policy."
+        self.policy.load_state_dict({name[len(prefix):]: value for name, value in arrays.items()
+                                     if name.startswith(prefix)})  # fmt: skip
+        rest = {name: value for name, value in arrays.items() if not name.startswith(prefix)}
+        self.restore_parts({name: np.asarray(value) for name, value in rest.items()}, meta)
+
     def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
         """Continue from a snapshot of this run and the weights beside it; metrics rows written
         after the snapshot are dropped.
@@ -522,13 +557,24 @@ class Runner:
         Raises:
             ResumeError: the weights are missing or not the snapshot's, or a part does not fit.
         """
-        counters = meta["counters"]
+        iteration = meta["counters"]["iteration"]
         try:
             weights = read_checkpoint(self.checkpoints / "latest.safetensors")
-            if weights.version != counters["iteration"] + 1:
+            if weights.version != iteration + 1:
                 raise ResumeError(f"weights of version {weights.version}, the snapshot is of "
-                                  f"iteration {counters['iteration']} (a write was cut short)")  # fmt: skip
+                                  f"iteration {iteration} (a write was cut short)")  # fmt: skip
             load_into(self.policy, weights)
+        except ValueError as error:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
+        self.restore_parts(arrays, meta)
+        if self.ranks.main:
+            resume.trim_metrics(self.metrics_path, self.iteration)
+
+    def restore_parts(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Everything of a snapshot but the weights: optimizer, scaler, tracker, source,
+        random generators and counters (ResumeError when a part does not fit)."""
+        counters = meta["counters"]
+        try:
             resume.restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
             self.scaler.restore(*part(arrays, meta, "scaler"))
             self.tracker.restore(*part(arrays, meta, "tracker"))
@@ -540,27 +586,36 @@ class Runner:
         self.shuffle.set_state(torch.tensor(arrays["torch.shuffle"]))
         self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
         self.wall_clock_s = counters["wall_clock_s"]
-        if self.ranks.main:
-            resume.trim_metrics(self.metrics_path, self.iteration)
 
     def run(
         self,
         on_iteration: Callable[[dict[str, float]], None] | None = None,
-        running: Callable[[], bool] = lambda: True,
+        running: Callable[[], bool] = always,
     ) -> Path:
         """Iterate until a budget is spent or `running()` turns False (on any rank: all stop
         together); returns the metrics file. `on_iteration` sees every iteration's metrics (a
-        publisher, a test). Only the main rank writes metrics, logs and checkpoints."""
+        publisher, a test). Only the main rank writes metrics, logs and checkpoints.
+
+        With one rank, `running()` turning False also stops the iteration under way, between
+        two steps of its rollout or two minibatches of its update: the run then goes back to
+        where that iteration began (a snapshot kept in memory), so the checkpoint it writes
+        is the state after its last whole iteration and `--resume` continues exactly from it.
+        Several ranks finish the iteration together (their collectives must not part)."""
         config, main = self.config, self.ranks.main
         started = last_log = last_checkpoint = time.monotonic()
         before = self.wall_clock_s  # a resumed run's budget counts its earlier time too
+        inner = running if self.ranks.size == 1 else always
         with contextlib.ExitStack() as stack:
             metrics = stack.enter_context(self.metrics_path.open("a")) if main else None
             while self.ranks.all(running() and self.env_transitions < config.max_env_transitions
                                  and before + time.monotonic() - started < config.max_wall_clock_s):  # fmt: skip
+                boundary = self.state() if inner is not always else None
                 try:
-                    row = self.iterate()
-                except InterruptedError:  # a streaming source was stopped while it waited
+                    row = self.iterate(inner)
+                except InterruptedError:  # stopped mid-iteration, or while waiting for workers
+                    if boundary is not None:
+                        self.load_state(boundary)
+                    self.interrupted = True
                     break
                 self.wall_clock_s = before + time.monotonic() - started
                 row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}

@@ -37,6 +37,7 @@ from hamnet.trainer.chunks import Arrived, chunk_decoder
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.runner import Collected
 from hamnet.trainer.shell import WEIGHTS, encode_weights
+from hamnet.trainer.stopping import always
 from hamnet.trainer.trajectory import merge_environments
 from hamnet.trainer.workers import Roster
 
@@ -111,15 +112,19 @@ class Streamed:
                       if self.topic.matches(key))  # fmt: skip
         return self.stale + refused
 
-    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+    def collect(
+        self, policy: Policy, steps: int, env_transitions: int, version: int,
+        running: Callable[[], bool] = always,
+    ) -> Collected:  # fmt: skip
         """Announce `policy` as `version`, then wait for a fitting chunk from each worker the
-        iteration waits for (`Roster`), and learn from those queued."""
+        iteration waits for (`Roster`), and learn from those queued; InterruptedError once
+        the service or `running` stops."""
         announcement = encode_weights(policy, version, env_transitions, steps)
         if self.weights is not None:
             self.weights.put(announcement)
         announced = waiting_since = time.monotonic()
         self.roster.begin(announced)
-        while self.service.running:
+        while self.service.running and running():
             self._drop_stale(version)
             ready = {worker for worker, queue in self.queues.items() if queue}
             taken = self.roster.takes(ready, time.monotonic())

@@ -5,11 +5,16 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 import torch
 
+from hamnet.policy.weights import read_checkpoint
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.cli import main
 from hamnet.trainer.resume import ResumeError
@@ -99,3 +104,65 @@ def test_hamnet_trainer_resume_continues_the_folder_or_refuses_in_one_line(
     assert main(changed) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "sim.num_envs: 2 there, 4 here" in error
+
+
+@pytest.mark.parametrize(("allowed", "where"), [(2, "rollout"), (STEPS + 3, "update")])
+def test_a_run_stopped_mid_iteration_goes_back_to_its_start_and_resumes_exactly(
+    tmp_path: Path, allowed: int, where: str
+) -> None:
+    """`running()` turns False inside the third iteration (after one of its steps, or after
+    its update's first minibatch): the run goes back to the end of the second, checkpoints
+    that, and a resumed run then equals the uninterrupted one bit for bit."""
+    whole = Runner(tiny_run(tmp_path / "whole", 4))
+    whole.run()
+    stopped = Runner(tiny_run(tmp_path / "split", 4))
+    calls = 0
+
+    def running() -> bool:
+        nonlocal calls
+        calls += stopped.iteration >= 2  # the loop's own check, then collect's and update's
+        return calls <= allowed
+
+    stopped.run(running=running)
+    assert stopped.interrupted and stopped.iteration == 2, where
+    assert [row["iteration"] for row in rows(tmp_path / "split")] == [1, 2]
+    resumed = Runner(tiny_run(tmp_path / "split", 4), resume=True)
+    resumed.run()
+    expected, got = rows(tmp_path / "whole"), rows(tmp_path / "split")
+    for want, have in zip(expected[2:], got[2:], strict=True):
+        keys = [k for k in want if k in COMPARED or k.startswith("return/")]
+        assert {k: have[k] for k in keys} == {k: want[k] for k in keys}
+    for name, tensor in whole.policy.state_dict().items():
+        assert torch.equal(resumed.policy.state_dict()[name], tensor), name
+
+
+def test_sigterm_in_the_middle_of_a_rollout_saves_the_run_and_resume_continues(
+    tmp_path: Path,
+) -> None:
+    """`hamnet trainer` receiving SIGTERM during a long rollout (thousands of steps) leaves it
+    at once: exit 0, the checkpoint of the last whole iteration, metrics, and a summary
+    saying it was stopped (no held-out evaluation, which the launcher's grace period would
+    not allow); `--resume` then continues from that checkpoint."""
+    run_dir = tmp_path / "run"
+    flags = ["--inprocess", "--architecture", "state-mlp", "--sim.num-envs", "2",
+             "--sim.num-objects", "2", "--sim.nthread", "1", "--steps-per-rollout", "3000"]  # fmt: skip
+    command = [sys.executable, "-m", "hamnet", "trainer", *flags, "--run-dir", str(run_dir)]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    metrics = run_dir / "metrics.jsonl"
+    deadline = time.monotonic() + 300
+    while not (metrics.exists() and metrics.read_text().endswith("\n")):  # iteration 1 is in
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()[0]
+        time.sleep(0.05)
+    process.send_signal(signal.SIGTERM)  # iteration 2's 6000 transitions have barely begun
+    output = process.communicate(timeout=60)[0]
+    assert process.returncode == 0, output
+    assert [row["iteration"] for row in rows(run_dir)] == [1]
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["stopped_by_signal"] and summary["final_success_rate"] is None
+    assert summary["env_steps"] == 6000
+    assert read_checkpoint(run_dir / "checkpoints" / "latest.safetensors").version == 2
+    resumed = [*flags, "--max-env-transitions", "12000",
+               "--eval-episodes", "2", "--resume", str(run_dir)]  # fmt: skip
+    assert main(resumed) == 0
+    assert [row["iteration"] for row in rows(run_dir)] == [1, 2]
+    assert json.loads((run_dir / "summary.json").read_text())["final_success_rate"] is not None
