@@ -18,7 +18,6 @@ start) and writes the result JSON and the curves next to it.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import signal
@@ -36,8 +35,7 @@ from hamnet.policy.weights import policy_from, read_checkpoint
 from hamnet.runtime.transport import free_port
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.plot import read_metrics
-from hamnet.trainer.runner import RunConfig, stage_sim
-from hamnet.trainer.summary import commit
+from hamnet.trainer.summary import commit, run_of
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -101,11 +99,7 @@ def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dic
     contacts into other outcomes: the same weights scored 7/64 and 5/64). The policy reads the
     tokens of the encoder its run trained on (`encoder_checkpoint` of its summary)."""
     policy = policy_from(read_checkpoint(folder / "checkpoints" / "latest.safetensors"))
-    sim = dataclasses.replace(stage_sim(summary["stage"]), seed=seed)
-    encoder = summary.get("encoder_checkpoint")  # the one the run trained on; None: random
-    config = RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"],
-                       random_encoder=encoder is None, **({"encoder_checkpoint": ROOT / encoder} if encoder else {}))  # fmt: skip
-    held_out = evaluate(policy, config, episodes, summary["env_steps"])
+    held_out = evaluate(policy, run_of(summary, seed), episodes, summary["env_steps"])
     return {
         "success_rate": held_out.success_rate,
         "goal_return": held_out.goal_return,

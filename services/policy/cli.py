@@ -3,7 +3,7 @@ its perception tokens, with hot-reloaded weights from the trainer (see
 `hamnet.policy.shell` for the topics).
 
 Start from a checkpoint (`--checkpoint run/policy.safetensors`, the bytes of a weights
-announcement) or, for tests and demos, from random weights (`--random-init hamnet`: version
+announcement), a policy shipped in the package by name (`--checkpoint easy-teacher`) or, for tests and demos, from random weights (`--random-init hamnet`: version
 0, and a warning that the actions are meaningless). `--print-params` prints the parameter
 counts of every architecture next to the paper's and exits.
 
@@ -26,7 +26,8 @@ import tyro
 from hamnet.policy.params import parameter_table
 from hamnet.policy.registry import ARCHITECTURES, build
 from hamnet.policy.shell import PORTS, PolicyLoopConfig, PolicyShell
-from hamnet.policy.weights import WeightsError, policy_from, read_checkpoint
+from hamnet.policy.shipped import read_weights
+from hamnet.policy.weights import WeightsError, policy_from
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 
@@ -40,7 +41,9 @@ class PolicyServiceConfig:
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     checkpoint: Annotated[Path | None, tyro.conf.arg(aliases=("--weights",))] = None
     """safetensors checkpoint written by the trainer (architecture, config and version are
-    in its metadata). Required unless --random-init or --print-params."""
+    in its metadata), or the name of a policy shipped in the package (easy-teacher: PPO on
+    the easy stage; easy-student: distilled from it, deployable inputs; see
+    docs/results/). Required unless --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and
     demos only: one of hamnet, hamnet-paper, hamnet-nogate, hamnet-envcode, mlp, hyper, sm,
@@ -75,7 +78,7 @@ def main(argv: Sequence[str]) -> int:
                     "trainer publishes weights", config.random_init)  # fmt: skip
     else:
         try:
-            weights = read_checkpoint(config.checkpoint)
+            weights = read_weights(config.checkpoint)
             policy, version = policy_from(weights), weights.version
         except WeightsError as error:
             log.error("%s", error)

@@ -47,8 +47,14 @@ class Weights:
     tensors: dict[str, Tensor]
 
 
-def to_bytes(policy: Policy, version: int) -> bytes:
-    """safetensors bytes of `policy`'s state dict with its metadata."""
+HALF = "network"
+"""`half` metadata of a file whose network tensors (`network.*`) are stored in float16."""
+
+
+def to_bytes(policy: Policy, version: int, half: bool = False) -> bytes:
+    """safetensors bytes of `policy`'s state dict with its metadata. `half`: the network's
+    tensors in float16 (half the bytes: a policy shipped in the package); the input
+    statistics and log std stay float32 (a variance can underflow float16)."""
     tensors = {k: v.detach().to("cpu").contiguous() for k, v in policy.state_dict().items()}
     metadata = {
         "format": FORMAT,
@@ -56,6 +62,10 @@ def to_bytes(policy: Policy, version: int) -> bytes:
         "config": policy.config.to_json(),
         "version": str(int(version)),
     }
+    if half:
+        tensors = {k: v.half() if k.startswith(f"{HALF}.") and v.is_floating_point() else v
+                   for k, v in tensors.items()}  # fmt: skip
+        metadata["half"] = HALF
     return save_tensors(tensors, metadata=metadata)
 
 
@@ -101,6 +111,9 @@ def from_bytes(data: bytes) -> Weights:
         tensors = load_tensors(data)
     except SafetensorError as error:
         raise WeightsError(f"not safetensors: {error}") from None
+    if meta.get("half") == HALF:  # float16 where the metadata says so, float32 to serve
+        tensors = {k: v.float() if k.startswith(f"{HALF}.") and v.dtype == torch.float16 else v
+                   for k, v in tensors.items()}  # fmt: skip
     return Weights(architecture, config, version, tensors)
 
 

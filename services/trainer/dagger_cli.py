@@ -23,6 +23,7 @@ from hamnet.trainer.dagger_chunks import DEMONSTRATIONS, demonstrations_decoder
 from hamnet.trainer.dagger_runner import DaggerError, DaggerRunner, Teacher, load_teacher
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
+from hamnet.trainer.stopping import until_signalled
 from hamnet.trainer.stream import Streamed
 from hamnet.trainer.summary import write_summary
 
@@ -38,18 +39,22 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
                               "hamnet trainer (RUN_DIR/checkpoints/latest.safetensors)")  # fmt: skip
         teacher = load_teacher(algorithm.teacher)
         if config.inprocess and not config.publish:
-            runner = DaggerRunner(run, algorithm.dagger, teacher, resume)
-            runner.run()
+            with until_signalled() as running:
+                runner = DaggerRunner(run, algorithm.dagger, teacher, resume)
+                runner.run(running=running)
+                stopped = not running()
         else:
             with Service(identity, config.common.transport) as service:
                 runner = distil_with(service, config, teacher)
+                stopped = not service.running
     except (DaggerError, ResumeError) as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
     extra: dict[str, object] = {"algo": "dagger", "teacher": str(teacher.path),
-                                "teacher_sha256": teacher.sha256}  # fmt: skip
+                                "teacher_sha256": teacher.sha256,
+                                "stopped_by_signal": stopped}  # fmt: skip
     student = None
-    if run.eval_episodes:
+    if run.eval_episodes and not stopped:  # a stopped run saves within the grace period
         counter = runner.env_transitions
         student = evaluate(runner.policy, run, run.eval_episodes, counter, student_clouds())
         held = evaluate(teacher.policy, run, run.eval_episodes, counter)

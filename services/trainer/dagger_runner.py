@@ -25,11 +25,13 @@ import numpy as np
 
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
-from hamnet.policy.weights import WeightsError, from_bytes, policy_from, sha256
+from hamnet.policy.shipped import read_weights, resolve
+from hamnet.policy.weights import WeightsError, policy_from, sha256
 from hamnet.trainer.dagger import DaggerConfig, Demonstrations, beta_at, update_student
 from hamnet.trainer.dagger_worker import DaggerWorker, build_dagger_worker
 from hamnet.trainer.resume import Arrays, ResumeError, Snapshot
 from hamnet.trainer.runner import Collected, RolloutSource, RunConfig, Runner
+from hamnet.trainer.stopping import always
 from hamnet.trainer.workers import progress as workers_progress
 
 
@@ -48,18 +50,18 @@ class Teacher:
 
 
 def load_teacher(path: Path) -> Teacher:
-    """The teacher in the policy checkpoint `path`.
+    """The teacher in the policy checkpoint `path` (or the shipped policy of that name).
 
     Raises:
         DaggerError: no such file, not a policy checkpoint, or a student's (no privileged
             inputs, or recurrent): a student cannot label for another.
     """
     try:
-        data = Path(path).read_bytes()
+        data = resolve(path).read_bytes()
     except OSError as error:
         raise DaggerError(f"cannot read teacher {path}: {error.strerror}") from None
     try:
-        policy = policy_from(from_bytes(data))
+        policy = policy_from(read_weights(path))  # a shipped one checked against its card
     except WeightsError as error:
         raise DaggerError(f"teacher {path} is not a policy checkpoint: {error}") from None
     if not policy.config.privileged or policy.config.recurrent:
@@ -90,12 +92,15 @@ class InProcessDagger:
     def num_envs(self) -> int:
         return self.worker.num_envs
 
-    def collect(self, policy: Policy, steps: int, env_transitions: int, version: int) -> Collected:
+    def collect(
+        self, policy: Policy, steps: int, env_transitions: int, version: int,
+        running: Callable[[], bool] = always,
+    ) -> Collected:  # fmt: skip
         """T = `steps` steps of every environment, the student `policy` acting where beta's
         coin says (at the counter `env_transitions`), the teacher labelling."""
         policy.eval()
         return Collected(
-            self.worker.collect(self.teacher, policy, steps, env_transitions, self.dagger)
+            self.worker.collect(self.teacher, policy, steps, env_transitions, self.dagger, running)
         )
 
     def snapshot(self) -> Snapshot:
@@ -131,13 +136,14 @@ class DaggerRunner(Runner):
 
         super().__init__(config, in_process if source is None else source, resume)
 
-    def iterate(self) -> dict[str, float]:
-        """One rollout of teacher and student and one imitation update; the metrics."""
+    def iterate(self, running: Callable[[], bool] = always) -> dict[str, float]:
+        """One rollout of teacher and student and one imitation update; the metrics
+        (InterruptedError while the rollout is under way once `running()` turns False)."""
         started = time.perf_counter()
         config, student = self.config, self.policy
         student.eval()
         collected = self.source.collect(
-            student, config.rollout_steps, self.env_transitions, self.version
+            student, config.rollout_steps, self.env_transitions, self.version, running
         )
         demos: Demonstrations = collected.rollout
         collect_done = time.perf_counter()
@@ -190,5 +196,9 @@ class DaggerRunner(Runner):
                               f"{saved['path']} (sha256 {saved['sha256'][:12]}), not "
                               f"{self.teacher.path} ({self.teacher.sha256[:12]})")  # fmt: skip
         super().restore(arrays, meta)
+
+    def restore_parts(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """`Runner`'s parts and the outcomes of the student's last episodes."""
+        super().restore_parts(arrays, meta)
         self.student_episodes.clear()
-        self.student_episodes.extend(arrays["student_episodes"].tolist())
+        self.student_episodes.extend(np.asarray(arrays["student_episodes"]).tolist())

@@ -20,6 +20,7 @@ A action components, R reward terms.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -49,6 +50,7 @@ from hamnet.trainer.resume import (
 )
 from hamnet.trainer.rollout import scenes_of, tokens_of
 from hamnet.trainer.runner import RunConfig, frozen_encoder
+from hamnet.trainer.stopping import always, check
 from hamnet.trainer.trajectory import cat_rows
 
 ROLES = ("teacher", "student")
@@ -93,10 +95,13 @@ class DaggerWorker:
         steps: int,
         env_transitions: int,
         config: DaggerConfig,
+        running: Callable[[], bool] = always,
     ) -> Demonstrations:
-        """`steps` steps of every environment from the counter `env_transitions`."""
+        """`steps` steps of every environment from the counter `env_transitions`;
+        InterruptedError once `running()` turns False before they are done."""
         records = []
         for t in range(steps):
+            check(running)
             counter = env_transitions + t * self.num_envs
             records.append(self._step(teacher, student, counter, beta_at(counter, config)))
         stack = lambda key: torch.stack([r[key] for r in records])

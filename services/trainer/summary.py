@@ -14,7 +14,7 @@ from pathlib import Path
 
 from hamnet.trainer.evaluate import HeldOut
 from hamnet.trainer.plot import read_metrics
-from hamnet.trainer.runner import RunConfig
+from hamnet.trainer.runner import RunConfig, stage_sim
 
 CURVE_POINTS = 100
 """Points of the learning curve kept in the summary (evenly spaced iterations)."""
@@ -82,3 +82,15 @@ def write_summary(
     path = config.run_dir / "summary.json"
     path.write_text(json.dumps(summary, indent=1, default=str) + "\n")
     return path
+
+
+def run_of(summary: dict, seed: int | None = None) -> RunConfig:
+    """The run a summary describes, as far as evaluating its policy again needs: stage and
+    its environments, seed (`seed`, default the run's), architecture and the encoder whose
+    tokens it learned on (`encoder_checkpoint`, relative to the checkout; None: random)."""
+    seed = summary["seed"] if seed is None else seed
+    sim = dataclasses.replace(stage_sim(summary["stage"]), seed=seed)
+    encoder = summary.get("encoder_checkpoint")
+    located = {"encoder_checkpoint": CHECKOUT / encoder} if encoder else {}
+    return RunConfig(stage=summary["stage"], sim=sim, architecture=summary["architecture"],
+                     random_encoder=encoder is None, **located)  # fmt: skip

@@ -31,7 +31,8 @@ def test_missing_or_bad_checkpoint_stops_at_start(tmp_path, capfd) -> None:
         main([])
     assert exited.value.code == 2
     logged = capfd.readouterr()
-    assert "cannot read checkpoint" in logged.err and "not safetensors" in logged.err
+    assert "nor a shipped policy of that name; shipped:" in logged.err  # names what exists
+    assert "not safetensors" in logged.err
     assert "needs --checkpoint" in logged.out + logged.err
 
 
