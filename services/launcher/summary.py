@@ -15,6 +15,7 @@ from pathlib import Path
 from hamnet.launcher.secure import Security
 from hamnet.launcher.supervisor import Process
 from hamnet.launcher.watch import HealthBoard, Liveliness
+from hamnet.runtime.events import success_line
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,10 @@ def render(report: Report) -> str:
         lines += [f"  {p.service}/{p.worker} dropped {n} on {kind}" for kind, n in p.drops.items()]
         lines += [f"  {p.service}/{p.worker}: {n} {name.replace('_', ' ')}"
                   for name, n in p.events.items()]  # fmt: skip
+    for p in report.processes:
+        success = success_line(p.events)
+        if success is not None:
+            lines.append(f"{p.service}/{p.worker}: {success}")
     if report.auxiliary_failed:
         lines.append(f"auxiliary, failed while the stack went on: {', '.join(report.auxiliary_failed)}")
     if report.not_built:

@@ -156,10 +156,10 @@ class Service:
             self._publishers[key] = Publisher(self.session, key, self.identity.source)
         return self._publishers[key]
 
-    def count_event(self, name: str) -> None:
-        """Count one `name` event (e.g. the sim's `loop_stalls`): health reports carry the
-        totals, and `hamnet up` sums them in its summary."""
-        self.events[name] += 1
+    def count_event(self, name: str, count: int = 1) -> None:
+        """Count `count` `name` events (e.g. the sim's `loop_stalls`): health reports carry
+        the totals, and `hamnet up` sums them in its summary."""
+        self.events[name] += count
 
     def set_figure(self, name: str, value: float) -> None:
         """Report a measured figure (e.g. a latency percentile) in the next health reports."""

@@ -31,13 +31,14 @@ from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import parse
+from hamnet.runtime.events import EPISODES_ENDED, EPISODES_SUCCEEDED
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
 from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, VectorEnv
+from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
 from hamnet.sim.loop import SimLoopConfig, free_running, lock_step
 from hamnet.sim.stall import StallWatch
 
@@ -136,11 +137,20 @@ class SimShell:
         self.report.tick(steps=1, step_s=time.perf_counter() - started, resets=len(result.reset_ids),
                          reset_s=self.env.reset_seconds - resetting)  # fmt: skip
         self.transition.put(encode_transition(result, self.env.reward_names, self.step))
+        self.count_episodes(result)
         self.step += 1
         self.observation = result.observation
         if len(result.reset_ids):
             self._publish_scene(result.reset_ids)
         self.state.put(encode_state(self.observation, self.step))
+
+    def count_episodes(self, result: StepResult) -> None:
+        """Count the episodes that ended and those that succeeded (`episodes_ended`,
+        `episodes_succeeded`): `hamnet up`'s summary prints their success rate."""
+        ended = int((result.terminated | result.truncated).sum())
+        if ended:
+            self.service.count_event(EPISODES_ENDED, ended)
+            self.service.count_event(EPISODES_SUCCEEDED, int(result.success.sum()))
 
     def publish_all(self) -> None:
         """Scenes of every environment, then the current state."""

@@ -3,6 +3,7 @@ what is missing and which files were written."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -88,3 +89,21 @@ def test_the_summary_says_when_a_stack_is_not_secure() -> None:
     assert render(report).splitlines()[1].startswith("not secure: plain links, no access control")
     assert json.loads(report.to_json())["security"] == {"tls_dir": None, "access": None, "router": None}
     assert Security("certs").text().startswith("mutual TLS (certificates in certs); no access control")
+
+
+def test_the_summary_prints_the_success_rate_of_the_episodes_that_ended() -> None:
+    """The sim counts ended and successful episodes in its health reports: the summary
+    turns them into a rate (a process without episodes prints none)."""
+    sim = ProcessReport(
+        service="sim", worker="0", command="sim", critical=True, outcome="stopped", exit="exit 0",
+        returncode=0, restarts=0, uptime_s=30.0, ready_s=1.0, announced=1, pids=[7], received={},
+        published={}, drops={}, events={"episodes_ended": 12, "episodes_succeeded": 5},
+        loop_rate_hz=20.0,
+    )  # fmt: skip
+    report = Report(stack="push-easy", namespace="push", ended="duration of 30 s reached",
+                    exit_code=0, elapsed_s=30.0, processes=[sim], not_built="", outputs={},
+                    outputs_missing=[])  # fmt: skip
+    lines = render(report).splitlines()
+    assert "sim/0: 5 of 12 episodes that ended succeeded (success rate 0.42)" in lines
+    assert not any("succeeded (" in line for line in render(dataclasses.replace(
+        report, processes=[dataclasses.replace(sim, events={})])).splitlines())  # fmt: skip
