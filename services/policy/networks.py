@@ -122,6 +122,39 @@ class ObjectEncoder(nn.Module):
         return torch.cat((summary, inputs.observation.base), dim=-1)
 
 
+class ModulationHeads(nn.Module):
+    """One linear header from z_tau for one base network (one GEMM): the module logits of
+    its weights and (when they have their own) its biases per layer, then the gates of its
+    hidden layers' units. Its output layer has no gates (scale_last false,
+    hypernet_modular.py:956-962)."""
+
+    def __init__(self, z: int, base: ModularMLP, config: ModelConfig) -> None:
+        super().__init__()
+        self.num_layers, self.num_modules = len(base.layers), config.num_modules
+        self.bias_weights = config.bias_weights
+        self.gate_dims = list(base.out_dims[:-1]) if config.gates else []
+        self.logits = self.num_layers * self.num_modules * (1 + config.bias_weights)
+        self.linear = nn.Linear(z, self.logits + sum(self.gate_dims))
+        with torch.no_grad():  # gates start near 1 (hypernet_modular.py:328-331)
+            nn.init.uniform_(self.linear.weight[self.logits :], -GATE_INIT, GATE_INIT)
+            self.linear.bias[self.logits :].zero_()
+
+    def forward(self, z: Tensor) -> tuple[Tensor, Tensor, list[Tensor | None]]:
+        """Module weights (B, L, M), bias module weights (B, L, M) and per-layer gates
+        ((B, D_l) for hidden layers, None for the output layer and without gates)."""
+        heads = self.linear(z)  # (B, L*M [+ L*M] + gates)
+        # One softmax over every (layer, parameter) row of M logits; contiguous rows are
+        # several times faster than the strided split.
+        rows = heads[:, : self.logits].contiguous().view(len(z), -1, self.num_modules)
+        softmax = torch.softmax(rows, dim=-1)
+        weights = softmax[:, : self.num_layers]
+        bias_weights = softmax[:, self.num_layers :] if self.bias_weights else weights
+        if not self.gate_dims:
+            return weights, bias_weights, [None] * self.num_layers
+        gates = list(torch.split(1.0 + heads[:, self.logits :], self.gate_dims, dim=-1))
+        return weights, bias_weights, [*gates, None]
+
+
 class HAMNet(nn.Module):
     """The paper's policy (teacher), its no-gate and EnvCode ablations, and the student."""
 
@@ -140,20 +173,10 @@ class HAMNet(nn.Module):
         m = config.num_modules
         self.actor = ModularMLP((base_in, *config.base_hidden, config.action_dim), m)
         self.critic = ModularMLP((base_in, *config.base_hidden, config.num_values), m)
-        self.num_layers = len(self.actor.layers) + len(self.critic.layers)
-        # One linear layer for every header (one GEMM): module logits for the weights and
-        # (when they have their own) the biases, then the gates of every hidden layer's
-        # units. The output layers have no gates (scale_last false, hypernet_modular.py:
-        # 956-962).
-        logits, bias_logits = self.num_layers * m, self.num_layers * m * config.bias_weights
-        hidden = self.actor.out_dims[:-1] + self.critic.out_dims[:-1]
-        self.gate_dims = hidden if config.gates else []
-        self.head_dims = [logits, bias_logits, sum(self.gate_dims)]
-        self.heads = nn.Linear(z, sum(self.head_dims))
-        with torch.no_grad():  # gates start near 1 (hypernet_modular.py:328-331)
-            first_gate = logits + bias_logits
-            nn.init.uniform_(self.heads.weight[first_gate:], -GATE_INIT, GATE_INIT)
-            self.heads.bias[first_gate:].zero_()
+        # Each base network its own header, so the critic's rows are the critic's
+        # parameters (`Policy.critic_parameters`: its own optimizer group and clip).
+        self.actor_heads = ModulationHeads(z, self.actor, config)
+        self.critic_heads = ModulationHeads(z, self.critic, config)
 
     @property
     def memory_width(self) -> int:
@@ -172,26 +195,12 @@ class HAMNet(nn.Module):
             z = self.modulation_gru(z, previous[:, : z.shape[1]])  # (B, Z)
             h = self.base_gru(x, previous[:, z.shape[1] :])  # (B, H_base)
             memory, x = torch.cat((z, h), dim=-1), torch.cat((x, h), dim=-1)
-        b, m = z.shape[0], self.config.num_modules
-        heads = self.heads(z)  # (B, L*M [+ L*M] + gates)
-        logits = self.head_dims[0] + self.head_dims[1]
-        # One softmax over every (layer, parameter) row of M logits; contiguous rows are
-        # several times faster than the strided split.
-        softmax = torch.softmax(heads[:, :logits].contiguous().view(b, -1, m), dim=-1)
-        weights = softmax[:, : self.num_layers]  # (B, L, M)
-        bias_weights = softmax[:, self.num_layers :] if self.config.bias_weights else weights
-        gate_logits = heads[:, logits:]
-        gates = self._gates(gate_logits)
-        la = len(self.actor.layers)
-        mean = self.actor(x, weights[:, :la], bias_weights[:, :la], gates[:la])
-        values = self.critic(x, weights[:, la:], bias_weights[:, la:], gates[la:])
+        actor = self.actor_heads(z)
+        mean = self.actor(x, *actor)
+        if not self.config.shared_value_gradient and torch.is_grad_enabled():
+            x, z = x.detach(), z.detach()  # the same features, their gradient stopped
+        critic = self.critic_heads(z)
+        values = self.critic(x, *critic)
+        weights = torch.cat((actor[0], critic[0]), dim=1)  # (B, L, M), actor's layers first
         return NetworkOutput(mean, values, weights, memory)
 
-    def _gates(self, logits: Tensor) -> list[Tensor | None]:
-        """Per layer (actor's, then critic's): its gates (B, D_l), or None for the ungated
-        output layers (and every layer without gates)."""
-        la, lc = len(self.actor.layers), len(self.critic.layers)
-        if not self.config.gates:
-            return [None] * (la + lc)
-        gates = list(torch.split(1.0 + logits, self.gate_dims, dim=-1))
-        return gates[: la - 1] + [None] + gates[la - 1 :] + [None]

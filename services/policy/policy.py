@@ -101,9 +101,12 @@ class Policy(nn.Module):
             self.log_std.fill_(log_std_at(env_transitions, self.config.log_std))
 
     def critic_parameters(self) -> list[nn.Parameter]:
-        """Parameters only the value loss reaches (the network's `critic`): the optimizer
-        may step them at their own rate (`hamnet.trainer.ppo.optimizer_for`)."""
-        return list(self.network.critic.parameters())
+        """Parameters only the value loss reaches (the network's `critic`, and HAMnet's
+        `critic_heads`): the optimizer may step them at their own rate and clip their
+        gradient on its own (`hamnet.trainer.ppo`)."""
+        heads = getattr(self.network, "critic_heads", None)
+        own = list(heads.parameters()) if heads is not None else []
+        return list(self.network.critic.parameters()) + own
 
     def actor_parameters(self) -> list[nn.Parameter]:
         """Every other parameter: the actor's, the log std and what both heads share."""

@@ -94,7 +94,11 @@ class PPOConfig:
     """Advantages centred per term and scaled by the standard deviation of their sum
     (config `ppo_config.py:55`; `ppo_util.py` `_ppo_loss_and_logs`, `SUM_REW`)."""
     max_grad_norm: float = 1.0
-    """Gradient clipping by global norm (config `ppo.py:98`)."""
+    """Gradient clipping by norm (config `ppo.py:98`), per optimizer group: with the
+    critic's own group (`value_lr`) the actor's and the critic's gradients are clipped
+    apart, so a large value gradient does not shrink the actor's step (on HAMnet it cut
+    every actor step to 40%, `ModelConfig.shared_value_gradient`); one group: the global
+    norm, as the authors."""
 
     def __post_init__(self) -> None:
         for name in ("gamma", "gae_lambda"):

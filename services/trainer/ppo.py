@@ -207,7 +207,8 @@ def update(
                     for p in actor:
                         p.grad = None  # the critic's group alone steps
                 ranks.average_gradients(parameters, len(rows))
-                torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
+                for group in optimizer.param_groups:  # the critic's own: not the actor's clip
+                    torch.nn.utils.clip_grad_norm_(group["params"], config.max_grad_norm)
                 optimizer.step()
                 if stopped:
                     value_steps += 1

@@ -214,7 +214,7 @@ def test_hamnet_biases_have_their_own_softmax_and_the_output_layers_no_gates() -
     policy = build("hamnet", seed=0)
     network: HAMNet = policy.network
     with torch.no_grad():
-        network.heads.weight.normal_()  # gates away from their initial 1
+        network.actor_heads.linear.weight.normal_()  # gates away from their initial 1
     captured = {}
     hook = network.actor.register_forward_hook(lambda m, args, out: captured.update(args=args))
     network(random_inputs(policy, B))
@@ -238,3 +238,22 @@ def test_modulation_reads_the_emb_token_last() -> None:
     torch.testing.assert_close(context(dataclasses.replace(inputs, object_tokens=tokens)), base)
     tokens[:, -1] += 1.0
     assert not torch.allclose(context(dataclasses.replace(inputs, object_tokens=tokens)), base)
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_the_value_loss_trains_the_shared_layers_only_when_asked(shared: bool) -> None:
+    """By default the critic reads the shared features with their gradient stopped: the
+    value loss reaches the critic and its header alone, the policy's mean is untouched by
+    it, and the outputs are those of the shared graph (the authors', `shared_value_gradient`)."""
+    policy = build("hamnet", with_changes("hamnet", shared_value_gradient=shared), seed=0)
+    inputs = random_inputs(policy, B)
+    out = policy.network(inputs)
+    out.values.square().sum().backward()
+    critic = {id(p) for p in policy.critic_parameters()}
+    reached = {name.split(".")[1] for name, p in policy.named_parameters()
+               if p.grad is not None and p.grad.abs().sum() > 0 and id(p) not in critic}  # fmt: skip
+    assert reached == ({"context", "modulation", "object"} if shared else set())
+    assert {id(p) for p in policy.network.critic_heads.parameters()} <= critic
+    other = build("hamnet", with_changes("hamnet", shared_value_gradient=not shared), seed=0)
+    with torch.no_grad():
+        torch.testing.assert_close(other.network(inputs).values, out.values.detach())
