@@ -25,7 +25,7 @@ from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.resume import ResumeError
 from hamnet.trainer.stopping import until_signalled
 from hamnet.trainer.stream import Streamed
-from hamnet.trainer.summary import write_summary
+from hamnet.trainer.summary import repository_path, write_summary
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
     except (DaggerError, ResumeError) as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
-    extra: dict[str, object] = {"algo": "dagger", "teacher": str(teacher.path),
+    extra: dict[str, object] = {"algo": "dagger", "teacher": repository_path(teacher.path),
                                 "teacher_sha256": teacher.sha256,
                                 "stopped_by_signal": stopped}  # fmt: skip
     student = None

@@ -55,10 +55,10 @@ def test_real_differs_from_eval_only_where_the_real_robot_needs_it() -> None:
 
 @pytest.mark.parametrize("name", ["eval.yaml", "real.yaml"])
 def test_evaluation_stacks_serve_the_student(name: str) -> None:
-    """The deployable student is the default (issue 15): its DAgger run's checkpoint, by its
-    mean."""
+    """The deployable student is the default (issue 15), shipped in the package so that a
+    fresh clone serves it (issue 28), by its mean."""
     services = load(COMPOSE / name).services
-    assert services["policy"].args["weights"] == "runs/dagger-easy/checkpoints/latest.safetensors"
+    assert services["policy"].args["weights"] == "easy-student"
     assert services["policy"].args["deterministic"] is True
 
 
