@@ -11,6 +11,8 @@ under docs/images/monitor/. First the layout as it opens, then before any traine
 then the scene file.
 
     .venv/bin/python scripts/monitor_screenshots.py [--out docs/images/monitor]
+    .venv/bin/python scripts/monitor_screenshots.py --recording runs/ppo-easy/monitor.rrd \
+        --name ppo-easy-training --out docs/images      # a real run's recording, as it is
 """
 
 from __future__ import annotations
@@ -134,8 +136,19 @@ def screenshot(url: str, out: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("docs/images/monitor"))
+    parser.add_argument("--recording", type=Path, nargs="*", default=[],
+                        help="instead: screenshot these .rrd files (a real run's monitor.rrd) "
+                        "as <out>/<name>.png")  # fmt: skip
+    parser.add_argument("--name", nargs="*", default=[], help="the PNG names of --recording "
+                        "(default: each file's parent folder)")  # fmt: skip
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.recording:
+        names = args.name or [path.resolve().parent.name for path in args.recording]
+        for index, (name, path) in enumerate(zip(names, args.recording, strict=True)):
+            with served(path, 9190 + index, 9977 + index) as url:
+                screenshot(url, args.out / f"{name}.png")
+        return
     with tempfile.TemporaryDirectory() as folder:
         files = {"training": Path(folder) / "training.rrd", "no-trainer": Path(folder) / "no-trainer.rrd",
                  "show-scene": Path(folder) / "scene.rrd"}  # fmt: skip
