@@ -126,6 +126,10 @@ class RunConfig:
     init: Initialization = "orthogonal"
     """How the actor and critic start: orthogonal (output layers 0.01 and 1) or torch's
     default, the authors' (`hamnet.policy.init`)."""
+    shared_value_gradient: bool = False
+    """HAMnet: the value loss trains the layers actor and critic share too (the authors');
+    default: the critic reads them with their gradient stopped
+    (`ModelConfig.shared_value_gradient`, docs/trainer.md)."""
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
     """The actor's log std: learned from -0.5 (default), or a schedule over env_transitions
     (`--log-std.mode schedule`: the authors' -0.4 minus 0.000367 per 1024 x 1024
@@ -358,7 +362,8 @@ class Runner:
         torch.set_num_threads(1)
         self.policy = build(
             config.architecture,
-            with_changes(config.architecture, log_std=config.log_std, init=config.init),
+            with_changes(config.architecture, log_std=config.log_std, init=config.init,
+                         shared_value_gradient=config.shared_value_gradient),
             config.seed,
         )
         self.source = InProcess(config) if source is None else source(self.policy)
