@@ -17,7 +17,7 @@ def test_a_tiny_run_writes_metrics_checkpoint_summary_and_curves(tmp_path: Path)
     summary = json.loads((run / "summary.json").read_text())
     assert summary["final_success_rate"] in (0.0, 0.5, 1.0) and summary["env_steps"] == 8
     assert isinstance(summary["final_goal_return"], float)
-    assert summary["stage"] == "easy" and summary["stage_definition"]["task"]["success_radius"] == 0.05
+    assert summary["stage"] == "easy" and summary["stage_definition"]["task"]["success_radius"] == 0.1
     assert summary["stage_definition"]["task"]["lambda_r"] == 0.3  # a --sim.* flag over the stage
     assert summary["stage_definition"]["placement"]["start_keeps_goal_orientation"]
     assert len(summary["curve"]) == 2 and summary["seed"] == 0
