@@ -35,7 +35,7 @@ from hamnet.policy.weights import policy_from, read_checkpoint
 from hamnet.runtime.transport import free_port
 from hamnet.trainer.evaluate import evaluate
 from hamnet.trainer.plot import read_metrics
-from hamnet.trainer.summary import commit, run_of
+from hamnet.trainer.summary import commit, repository_path, run_of
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -70,10 +70,10 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
         "monitor", "--save", str(runs / "monitor.rrd"), *network, log=runs / "monitor.log"
     )
     trainers = [
-        hamnet("trainer", "--workers", "1", *common, "--run-dir", str(dirs["hamnet"]), *streaming,
+        hamnet("trainer", "--workers", "1", *common, "--run-dir", repository_path(dirs["hamnet"]), *streaming,
                log=runs / "hamnet.log"),
         hamnet("trainer", "--inprocess", "--architecture", "state-mlp", *common,
-               "--run-dir", str(dirs["baseline"]), log=runs / "state-mlp.log"),
+               "--run-dir", repository_path(dirs["baseline"]), log=runs / "state-mlp.log"),
     ]  # fmt: skip
     try:
         for process in trainers:
