@@ -115,8 +115,8 @@ def served(path: Path, web_port: int, grpc_port: int) -> Iterator[str]:
         process.wait(timeout=10)
 
 
-def screenshot(url: str, out: Path) -> None:
-    """Open `url` in headless Chromium and save what it shows to `out`."""
+def screenshot(url: str, out: Path, wait_s: float = RENDER_WAIT_S) -> None:
+    """Open `url` in headless Chromium and save what it shows to `out` after `wait_s`."""
     from playwright.sync_api import sync_playwright  # the optional extra `screenshots`
 
     with sync_playwright() as playwright:
@@ -127,7 +127,7 @@ def screenshot(url: str, out: Path) -> None:
         )  # fmt: skip
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(url)
-        page.wait_for_timeout(RENDER_WAIT_S * 1000)
+        page.wait_for_timeout(wait_s * 1000)
         page.screenshot(path=str(out))
         browser.close()
     print(out)
@@ -141,13 +141,16 @@ def main() -> None:
                         "as <out>/<name>.png")  # fmt: skip
     parser.add_argument("--name", nargs="*", default=[], help="the PNG names of --recording "
                         "(default: each file's parent folder)")  # fmt: skip
+    parser.add_argument("--wait-s", type=float, default=RENDER_WAIT_S,
+                        help="seconds the viewer loads and draws before the screenshot (a run's "
+                        "file of a few MB streams in for a minute or more on a busy CPU)")  # fmt: skip
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     if args.recording:
         names = args.name or [path.resolve().parent.name for path in args.recording]
         for index, (name, path) in enumerate(zip(names, args.recording, strict=True)):
             with served(path, 9190 + index, 9977 + index) as url:
-                screenshot(url, args.out / f"{name}.png")
+                screenshot(url, args.out / f"{name}.png", args.wait_s)
         return
     with tempfile.TemporaryDirectory() as folder:
         files = {"training": Path(folder) / "training.rrd", "no-trainer": Path(folder) / "no-trainer.rrd",
