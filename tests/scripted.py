@@ -92,8 +92,8 @@ class ScriptedService:
     def publisher(self, key: str) -> CapturingPublisher:
         return CapturingPublisher(key, self.published, self.subscribed)
 
-    def count_event(self, name: str) -> None:
-        self.events[name] += 1
+    def count_event(self, name: str, count: int = 1) -> None:
+        self.events[name] += count
 
     def receive(self, timeout: float = 0.1) -> Received | None:
         while (item := self.script(self.published)) is not None:

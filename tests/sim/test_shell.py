@@ -16,6 +16,7 @@ from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
+from hamnet.runtime.events import EPISODES_ENDED, EPISODES_SUCCEEDED
 from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
 from hamnet.sim.commands import hold_command
@@ -44,7 +45,7 @@ CONTROL_DT = 0.1 / S
 
 def observation(rng: np.random.Generator, b: int = B) -> Observation:
     """Random finite observation of `b` environments with the env's dtypes."""
-    f = lambda *shape: rng.standard_normal((b, *shape)).astype(np.float32)  # noqa: E731
+    f = lambda *shape: rng.standard_normal((b, *shape)).astype(np.float32)
     return Observation(
         episode_ids=rng.integers(0, 1000, b).astype(np.int64),
         episode_step=rng.integers(0, 300, b).astype(np.int32),
@@ -81,7 +82,7 @@ def test_state_round_trips_with_its_privileged_block() -> None:
 def scene_description(rng: np.random.Generator, k: int) -> SceneDescription:
     """K random scenes with every field filled."""
     c = NUM_CUBOIDS
-    f32 = lambda *shape: rng.standard_normal(shape).astype(np.float32)  # noqa: E731
+    f32 = lambda *shape: rng.standard_normal(shape).astype(np.float32)
     return SceneDescription(
         env_ids=np.array([3, 1][:k]), episode_ids=np.array([40, 12][:k]),
         object_ids=("box@0.100", "mug@0.100")[:k], object_scale=f32(k), object_points=f32(k, 512, 3),
@@ -111,7 +112,7 @@ def test_scene_message_carries_every_field_of_the_description() -> None:
 
 def test_transition_round_trips_with_named_reward_terms() -> None:
     rng = np.random.default_rng(2)
-    flags = lambda: rng.random(B) < 0.5  # noqa: E731
+    flags = lambda: rng.random(B) < 0.5
     stepped = observation(rng)
     result = StepResult(
         observation=stepped, final_observation=stepped,
@@ -232,6 +233,8 @@ def test_lock_step_loop_steps_on_the_command_of_the_current_step_only(env: Vecto
         assert from_tensor(transition.reward_terms, np.float32, (2, 3)).shape == (2, 3)
     truncated = np.array([from_tensor(t.truncated, bool) for t in transitions])  # (T, B)
     assert truncated[2].all() and truncated[5].all()
+    # Two timeouts of both environments: the summary's success rate counts 4 episodes.
+    assert service.events[EPISODES_ENDED] == 4 and service.events[EPISODES_SUCCEEDED] == 0
     scenes = [m for t, m in service.published if t == "scene"]
     assert [m.header.step for m in scenes] == [0, 3, 6]
     equal(from_tensor(scenes[1].episode_ids), from_tensor(states[3].episode_ids))
