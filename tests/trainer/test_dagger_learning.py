@@ -2,11 +2,12 @@
 stage, `hamnet trainer --algo dagger` distils it into the student, and the student learns
 to act as the teacher does on states it has not been trained on.
 
-The threshold, from the proof run's curve (docs/results/dagger-easy.json, `curve`, and the
-first try's, docs/results/dagger-easy-try.json): the imitation loss measured before each
-update, on a window the student has not fitted yet, starts at 0.33 (the untrained student
-against the teacher's means), falls below 0.03 by 5 k transitions and averages 0.01-0.02
-after 12 k (single windows up to 0.04). Over
+The threshold, from the proof runs' curves (docs/results/dagger-easy.json, `curve`: issue
+28's, whose teacher and student start from the orthogonal initialization, and before it
+issue 15's and its first try's, docs/results/dagger-easy-try.json): the imitation loss
+measured before each update, on a window the student has not fitted yet, starts at 0.023
+(issue 15's: 0.33, torch's initialization), falls below 0.002 by 4 k transitions and stays
+at 0.0004-0.0014 (issue 15's: below 0.03 by 5 k, 0.01-0.02 after 12 k). Over
 the last quarter of 16 k transitions a mean below 0.06 therefore says the student learned
 the teacher's map (2x margin over the curve), and a fall of at least 3x from the first
 iteration says it did not start there. Success rates of 32-episode evaluations move by
