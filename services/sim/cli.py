@@ -34,8 +34,9 @@ class SimServiceConfig:
 
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
     stage: StageName = "full"
-    """Training stage (`hamnet.sim.stages`): full (the paper's domain) or easy. It sets the
-    defaults of every other sim flag; those flags change any field on top of it."""
+    """Training stage (`hamnet.sim.stages`): full (the paper's domain), easy (issue 28) or
+    easy-5cm (the former easy stage). It sets the defaults of every other sim flag; those
+    flags change any field on top of it."""
     sim: Annotated[SimConfig, OwnPrefix] = field(default_factory=SimConfig)
     loop: Annotated[SimLoopConfig, Flattened] = field(default_factory=SimLoopConfig)
     show_scene: int | None = None

@@ -77,8 +77,8 @@ class RunConfig:
     """One training run in one process."""
 
     stage: StageName = "easy"
-    """Training stage (`hamnet.sim.stages`): full or easy. It sets the defaults of every
-    `--sim.*` flag; those flags change any field on top of it."""
+    """Training stage (`hamnet.sim.stages`): full, easy or easy-5cm (the former easy stage).
+    It sets the defaults of every `--sim.*` flag; those flags change any field on top of it."""
     sim: SimConfig = field(default_factory=lambda: stage_sim("easy"))
     """The environments: count (`--sim.num-envs`, default 64), seed of the sim, the networks
     and the action noise (`--sim.seed`), physics threads without `overlap`
