@@ -34,6 +34,7 @@ def hamnet_trainer(*args: str) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # two trainer runs, 900 s each at most
 def test_a_short_distillation_imitates_its_teacher(tmp_path: Path) -> None:
     teacher_run, student_run = tmp_path / "teacher", tmp_path / "student"
     hamnet_trainer(

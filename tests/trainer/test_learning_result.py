@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1500)  # the script runs 10 minutes, then evaluates both policies
 def test_a_short_easy_stage_result_is_written_and_the_baseline_learns(tmp_path: Path) -> None:
     out = tmp_path / "result"
     subprocess.run([sys.executable, str(ROOT / "scripts" / "ppo_easy.py"), "--minutes", "10", "--eval-episodes", "32",
