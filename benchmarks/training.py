@@ -22,12 +22,14 @@ with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 `overlap_speedup`, `shares`, `workers_vs_inprocess` (the faster of 1 and 2 workers, both
 reported) and `services_vs_inprocess` (goal >= 0.8).
 
-    .venv/bin/python benchmarks/training.py --quick     # 16 envs, 2 iterations, 1 worker: under a minute
-    .venv/bin/python benchmarks/training.py             # 64 envs, 20 iterations a setup: 8-10 min
+    .venv/bin/python benchmarks/training.py --quick     # 16 envs x 32 steps, 2 iterations, 1 worker
+    .venv/bin/python benchmarks/training.py             # 64 envs x 128 steps (the run's), 3 iterations
 
 `--quick` is a smoke run of every setup: 16 environments (rates are lower than with 64, and
-the ratios noisier), 2 measured iterations a setup, and one rollout worker (its
-`workers_2_env_steps_per_s` is null). The process setups' start (torch and the networks
+the ratios noisier), 512 samples an update, 2 measured iterations a setup, and one rollout
+worker (its `workers_2_env_steps_per_s` is null). The full run learns from the run's 8192
+samples an update: the in-process trainer learns on every core while its environments
+wait (`RunConfig.learner_threads`), and so does one fed by synchronous workers. The process setups' start (torch and the networks
 load in each) is in their unmeasured warm-up iteration.
 """
 
@@ -54,10 +56,11 @@ from hamnet.sim.stages import stage_config
 from hamnet.trainer.runner import RunConfig, Runner
 from hamnet.trainer.stream import Streamed
 
-BENCH_STEPS = 8
-"""T of the benchmark's iterations (the authors' rollout length): short iterations keep
-`--quick` under a minute; the rate per sample does not depend on T (the learner's cost is
-epochs x samples either way)."""
+FULL_STEPS, QUICK_STEPS = 128, 32
+"""T of the benchmark's iterations: at 64 environments 128 makes the run's 8192 samples per
+update (`RunConfig.samples_per_update`), whose minibatches of 2048 the learner's cost per
+sample depends on; `--quick` takes 16 x 32 = 512 samples (minibatches of 128) to stay
+under a minute, so its learner share is not the run's."""
 CHAIN_LAG = 8
 """Versions a chain's chunk may lag the trainer (as tests/stack/test_chain_rollouts.py)."""
 
@@ -91,19 +94,20 @@ def remote_rate(
     commands: list[list[str]],
     workers: int,
     max_policy_lag: int,
+    steps: int,
     iterations: int,
     run_dir: Path,
     deadline_s: float | None = None,
 ) -> float | None:
     """Env steps/s of the loop learning from rollouts that `commands` (`hamnet` processes,
     started on a loopback network of their own) stream from `workers` sources of
-    `sim.num_envs` environments each, after one warm-up iteration that includes their start;
-    None when that iteration has not ended within `deadline_s` (None: no deadline)."""
+    `sim.num_envs` environments each, `steps` steps a rollout, after one warm-up iteration
+    that includes their start; None when that iteration has not ended within `deadline_s` (None: no deadline)."""
     transport = loopback_transport()
     processes = [spawn(command, transport) for command in commands]
     try:
         with Service(ServiceIdentity("trainer", "bench"), transport) as service:
-            config = RunConfig(sim=sim, run_dir=run_dir, steps_per_rollout=BENCH_STEPS)
+            config = RunConfig(sim=sim, run_dir=run_dir, steps_per_rollout=steps)
             runner = Runner(config, lambda policy: Streamed(
                 service, policy, workers, sim.num_envs, max_policy_lag))  # fmt: skip
             timer = None if deadline_s is None else threading.Timer(deadline_s, service.stop)
@@ -125,28 +129,30 @@ def remote_rate(
         stop(processes)
 
 
-def streamed_rate(sim: SimConfig, workers: int, iterations: int, run_dir: Path) -> float:
+def streamed_rate(sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path) -> float:
     """Env steps/s of the loop learning from `workers` rollout worker processes of
     `sim.num_envs / workers` environments each, after one warm-up iteration."""
     each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
     commands = [["rollout", "--worker", str(k), "--sim.num-envs", str(each.num_envs),
-                 "--steps-per-rollout", str(BENCH_STEPS)] for k in range(workers)]  # fmt: skip
-    rate = remote_rate(each, commands, workers, 0, iterations, run_dir)
+                 "--steps-per-rollout", str(steps)] for k in range(workers)]  # fmt: skip
+    rate = remote_rate(each, commands, workers, 0, steps, iterations, run_dir)
     assert rate is not None  # no deadline
     return rate
 
 
-def chain_rate(sim: SimConfig, iterations: int, run_dir: Path, deadline_s: float) -> float | None:
+def chain_rate(
+    sim: SimConfig, steps: int, iterations: int, run_dir: Path, deadline_s: float
+) -> float | None:
     """Env steps/s of the loop learning from the service chain's chunks (None: no update
     within `deadline_s`)."""
-    horizon = str(BENCH_STEPS)
+    horizon = str(steps)
     commands = [
         ["sim", "--stage", "easy", "--num-envs", str(sim.num_envs)],
         ["perception"],
         ["policy", "--random-init", "hamnet", "--rollout-horizon", horizon],
         ["safety", "--profile", "training"],
     ]
-    return remote_rate(sim, commands, 1, CHAIN_LAG, iterations, run_dir, deadline_s)
+    return remote_rate(sim, commands, 1, CHAIN_LAG, steps, iterations, run_dir, deadline_s)
 
 
 def component_shares(runner: Runner, iterations: int) -> dict[str, float]:
@@ -203,15 +209,16 @@ def main() -> dict:
     )
     args = parser.parse_args()
     num_envs = args.num_envs or (16 if args.quick else 64)
-    iterations = 2 if args.quick else 20
+    iterations = 2 if args.quick else 3
+    steps = QUICK_STEPS if args.quick else FULL_STEPS
     worker_counts = (1,) if args.quick else (1, 2)
     with TemporaryDirectory() as run_dir:
         sim = stage_config("easy", num_envs=num_envs)
-        config = RunConfig(sim=sim, run_dir=Path(run_dir), steps_per_rollout=BENCH_STEPS)
+        config = RunConfig(sim=sim, run_dir=Path(run_dir), steps_per_rollout=steps)
         inprocess, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
         sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False,
-                                      steps_per_rollout=BENCH_STEPS)
+                                      steps_per_rollout=steps)
         sequential, runner = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
         shares = component_shares(runner, iterations)
@@ -221,12 +228,12 @@ def main() -> dict:
         streamed = {}
         for workers in worker_counts:
             streamed[workers] = streamed_rate(
-                sim, workers, iterations, Path(run_dir) / f"workers{workers}"
+                sim, workers, steps, iterations, Path(run_dir) / f"workers{workers}"
             )
             progress(
                 f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
             )
-        chain = chain_rate(sim, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
+        chain = chain_rate(sim, steps, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
         progress("trainer + service chain: " + (
             f"{chain:.0f} env steps/s" if chain is not None
             else f"no update within {args.chain_deadline_s:.0f} s"))  # fmt: skip
@@ -234,6 +241,7 @@ def main() -> dict:
     return {
         **header("training", args.quick),
         "num_envs": num_envs,
+        "samples_per_update": num_envs * steps,
         "stage": config.stage,
         "architecture": config.architecture,
         "inprocess_env_steps_per_s": round(inprocess, 1),

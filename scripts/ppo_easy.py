@@ -60,7 +60,9 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
         "--rendezvous",
         f"tcp/127.0.0.1:{free_port()}",
     ]
-    common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s)]
+    # One torch thread each: the two learners share the two cores.
+    common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s),
+              "--learner-threads", "1"]  # fmt: skip
     dirs = {"hamnet": runs / "hamnet", "baseline": runs / "state-mlp"}
     for folder in dirs.values():
         folder.mkdir(parents=True, exist_ok=True)  # names as in main()

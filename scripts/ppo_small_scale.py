@@ -71,7 +71,7 @@ def run_variant(name: str, flags: tuple[str, ...], args: argparse.Namespace) -> 
     folder.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "hamnet", "trainer", "--inprocess", "--architecture",
                "state-mlp", "--stage", "easy", "--sim.seed", str(args.seed), "--sim.nthread", "1",
-               "--max-env-transitions", str(args.transitions), "--eval-episodes",
+               "--learner-threads", "1", "--max-env-transitions", str(args.transitions), "--eval-episodes",
                str(args.eval_episodes), "--run-dir", str(folder), *flags]  # fmt: skip
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
     log = (args.runs / f"{name}.log").open("w")

@@ -187,20 +187,39 @@ class HAMNet(nn.Module):
 
     def forward(self, inputs: PolicyInputs) -> NetworkOutput:
         """Mean (B, A), values (B, R), module weights (B, L, M) and the next memory."""
-        z = self.modulation(self.context(inputs))  # (B, Z)
-        x = self.object(inputs)  # (B, E + S)
-        memory = None
-        if self.config.recurrent:
-            previous = require(inputs.memory, "the recurrent memory")  # (B, Z + H_base)
-            z = self.modulation_gru(z, previous[:, : z.shape[1]])  # (B, Z)
-            h = self.base_gru(x, previous[:, z.shape[1] :])  # (B, H_base)
-            memory, x = torch.cat((z, h), dim=-1), torch.cat((x, h), dim=-1)
+        x, z, memory = self._features(inputs)
         actor = self.actor_heads(z)
         mean = self.actor(x, *actor)
         if not self.config.shared_value_gradient and torch.is_grad_enabled():
             x, z = x.detach(), z.detach()  # the same features, their gradient stopped
-        critic = self.critic_heads(z)
-        values = self.critic(x, *critic)
-        weights = torch.cat((actor[0], critic[0]), dim=1)  # (B, L, M), actor's layers first
+        values, critic_weights = self._critic(x, z)
+        weights = torch.cat((actor[0], critic_weights), dim=1)  # (B, L, M), actor's layers first
         return NetworkOutput(mean, values, weights, memory)
 
+    def value_features(self, inputs: PolicyInputs) -> tuple[Tensor, Tensor]:
+        """What the critic reads, (x (B, E + S [+ H]), z (B, Z)): everything before it, so
+        PPO's critic-only steps, once the actor and the layers it shares are frozen, compute
+        them once per update instead of once per step (`hamnet.trainer.ppo`)."""
+        x, z, _ = self._features(inputs)
+        return x, z
+
+    def values_from(self, features: tuple[Tensor, Tensor]) -> Tensor:
+        """(B, R) values of `value_features`' output."""
+        return self._critic(*features)[0]
+
+    def _features(self, inputs: PolicyInputs) -> tuple[Tensor, Tensor, Tensor | None]:
+        """The base networks' input x (B, E + S [+ H]), the modulation embedding z (B, Z) and
+        the next memory (None for a feed-forward network)."""
+        z = self.modulation(self.context(inputs))  # (B, Z)
+        x = self.object(inputs)  # (B, E + S)
+        if not self.config.recurrent:
+            return x, z, None
+        previous = require(inputs.memory, "the recurrent memory")  # (B, Z + H_base)
+        z = self.modulation_gru(z, previous[:, : z.shape[1]])  # (B, Z)
+        h = self.base_gru(x, previous[:, z.shape[1] :])  # (B, H_base)
+        return torch.cat((x, h), dim=-1), z, torch.cat((z, h), dim=-1)
+
+    def _critic(self, x: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+        """Values (B, R) and the critic's module weights (B, L, M)."""
+        heads = self.critic_heads(z)
+        return self.critic(x, *heads), heads[0]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import Tensor, nn
@@ -132,6 +133,20 @@ class Policy(nn.Module):
         out = self.network(self._standardised(inputs))
         entropy = (self.log_std + 0.5 + _LOG_SQRT_2PI).sum().expand(actions.shape[0])  # (B,)
         return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory, out.mean)
+
+    @property
+    def reads_value_features(self) -> bool:
+        """Whether the network splits its critic from what it reads (`value_features`,
+        `values_from`), so PPO's critic-only steps can skip everything before it."""
+        return hasattr(self.network, "value_features")
+
+    def value_features(self, inputs: PolicyInputs) -> Any:
+        """What the network's critic reads of these inputs (a tree of (B, ...) tensors)."""
+        return self.network.value_features(self._standardised(inputs))
+
+    def values_from(self, features: Any) -> Tensor:
+        """(B, R) values of `value_features`' output, with gradients for the critic."""
+        return self.network.values_from(features)
 
     def _standardised(self, inputs: PolicyInputs) -> PolicyInputs:
         """`inputs` with the observation standardised by the running statistics."""

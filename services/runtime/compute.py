@@ -9,6 +9,9 @@ slowdown caused at episode resets. A service alone on a big machine can take mor
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import torch
 
 
@@ -28,3 +31,16 @@ def torch_device(device: str, threads: int) -> torch.device:
     if resolved.type == "cuda" and not torch.cuda.is_available():
         raise ValueError(f"device {device!r} asked for, but this machine has no CUDA device")
     return resolved
+
+
+@contextmanager
+def torch_threads(threads: int) -> Iterator[None]:
+    """Run the block on `threads` intra-op threads of torch, then go back to the process's
+    setting: a trainer learns on every core while its rollouts wait for the update, and acts
+    on one thread while physics takes the other (`RunConfig.learner_threads`)."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)

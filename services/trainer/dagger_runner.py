@@ -27,6 +27,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.policy.shipped import read_weights, resolve
 from hamnet.policy.weights import WeightsError, policy_from, sha256
+from hamnet.runtime.compute import torch_threads
 from hamnet.trainer.dagger import DaggerConfig, Demonstrations, beta_at, update_student
 from hamnet.trainer.dagger_worker import DaggerWorker, build_dagger_worker
 from hamnet.trainer.resume import Arrays, ResumeError, Snapshot
@@ -92,6 +93,10 @@ class InProcessDagger:
     def num_envs(self) -> int:
         return self.worker.num_envs
 
+    @property
+    def waits_for_update(self) -> bool:
+        return True
+
     def collect(
         self, policy: Policy, steps: int, env_transitions: int, version: int,
         running: Callable[[], bool] = always,
@@ -150,7 +155,8 @@ class DaggerRunner(Runner):
         self.tracker.add(demos, collected.envs)
         ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
         self.student_episodes.extend(demos.success[ended].tolist())
-        stats = update_student(student, self.optimizer, demos, self.dagger)
+        with torch_threads(self.learner_threads):
+            stats = update_student(student, self.optimizer, demos, self.dagger)
         student.normalizer.update(demos.inputs.observation)  # after: act and learn agreed
         beta = beta_at(self.env_transitions, self.dagger)
         transitions = demos.labels.shape[0] * demos.labels.shape[1]

@@ -31,7 +31,7 @@ from hamnet.trainer.losses import (
 )
 from hamnet.trainer.ranks import ONE, Ranks
 from hamnet.trainer.stopping import always, check
-from hamnet.trainer.trees import take_rows
+from hamnet.trainer.trees import take_rows, zip_trees
 
 
 class Evaluated(Protocol):
@@ -47,6 +47,16 @@ class Evaluated(Protocol):
 
 Evaluate = Callable[[Any, Tensor], Evaluated]
 """(inputs of N samples, actions (N, A)) -> Evaluated, with gradients."""
+
+
+class Critic(Protocol):
+    """A policy whose critic reads features computed before it (`Policy.value_features`)."""
+
+    def value_features(self, inputs: Any) -> Any:
+        """What the critic reads of inputs of N samples: a tree of (N, ...) tensors."""
+
+    def values_from(self, features: Any) -> Tensor:
+        """(N, R) values of those features, with gradients for the critic's parameters."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +133,7 @@ def update(
     energy: Callable[[Tensor, Tensor], Tensor] | None = None,
     ranks: Ranks = ONE,
     running: Callable[[], bool] = always,
+    critic: Critic | None = None,
 ) -> UpdateStats:
     """Run up to `config.epochs` epochs of `config.minibatches` gradient steps on `batch`.
 
@@ -149,6 +160,10 @@ def update(
             gradients are those of all shards together (`hamnet.trainer.ranks`).
         running: checked before every minibatch: InterruptedError once it turns False (the
             caller goes back to the parameters from before the update).
+        critic: the policy, when its critic reads features of everything before it: once
+            the actor stops, those layers are frozen, so the critic-only steps compute the
+            features of the whole batch once (`critic.value_features`) and run the critic
+            alone on them, instead of the whole network every step (the same values).
     """
     parameters = list(parameters)
     actor: list[Tensor] = list(optimizer.param_groups[0]["params"])
@@ -162,33 +177,41 @@ def update(
     bound = config.early_stop_factor * config.kl_target
     n, lr = batch.actions.shape[0], optimizer.param_groups[0]["lr"]
     steps = value_steps = 0
-    stopped, kept, before, agreement = False, {}, None, math.nan
+    stopped, kept, before, agreement, features = False, {}, None, math.nan, None
     try:
         for _ in range(config.epochs):
             for rows in _minibatches(n, config, generator):
                 check(running)
                 if stopped and not critic_alone:
                     break
-                first = steps == 0 and not stopped
-                parts, diagnostics = losses(rows.chunk(2) if first and len(rows) > 1 else (rows,))
-                kl = diagnostics["kl"] if steps and not stopped else None
-                if kl is not None:
-                    stopped = config.kl_stop != "off" and kl > bound
-                    if stopped and critic_alone:  # the critic's steps need no actor gradient
-                        _freeze(actor, True)
-                    if stopped and config.kl_stop == "rollback":
-                        _restore(actor, before)
-                        steps -= 1
-                        if critic_alone:  # the critic's step needs a graph of the restored actor
-                            parts, _ = losses((rows,))
-                    else:
+                if not (stopped and critic is not None):  # else no network pass is needed
+                    first = steps == 0 and not stopped
+                    parts, diagnostics = losses(
+                        rows.chunk(2) if first and len(rows) > 1 else (rows,)
+                    )
+                    kl = diagnostics["kl"] if steps and not stopped else None
+                    if kl is not None:
+                        stopped = config.kl_stop != "off" and kl > bound
+                        if stopped and critic_alone:  # the critic's steps need no actor gradient
+                            _freeze(actor, True)
+                        if stopped and config.kl_stop == "rollback":
+                            _restore(actor, before)
+                            steps -= 1
+                            if critic_alone and critic is None:  # a graph of the restored actor
+                                parts, _ = losses((rows,))
+                        else:
+                            kept = diagnostics
+                        if stopped and config.lr_schedule == "adaptive":
+                            lr = _adapt(optimizer, lr, kl, config)
+                    elif first:
                         kept = diagnostics
-                    if stopped and config.lr_schedule == "adaptive":
-                        lr = _adapt(optimizer, lr, kl, config)
-                elif first:
-                    kept = diagnostics
-                if stopped and not critic_alone:
-                    break
+                    if stopped and not critic_alone:
+                        break
+                if stopped and critic is not None:
+                    if features is None:
+                        features = _value_features(critic, batch.inputs, n, config)
+                    values = critic.values_from(take_rows(features, rows))
+                    parts = [(1.0, {"value": value_loss(values, batch.returns[rows])})]
                 if config.kl_stop == "rollback" and not stopped:
                     before = [p.detach().clone() for p in actor]
                 optimizer.zero_grad(set_to_none=True)
@@ -200,7 +223,8 @@ def update(
                                        + config.bound_coef * terms["bound"]
                                        + config.energy_coef * terms.get("energy", 0.0))  # fmt: skip
                     (weight * loss).backward()
-                    gradients.append(_flat_gradient(actor))
+                    if len(parts) == 2:
+                        gradients.append(_flat_gradient(actor))
                 if len(gradients) == 2:
                     agreement = _cosine(gradients[0], gradients[1] - gradients[0])
                 if stopped:
@@ -229,6 +253,15 @@ def update(
             kept = diagnostics
     return UpdateStats(kept["policy"], kept["value"], kept["bound"], kept["kl"], kept["clip"], lr,
                        steps, stopped, kept.get("energy", 0.0), value_steps, agreement)  # fmt: skip
+
+
+def _value_features(critic: Critic, inputs: Any, n: int, config: PPOConfig) -> Any:
+    """The critic's features of all N samples, minibatch-sized chunks at a time, without
+    gradients."""
+    with torch.no_grad():
+        chunks = [critic.value_features(take_rows(inputs, rows))
+                  for rows in torch.arange(n).chunk(config.minibatches)]  # fmt: skip
+    return zip_trees(chunks, torch.cat)
 
 
 def _minibatches(

@@ -21,6 +21,7 @@ import dataclasses
 import json
 import logging
 import math
+import os
 import time
 from collections import deque
 from collections.abc import Callable
@@ -41,6 +42,7 @@ from hamnet.policy.config import Initialization, LogStdConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture, build, with_changes
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
+from hamnet.runtime.compute import torch_threads
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.config import SimConfig
@@ -116,6 +118,11 @@ class RunConfig:
     perception, policy and safety run (`rollout.collect_overlapped`), so both cores stay
     busy; None: when the policy reads clouds (1.18x for HAMnet at 64 environments in
     `benchmarks/training.py`; a policy without perception is faster on all physics threads)."""
+    learner_threads: int = 0
+    """Torch threads of the PPO update; 0: when the environments stand still while it learns
+    (in-process, or workers with `--max-policy-lag` 0), every core (shared among learner
+    ranks): 1.6x faster updates than one thread on the 2-core machine
+    (`benchmarks/learner.py`); else 1, since the workers act meanwhile."""
     log_period_s: float = 10.0
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
@@ -176,8 +183,8 @@ class RunConfig:
             raise ValueError("steps_per_rollout must be >= 0, samples_per_update and workers >= 1")
         if self.overlapped and self.num_envs % 2:
             raise ValueError("overlap splits the environments in two groups: num_envs must be even")
-        if self.eval_episodes < 0:
-            raise ValueError("eval_episodes must be >= 0")
+        if self.eval_episodes < 0 or self.learner_threads < 0:
+            raise ValueError("eval_episodes and learner_threads must be >= 0")
 
 
 class EpisodeTracker:
@@ -301,6 +308,11 @@ class RolloutSource(Protocol):
     def num_envs(self) -> int:
         """B: environments of every rollout, in a fixed order."""
 
+    @property
+    def waits_for_update(self) -> bool:
+        """Whether its environments stand still while the trainer learns, so the update may
+        take every core (`RunConfig.learner_threads`)."""
+
     def collect(
         self, policy: Policy, steps: int, env_transitions: int, version: int,
         running: Callable[[], bool] = always,
@@ -321,6 +333,10 @@ class InProcess:
     @property
     def num_envs(self) -> int:
         return sum(worker.env.num_envs for worker in self.workers)
+
+    @property
+    def waits_for_update(self) -> bool:
+        return True
 
     def snapshot(self) -> Snapshot:
         """Every worker's whole state (`RolloutWorker.snapshot`), as `worker<i>`."""
@@ -367,6 +383,9 @@ class Runner:
             config.seed,
         )
         self.source = InProcess(config) if source is None else source(self.policy)
+        cores = max(1, (os.cpu_count() or 1) // ranks.size)  # the ranks share the machine
+        self.learner_threads = config.learner_threads or (cores if self.source.waits_for_update else 1)
+        """Torch threads of the update (`RunConfig.learner_threads`, resolved)."""
         # After the source: every rank subscribes to its workers' chunks before the main one
         # announces the first weights.
         ranks.broadcast(self.policy)
@@ -464,9 +483,32 @@ class Runner:
         envs: torch.Tensor | None = None,
         running: Callable[[], bool] = always,
     ) -> UpdateStats:
-        """Scale rewards, bootstrap, GAE per term, one PPO update of this rank's `rollout`;
-        `whole` (default `rollout`): every rank's environments, which the scaler sees; `envs`:
-        which environments they are (None: all); `running`: stops the update (`ppo.update`)."""
+        """One PPO update of this rank's `rollout` (`batch`), on `learner_threads` threads,
+        the critic alone on features computed once after the actor stops (`ppo.update`);
+        `running` stops it."""
+        batch = self.batch(rollout, whole, envs)
+        self.policy.train()
+        with torch_threads(self.learner_threads):
+            return update(
+                self.policy.evaluate,
+                self.policy.parameters(),
+                self.optimizer,
+                batch,
+                self.action_bounds,
+                self.config.ppo,
+                generator=self.shuffle,
+                energy=self.energy,
+                ranks=self.ranks,
+                running=running,
+                critic=self.policy if self.policy.reads_value_features else None,
+            )
+
+    def batch(
+        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+    ) -> Batch:
+        """Scale rewards, bootstrap, GAE per term: the update's batch of this rank's
+        `rollout`; `whole` (default `rollout`): every rank's environments, which the scaler
+        sees; `envs`: which environments they are (None: all)."""
         whole = rollout if whole is None else whole
         scaled = torch.stack([self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
                               for t in range(len(whole.rewards))])  # fmt: skip
@@ -480,26 +522,13 @@ class Runner:
         robot_state = rollout.inputs.observation.base[
             :, self.policy.config.observation.columns("base", "robot_state")
         ]
-        batch = Batch(
+        return Batch(
             rollout.inputs,
             flat(rollout.actions),
             flat(rollout.log_prob),
             flat(advantages),
             flat(returns),
             joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
-        )
-        self.policy.train()
-        return update(
-            self.policy.evaluate,
-            self.policy.parameters(),
-            self.optimizer,
-            batch,
-            self.action_bounds,
-            ppo,
-            generator=self.shuffle,
-            energy=self.energy,
-            ranks=self.ranks,
-            running=running,
         )
 
     def progress(self, row: dict[str, float]) -> str:

@@ -112,6 +112,11 @@ class Streamed:
                       if self.topic.matches(key))  # fmt: skip
         return self.stale + refused
 
+    @property
+    def waits_for_update(self) -> bool:
+        """Synchronous workers (`max_policy_lag` 0) wait for the new weights."""
+        return self.max_policy_lag == 0
+
     def collect(
         self, policy: Policy, steps: int, env_transitions: int, version: int,
         running: Callable[[], bool] = always,

@@ -14,7 +14,8 @@ from torch import Tensor
 def zip_trees(trees: list[Any], join: Callable[[list[Tensor]], Tensor]) -> Any:
     """One tree from trees of the same structure, each leaf the `join` of theirs there.
 
-    Leaves are tensors or None (None stays None); inner nodes are dicts and dataclasses.
+    Leaves are tensors or None (None stays None); inner nodes are dicts, tuples and
+    dataclasses.
     """
     first = trees[0]
     if first is None:
@@ -23,6 +24,8 @@ def zip_trees(trees: list[Any], join: Callable[[list[Tensor]], Tensor]) -> Any:
         return join(trees)
     if isinstance(first, dict):
         return {key: zip_trees([tree[key] for tree in trees], join) for key in first}
+    if isinstance(first, tuple):
+        return tuple(zip_trees([tree[i] for tree in trees], join) for i in range(len(first)))
     if dataclasses.is_dataclass(first):
         changes = {f.name: zip_trees([getattr(tree, f.name) for tree in trees], join)
                    for f in dataclasses.fields(first)}  # fmt: skip

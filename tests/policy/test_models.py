@@ -18,7 +18,7 @@ from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import ARCHITECTURES, build, with_changes
 from hamnet.sim.rewards import REWARD_NAMES
-from tests.policy.inputs import informed, random_inputs
+from tests.policy.inputs import informed, random_action, random_inputs
 
 B = 4
 
@@ -257,3 +257,16 @@ def test_the_value_loss_trains_the_shared_layers_only_when_asked(shared: bool) -
     other = build("hamnet", with_changes("hamnet", shared_value_gradient=not shared), seed=0)
     with torch.no_grad():
         torch.testing.assert_close(other.network(inputs).values, out.values.detach())
+
+
+@pytest.mark.parametrize("name", ["hamnet", "student"])
+def test_values_from_the_value_features_are_the_networks_values(name: str) -> None:
+    """PPO's critic-only steps run the critic on features computed once
+    (`Policy.value_features`): its values there are those of the whole network."""
+    policy = informed(name)
+    inputs = random_inputs(policy, B)
+    assert policy.reads_value_features
+    with torch.no_grad():
+        whole = policy.evaluate(inputs, random_action(B)).values
+        split = policy.values_from(policy.value_features(inputs))
+    torch.testing.assert_close(split, whole)

@@ -228,3 +228,54 @@ def test_gradient_agreement_is_one_when_the_two_halves_are_the_same_samples() ->
     fresh = TinyActorCritic()
     other = update_tiny(fresh, torch.optim.Adam(fresh.parameters()), half, config=config)
     assert -1.0 <= other.gradient_agreement < 0.999
+
+
+class SharedTrunk(TinyActorCritic):
+    """A trunk the actor trains and the critic reads with its gradient stopped (HAMnet's
+    default), counting the passes through it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.trunk, self.actor, self.critic = nn.Linear(2, 4), nn.Linear(4, 2), nn.Linear(4, 2)
+        self.passes = 0
+
+    def value_features(self, states: Tensor) -> Tensor:
+        self.passes += 1
+        return torch.tanh(self.trunk(states))
+
+    def values_from(self, features: Tensor) -> Tensor:
+        return self.critic(features)
+
+    def evaluate(self, states: Tensor, actions: Tensor) -> Evaluation:
+        features = self.value_features(states)
+        mean = self.actor(features)
+        log_prob = (-0.5 * ((actions - mean) / math.exp(LOG_STD)).square() - LOG_STD
+                    - 0.5 * math.log(2 * math.pi)).sum(-1)  # fmt: skip
+        return Evaluation(log_prob, self.values_from(features.detach()), mean)
+
+
+@pytest.mark.parametrize("kl_stop", ["rollback", "before-step"])
+def test_the_critic_alone_on_features_computed_once_steps_as_on_the_whole_network(kl_stop: str) -> None:
+    """Once the actor stops, the critic-only steps read the trunk's features of the whole
+    batch, computed once: the same parameters as running the whole network every step, with
+    one trunk pass per minibatch chunk instead of one per step."""
+    config = PPOConfig(minibatches=4, lr=0.01, lr_bounds=(1e-6, 0.1), value_lr=1e-3, kl_stop=kl_stop)
+    results = []
+    for critic in (False, True):
+        torch.manual_seed(0)
+        model = SharedTrunk()
+        optimizer = optimizer_for([*model.trunk.parameters(), *model.actor.parameters()],
+                                  model.critic.parameters(), config)  # fmt: skip
+        batch = overshooting_batch(model)
+        model.passes = 0
+        stats = update_tiny(model, optimizer, batch, config=config,
+                            generator=torch.Generator().manual_seed(1),
+                            critic=model if critic else None)  # fmt: skip
+        results.append((stats, model.passes, [p.detach().clone() for p in model.parameters()]))
+    (whole, whole_passes, whole_params), (alone, alone_passes, alone_params) = results
+    assert whole.early_stopped and whole.value_steps >= 8
+    assert (alone.gradient_steps, alone.value_steps) == (whole.gradient_steps, whole.value_steps)
+    for a, b in zip(alone_params, whole_params, strict=True):
+        torch.testing.assert_close(a, b)
+    # Until the stop both run the network on each minibatch; then one pass per chunk.
+    assert alone_passes <= whole_passes - whole.value_steps + 1 + config.minibatches

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
+from hamnet.trainer import runner as runner_module
 from hamnet.trainer.evaluate import evaluate, success_rate
 from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
 from hamnet.trainer.runner import RunConfig, Runner
@@ -202,3 +204,25 @@ def test_the_runner_learns_the_critic_at_its_own_rate(tmp_path: Path) -> None:
     assert {id(p) for p in groups[1]["params"]} == critic
     assert groups[1]["lr"] == config.ppo.value_lr
     assert any(p is runner.policy.log_std for p in groups[0]["params"])  # learned by default
+
+
+def test_the_update_takes_every_core_while_the_environments_wait(tmp_path: Path, monkeypatch) -> None:
+    """In process the environments stand still while the trainer learns: the update runs on
+    every core (`learner_threads` 0), then acting goes back to one thread; a number given
+    is kept."""
+    seen = []
+    original = runner_module.update
+
+    def spy(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(runner_module, "update", spy)
+    for threads, expected in ((0, os.cpu_count()), (1, 1)):
+        config = RunConfig(sim=tiny_sim(), run_dir=tmp_path / str(threads), steps_per_rollout=2,
+                           learner_threads=threads, eval_episodes=0)  # fmt: skip
+        runner = Runner(config)
+        assert runner.source.waits_for_update and runner.learner_threads == expected
+        runner.iterate()  # fills the input statistics
+        runner.iterate()
+        assert seen.pop() == expected and torch.get_num_threads() == 1

@@ -1,0 +1,103 @@
+"""Learner benchmark: one PPO update of HAMnet, timed three ways on the same batch from the
+same state, so each cut of issue 28 shows its own ratio.
+
+The policy is the shipped easy-stage teacher (`easy-teacher`) and the batch its own rollout
+on the easy stage: a late update of a run, where the actor reaches the KL bound after a few
+steps and the critic goes on alone through the rest (27 of 31 steps in the hour run's last
+updates). One update on a first rollout warms the optimizer (a fresh Adam's first step
+overshoots the bound and is undone); each setup then starts from the same weights and
+optimizer state, on a second rollout, with the same minibatch order:
+- baseline: one torch thread, every critic-only step through the whole network;
+- critic: one thread, the critic-only steps on features computed once per update
+  (`ppo.update`'s `critic`, the trainer's default);
+- default: that, on every core (`RunConfig.learner_threads`: an in-process trainer's
+  rollouts wait for its update).
+
+Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
+with `update_s` per setup, `critic_speedup` (baseline / critic), `threads_speedup`
+(critic / default), `update_speedup` (baseline / default), and the steps each update took.
+
+    .venv/bin/python benchmarks/learner.py --quick   # 16 envs, 2048 samples: about 40 s
+    .venv/bin/python benchmarks/learner.py           # 64 envs, 8192 samples (the run's): 2-3 min
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import time
+from pathlib import Path
+from tempfile import TemporaryDirectory
+
+import torch
+from common import header, progress, report
+
+from hamnet.policy.shipped import read_shipped
+from hamnet.policy.weights import load_into
+from hamnet.runtime.compute import torch_threads
+from hamnet.sim.stages import stage_config
+from hamnet.trainer.ppo import Batch, UpdateStats, update
+from hamnet.trainer.runner import RunConfig, Runner
+
+TEACHER = "easy-teacher"
+SETUPS = {"baseline": (1, False), "critic": (1, True), "default": (os.cpu_count() or 1, True)}
+"""Setup -> (torch threads, critic-only steps on features computed once)."""
+
+
+def timed_update(
+    runner: Runner, batch: Batch, threads: int, cached: bool
+) -> tuple[float, UpdateStats]:
+    """Seconds and stats of one update of `runner`'s policy on `batch` (the policy and its
+    optimizer are left where the update put them)."""
+    policy, ppo, optimizer = runner.policy, runner.config.ppo, runner.optimizer
+    policy.train()
+    with torch_threads(threads):
+        started = time.perf_counter()
+        stats = update(policy.evaluate, policy.parameters(), optimizer, batch, runner.action_bounds,
+                       ppo, generator=torch.Generator().manual_seed(0), energy=runner.energy,
+                       critic=policy if cached else None)  # fmt: skip
+        return time.perf_counter() - started, stats
+
+
+def main() -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="16 environments, 2048 samples")
+    args = parser.parse_args()
+    num_envs = 16 if args.quick else 64
+    with TemporaryDirectory() as run_dir:
+        config = RunConfig(sim=stage_config("easy", num_envs=num_envs), run_dir=Path(run_dir),
+                           steps_per_rollout=128, eval_episodes=0)  # fmt: skip
+        runner = Runner(config)
+        load_into(runner.policy, read_shipped(TEACHER))
+        runner.iterate()  # warms the optimizer
+        runner.policy.eval()
+        rollout = runner.source.collect(runner.policy, config.rollout_steps, 0, 1).rollout
+        batch = runner.batch(rollout)
+        samples = batch.actions.shape[0]
+        progress(f"{samples} samples of {TEACHER} on the easy stage collected")
+        start = copy.deepcopy((runner.policy.state_dict(), runner.optimizer.state_dict()))
+        seconds, steps = {}, {}
+        for name, (threads, cached) in SETUPS.items():
+            runner.policy.load_state_dict(start[0])
+            runner.optimizer.load_state_dict(copy.deepcopy(start[1]))
+            seconds[name], stats = timed_update(runner, batch, threads, cached)
+            steps[name] = {"actor": stats.gradient_steps, "critic_alone": stats.value_steps}
+            progress(f"{name}: {seconds[name]:.2f} s, {threads} thread(s), {steps[name]}")
+    return {
+        **header("learner", args.quick),
+        "policy": TEACHER,
+        "samples": samples,
+        "minibatches": config.ppo.minibatches,
+        "update_s": {name: round(value, 3) for name, value in seconds.items()},
+        "steps": steps,
+        "critic_speedup": round(seconds["baseline"] / seconds["critic"], 3),
+        "threads_speedup": round(seconds["critic"] / seconds["default"], 3),
+        "update_speedup": round(seconds["baseline"] / seconds["default"], 3),
+        "threads": SETUPS["default"][0],
+        "cpus": os.cpu_count(),
+    }
+
+
+if __name__ == "__main__":
+    report(main())
