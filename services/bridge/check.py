@@ -67,7 +67,7 @@ def check(config: CheckConfig) -> list[str]:
         hold = hold_command(reading.q[None], core.samples)  # where the arm stood at first
         for step in range(config.rounds):
             started = time.perf_counter()
-            core.execute(BridgeCommand(step, core.episode_id, hold))
+            core.execute(BridgeCommand(step, core.episode_id, hold), step)
             reading = core.read()
             trips.append(time.perf_counter() - started)
             if reading is None or not core.streaming:

@@ -26,6 +26,13 @@ from hamnet.runtime.service import Service
 
 DriverName = Literal["franky", "fake"]
 
+NOT_SECURE = (
+    "hamnet bridge: WARNING: not secure (no --tls-dir): any process that reaches this Zenoh "
+    "network, on this machine or beside it, can command the robot and reset it after an "
+    "error. Run it in a secure stack (compose/real.yaml; docs/security.md)."
+)
+"""What a bridge on plain links says at its start."""
+
 
 @dataclass(frozen=True)
 class DriverConfig:
@@ -66,6 +73,8 @@ def main(argv: Sequence[str]) -> int:
 
         return gap(argv[1:])
     config, identity = parse_service(CONFIG, argv, "bridge", __doc__, ports=PORTS)
+    if config.common.transport.tls_dir is None:
+        print(NOT_SECURE, file=sys.stderr)
     try:
         core = BridgeCore(make_driver(config), config.loop.policy_period_s)
     except ConnectionError as error:

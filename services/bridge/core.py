@@ -9,7 +9,11 @@ position), plus its gains and torque limits; one that fails is never sent: it be
 `command_rejected` error, which stops the stream like a reflex of the robot would. A reset
 starts a new episode (new episode id), so that the safety filter plans again from the
 measured joint positions instead of continuing a plan the robot stopped following; commands
-computed for an older episode are ignored.
+computed for an older episode are ignored, and the episode's commands count their steps
+afresh. A command answers a state the bridge published: one stamped with a later step is
+forged or corrupt and is refused (`ahead`), so that it cannot make every genuine command
+after it look stale. A reset that cannot reach the robot leaves the errors in place and
+says why (`reset_failure`); the bridge stays up.
 """
 
 from __future__ import annotations
@@ -77,7 +81,9 @@ class BridgeCore:
         self.episode_id = 0
         self.last_step = -1
         """Step of the last command sent to the driver."""
-        self.counts = dict.fromkeys(("executed", "refused", "stale"), 0)
+        self.counts = dict.fromkeys(("executed", "refused", "stale", "ahead"), 0)
+        self.reset_failure = ""
+        """Why the last reset could not reach or read the robot; '' after one that did."""
         self._measured = driver.read().q  # (J,) the last measured positions, rad
         self._history: np.ndarray | None = None  # (3, J) the last samples sent this episode
 
@@ -111,8 +117,13 @@ class BridgeCore:
             self._fail(errors)
         return errors
 
-    def execute(self, command: BridgeCommand) -> list[RobotError]:
-        """Send one command to the robot if it may go; returns the errors it caused."""
+    def execute(self, command: BridgeCommand, newest_state: int) -> list[RobotError]:
+        """Send one command to the robot if it may go; returns the errors it caused.
+        `newest_state`: the step of the newest state published, the latest a genuine
+        command can answer."""
+        if command.step > newest_state:
+            self.counts["ahead"] += 1
+            return []
         if command.step <= self.last_step or command.episode_id != self.episode_id:
             self.counts["stale"] += 1
             return []
@@ -170,15 +181,23 @@ class BridgeCore:
 
     def reset(self) -> RobotReading | None:
         """Clear the errors (reconnecting if the link was lost) and start a new episode at
-        the measured positions; None when the robot cannot be read."""
-        if any(e.name == CONNECTION_LOST for e in self.errors):
-            self.driver.connect()
-        self.driver.reset()
+        the measured positions, its commands' steps counted afresh; None when the robot
+        cannot be reached or read: the stream stays stopped and `reset_failure` says why."""
+        try:
+            if any(e.name == CONNECTION_LOST for e in self.errors):
+                self.driver.connect()
+            self.driver.reset()
+        except ConnectionError as error:
+            self.reset_failure = str(error)
+            self._fail([RobotError(CONNECTION_LOST, str(error))])
+            return None
         reading = self.read()
         if reading is None:
+            self.reset_failure = "the robot could not be read after the reset"
             return None
-        self.errors = ()
+        self.errors, self.reset_failure = (), ""
         self.episode_id += 1
+        self.last_step = -1
         self._history = None
         return reading
 

@@ -8,7 +8,9 @@ tick, tau = kp (q_ref - q) + kd (dq_ref - dq), clipped at the command's torque l
 gravity: libfranka compensates it). References execute when sent (virtual time), so a slow
 machine never turns into a reflex; the command deadline is on the wall clock (`clock`) and
 generous: it catches a bridge that stopped streaming while the arm moved. Lost connections
-are simulated by `disconnect()`: the arm comes to rest, as the FR3 stops when its client goes.
+are simulated by `disconnect()`: the arm comes to rest, as the FR3 stops when its client goes;
+`disconnect(reachable=False)` takes the robot off the network too, so that a reconnect fails
+as libfranka's does until `reachable` is set again.
 """
 
 from __future__ import annotations
@@ -62,6 +64,8 @@ class FakeDriver:
         self._tau = np.zeros_like(self._last[0])  # (J,) N m, last tick's torque
         self._errors: list[RobotError] = []
         self._connected = False
+        self.reachable = True
+        """Whether `connect` finds the robot (False: a ConnectionError, as libfranka raises)."""
         self._stopped = False
         self._last_send = clock()
         self.sent = 0
@@ -75,7 +79,10 @@ class FakeDriver:
         return self.robot.config.control_period_s
 
     def connect(self) -> None:
-        """Connect (always succeeds); the arm rests where it is."""
+        """Connect when the robot is `reachable` (else ConnectionError); the arm rests where
+        it is."""
+        if not self.reachable:
+            raise ConnectionError("cannot reach the fake FR3: it is off the network")
         self._connected = True
         self._last_send = self._clock()
 
@@ -133,7 +140,10 @@ class FakeDriver:
         return errors
 
     def reset(self) -> None:
-        """Clear reflexes and the stop; the arm rests where it stands."""
+        """Clear reflexes and the stop; the arm rests where it stands. ConnectionError when
+        not connected (libfranka's recovery needs the link)."""
+        if not self._connected:
+            raise ConnectionError("the fake FR3 is not connected")
         self.stop()
         self.robot.recover(q=self._last[1:])
         self._stopped = False
@@ -144,8 +154,10 @@ class FakeDriver:
         self.stop()
         self._connected = False
 
-    def disconnect(self) -> None:
-        """Simulate a lost connection: the arm rests, `connection_lost` is reported."""
+    def disconnect(self, reachable: bool = True) -> None:
+        """Simulate a lost connection: the arm rests, `connection_lost` is reported;
+        `reachable` False keeps the robot off the network until it is set True again."""
+        self.reachable = reachable
         if self._connected:
             self.close()
             self._errors.append(RobotError(CONNECTION_LOST, "the fake FR3's link went down"))

@@ -143,6 +143,8 @@ class FrankyDriver:
             "enforce": franky.RealtimeConfig.Enforce,
             "ignore": franky.RealtimeConfig.Ignore,
         }
+        self.stop()
+        self._robot = None  # the robot serves one client: the old connection goes first
         try:
             self._robot = franky.Robot(
                 self.config.host, realtime_config=realtime[self.config.realtime]
@@ -215,10 +217,15 @@ class FrankyDriver:
         return errors
 
     def reset(self) -> None:
-        """libfranka's automatic error recovery; the arm holds where it stands."""
+        """libfranka's automatic error recovery; the arm holds where it stands.
+        ConnectionError when the robot cannot be reached."""
         self.stop()
-        if self._robot is not None:
+        if self._robot is None:
+            raise ConnectionError("not connected to the robot")
+        try:
             self._robot.recover_from_errors()
+        except (self._franky.Exception, RuntimeError) as error:  # no link to recover over
+            raise ConnectionError(f"cannot recover the robot: {error}") from error
         self._last_send = self.wall_clock()
         self._stopped.clear()
 

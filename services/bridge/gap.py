@@ -178,7 +178,7 @@ def replay(core: BridgeCore, commands: list[Command], period_s: float) -> np.nda
     q = []
     tick = clock()
     for step, command in enumerate(commands):
-        errors = core.execute(BridgeCommand(step, core.episode_id, command))
+        errors = core.execute(BridgeCommand(step, core.episode_id, command), step)
         tick += period_s
         wall = time.monotonic() + STALL_S
         while clock() < tick and time.monotonic() < wall:

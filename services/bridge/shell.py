@@ -8,11 +8,17 @@ the sim's fields for B = 1, no privileged block; the newest object pose estimate
 student policy answers nothing and safety holds the arm) and `bridge/<w>/event`
 (SafetyEvent, kind ROBOT_ERROR on each robot error, ROBOT_RESET when the stream resumes).
 Serves `bridge/<w>/reset` (`stop`, `reset`, `status`; JSON answers, the e-stop's latch of
-`hamnet.safety.estop`): after an error the stream stays stopped until a `reset`.
+`hamnet.safety.estop`): after an error the stream stays stopped until a `reset`. A reset
+runs beside the loop (reconnecting to a robot can take seconds): meanwhile the loop goes on
+pacing, reporting and answering `status`, and drops the commands that arrive (counted
+`refused`); `status` says whether a reset is under way and why the last one failed, if it
+did (`last_reset`).
 
 Free-running: state k+1 goes out one policy period of the robot's clock (`Driver.clock`)
-after state k, whatever the commands do; each command is executed when it arrives if it is
-newer than the last one and planned for the current episode (`hamnet.bridge.core`). A
+after state k, whatever the commands do (a robot clock that jumps back, as a reconnected
+robot's may, restarts the pacing from it); each command is executed when it arrives if it
+is newer than the last one, answers a state already published, and is planned for the
+current episode (`hamnet.bridge.core`). A
 command the transport cannot decode (non-finite, another sample period or batch) is dropped
 and counted in health. Each executed command is timed from its state's publication: the
 median and p99 of the last LATENCY_WINDOW go into the rate line and into health as figures
@@ -25,12 +31,14 @@ import functools
 import logging
 import time
 from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Annotated
 
 import numpy as np
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
+from hamnet.bridge.driver import RobotReading
 from hamnet.messages import object_pose
 from hamnet.messages.safe_command import decode as decode_command
 from hamnet.messages.safety_event import encode as encode_event
@@ -100,6 +108,13 @@ class BridgeShell:
         self.event = service.publisher(port["event"])
         self.reset_key = port["reset"]
         self.requests = EStop()
+        self.resets = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bridge-reset")
+        self.resetting: Future[RobotReading | None] | None = None
+        """The reset under way, if any: until it ends the core is its thread's alone."""
+        self.pending: deque[str] = deque()
+        """E-stop requests taken but not applied yet (those after a reset wait for its end)."""
+        self.last_reset: dict[str, object] | None = None
+        """How the last reset ended, for `status`: step, ok, and the reason of a failure."""
         self.step = 0
         self.episode_step = 0
         self.reported: tuple = ()
@@ -121,21 +136,22 @@ class BridgeShell:
         )
         log.info("%.0f ms policy period, %d samples per command, reset on %s",
                  1e3 * self.loop.policy_period_s, self.core.samples, self.reset_key)  # fmt: skip
-        clock = self.core.clock
-        tick = clock()
+        tick = self._clock()
         try:
             while self.service.running and not 0 < self.loop.max_steps <= self.step:
-                self._apply_requests()
-                self.core.poll()
-                self._publish_state()
-                self._report_errors()
+                if self._apply_requests():
+                    tick = self._clock()  # a reconnected robot's clock may start anew
+                if self.resetting is None:
+                    self.core.poll()
+                    self._publish_state()
+                    self._report_errors()
                 tick += self.loop.policy_period_s
                 # a robot clock that stands still (a dead link) must not stall the states:
                 # the next read then reports the lost connection
                 wall_limit = time.monotonic() + 2 * self.loop.policy_period_s
                 while (
                     self.service.running
-                    and (remaining := tick - clock()) > 0
+                    and (remaining := tick - self._clock()) > 0
                     and (time.monotonic() < wall_limit)
                 ):
                     received = self.service.receive(timeout=min(remaining, 0.01))
@@ -143,15 +159,19 @@ class BridgeShell:
                         self.object_pose = received.value
                     elif received is not None:
                         self._execute(received.value)
-                if clock() - tick > self.loop.policy_period_s:
-                    tick = clock()  # fell a period behind: do not burst to catch up
+                tick = paced(tick, self._clock(), self.loop.policy_period_s)
                 self.report.tick()
         finally:
             queryable.undeclare()
+            self.resets.shutdown(wait=True)
             self.core.driver.close()
             self.report.flush()
         log.info("stopped after %d states, commands %s", self.step, self.core.counts)
         return 0
+
+    def _clock(self) -> float:
+        """The robot's clock (`BridgeCore.clock`); the wall clock while a reset has the core."""
+        return time.monotonic() if self.resetting is not None else self.core.clock()
 
     def _publish_state(self) -> None:
         reading = self.core.read()
@@ -175,8 +195,11 @@ class BridgeShell:
 
     def _execute(self, command: BridgeCommand) -> None:
         """Execute a command, timing it from its state's publication when it went out."""
+        if self.resetting is not None:
+            self.core.counts["refused"] += 1
+            return
         executed = self.core.counts["executed"]
-        self.core.execute(command)
+        self.core.execute(command, self.step - 1)
         if self.core.counts["executed"] > executed and command.step in self.published:
             self.latencies.append(time.monotonic() - self.published.pop(command.step))
         self._report_errors()
@@ -199,18 +222,38 @@ class BridgeShell:
                      f"{len(self.latencies)} commands")  # fmt: skip
         return line
 
-    def _apply_requests(self) -> None:
-        for request in self.requests.take():
+    def _apply_requests(self) -> bool:
+        """Apply the e-stop requests (a reset in its own thread, the others once no reset is
+        under way) and update `status`; True when a reset has just ended well."""
+        reset = self.resetting is not None and self.resetting.done() and self._finish_reset()
+        self.pending.extend(self.requests.take())
+        while self.resetting is None and self.pending:
+            request = self.pending.popleft()
             if request == "stop":
                 self.core.stop("stop requested")
-            elif request == "reset" and self.core.reset() is not None:
-                self.reported, self.episode_step = (), 0
-                log.info("reset at step %d: streaming again, episode %d", self.step,
-                         self.core.episode_id)  # fmt: skip
-                self.event.put(encode_event(SafetyEventKind.ROBOT_RESET, self.step,
-                                            np.zeros(1), "robot", "reset requested"))  # fmt: skip
+            elif request == "reset":
+                self.resetting = self.resets.submit(self.core.reset)
         self.requests.status = {"step": self.step, "streaming": self.core.streaming,
-                                "errors": [e.name for e in self.core.errors]}  # fmt: skip
+                                "errors": [e.name for e in self.core.errors],
+                                "resetting": self.resetting is not None,
+                                "last_reset": self.last_reset}  # fmt: skip
+        return reset
+
+    def _finish_reset(self) -> bool:
+        """Take the ended reset's outcome: on success a new episode streams (ROBOT_RESET
+        event); on failure the bridge stays up, stopped, and `status` says why."""
+        reading, self.resetting = self.resetting.result(), None
+        if reading is None:
+            reason = self.core.reset_failure
+            log.warning("reset at step %d failed, the stream stays stopped: %s", self.step, reason)
+            self.last_reset = {"step": self.step, "ok": False, "reason": reason}
+            return False
+        self.last_reset = {"step": self.step, "ok": True, "reason": ""}
+        self.reported, self.episode_step = (), 0
+        log.info("reset at step %d: streaming again, episode %d", self.step, self.core.episode_id)
+        self.event.put(encode_event(SafetyEventKind.ROBOT_RESET, self.step, np.zeros(1),
+                                    "robot", "reset requested"))  # fmt: skip
+        return True
 
     def _report_errors(self) -> None:
         """One ROBOT_ERROR event per error that stopped the stream, once."""
@@ -219,6 +262,14 @@ class BridgeShell:
             self.event.put(encode_event(SafetyEventKind.ROBOT_ERROR, self.step, np.zeros(1),
                                         "robot", f"{error.name}: {error.reason}"))  # fmt: skip
         self.reported = self.core.errors
+
+
+def paced(tick: float, now: float, period_s: float) -> float:
+    """When the next state is due on the robot's clock: `tick`, or `now` when the clock is
+    more than a period past it (the loop fell behind: no burst to catch up) or more than a
+    period before it (the clock went back, as a reconnected robot's may: waiting for it
+    would halve the rate)."""
+    return tick if abs(now - tick) <= period_s else now
 
 
 def _decode_command_payload(

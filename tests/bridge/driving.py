@@ -36,7 +36,7 @@ def drive(
         out = safety.command(action, reading.q[None], reading.dq[None], 0)
         command = dataclasses.replace(hold_command(reading.q[None], core.samples), q_ref=out.q_ref,
                                       kp=out.kp, kd=out.kd, tau_limit=out.tau_limit)  # fmt: skip
-        errors += core.execute(BridgeCommand(step, core.episode_id, command))
+        errors += core.execute(BridgeCommand(step, core.episode_id, command), step)
         if paced:
             tick += period
             while clock() < tick:

@@ -1,8 +1,8 @@
 """The franky driver on franky-sim, the real libfranka protocol on loopback: the deploy
 safety filter's 1 kHz references of a random policy run in real time without a robot
 error and are tracked; a NaN command never reaches the robot; a stop brings the arm to
-rest; a reset streams again; a dead server is a lost connection within the link timeout;
-`hamnet bridge check` passes."""
+rest; a reset streams again; a dead server is a lost connection within the link timeout,
+and a reset then says it cannot reach the robot; `hamnet bridge check` passes."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore
-from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST
+from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST, RobotError
 from hamnet.bridge.franky_driver import (
     FrankyDriver,
     FrankyDriverConfig,
@@ -74,7 +74,7 @@ def test_a_nan_command_never_reaches_the_robot_and_the_arm_stays_at_rest(robot: 
         command = hold_command(q[None], core.samples)
         q_ref = command.q_ref.copy()
         q_ref[0, 7, 1] = np.nan
-        errors = core.execute(BridgeCommand(0, 0, dataclasses.replace(command, q_ref=q_ref)))
+        errors = core.execute(BridgeCommand(0, 0, dataclasses.replace(command, q_ref=q_ref)), 0)
         assert [e.name for e in errors] == [COMMAND_REJECTED] and not core.streaming
         assert core.driver.refused == 0 and core.driver._motion is None  # nothing was sent
         assert speed_after(core, 0.3) < 1e-2
@@ -90,7 +90,8 @@ def test_a_stop_brings_the_moving_arm_to_rest_and_a_reset_streams_again(robot: s
         assert speed_after(core, 0.5) < 1e-2
         assert (
             core.execute(
-                BridgeCommand(10, core.episode_id, hold_command(core.read().q[None], core.samples))
+                BridgeCommand(10, core.episode_id, hold_command(core.read().q[None], core.samples)),
+                10,
             )
             == []
         )
@@ -116,6 +117,9 @@ def test_a_dead_robot_is_a_lost_connection_within_the_link_timeout() -> None:
         # the link timeout, or libfranka's own UDP receive timeout once its loop has ended
         # (a state read then blocks until it), whichever comes first: 1-2 s seen here
         assert time.monotonic() - started < LINK_TIMEOUT_S + 2.0
+        # a reset cannot reach it: it says why, and nothing is raised out of the bridge
+        assert core.reset() is None and not core.streaming
+        assert "cannot reach the robot" in core.reset_failure
         core.driver.close()
 
 
@@ -143,3 +147,19 @@ def test_the_reference_keeps_the_spring_torque_within_the_limit() -> None:
     bounded = torque_bounded(np.full(7, 1.0), np.zeros(7), kp, limit)
     assert np.allclose(kp * bounded, limit)
     assert np.allclose(torque_bounded(np.full(7, 0.01), np.zeros(7), kp, limit), 0.01)
+
+
+def test_a_reset_after_a_false_link_loss_reconnects_and_streams_again(robot: str) -> None:
+    """A loaded machine can read the robot's clock as stalled while the robot is there: the
+    reset reconnects (the robot serves one client, so the old connection goes first) and
+    the stream goes on."""
+    core = connect(robot)
+    try:
+        assert drive(core, 5, paced=True) == []
+        core._fail([RobotError(CONNECTION_LOST, "the clock looked stalled")])  # a false alarm
+        started = time.monotonic()
+        assert core.reset() is not None and core.streaming, core.reset_failure
+        assert time.monotonic() - started < 3.0
+        assert drive(core, 10, first=0, paced=True) == [] and core.streaming
+    finally:
+        core.driver.close()
