@@ -44,7 +44,7 @@ from hamnet.monitor.decode import (
     decode_tokens,
     decode_transition,
 )
-from hamnet.monitor.outputs import open_recording
+from hamnet.monitor.outputs import add_footer, open_recording
 from hamnet.monitor.view import MonitorView
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Perception
@@ -72,7 +72,7 @@ def record(path: Path, with_metrics: bool) -> None:
     encoder = UniCORN()
     clouds = CloudConfig()
     perception: Perception | None = None
-    recording = open_recording(OutputConfig(save=path))
+    recording, saved = open_recording(OutputConfig(save=path))
     view = MonitorView(recording, ViewConfig(env=0))
     iteration = 0
     for topic, message in sim_messages(STEPS, TIMEOUT):
@@ -98,6 +98,7 @@ def record(path: Path, with_metrics: bool) -> None:
             view.on_transition(decode_transition(message, 0, drawn=True))
     recording.flush()
     recording.disconnect()
+    add_footer(saved)
 
 
 @contextmanager

@@ -40,6 +40,15 @@ def refused(*args: str) -> str:
         (["sim", "--zenoh-config", "missing.json5"], "Zenoh config file not found: missing.json5"),
         (["sim", "--report-period-s", "-1"], "--report-period-s must be > 0 s, got -1.0"),
         (["perception", "--random-init", "--report-period-s", "0"], "--report-period-s must be > 0"),
+        # Refused by a nested config or by tyro itself: a box of 5-9 lines before issue 29.
+        (["trainer", "--ppo.epochs", "0"], "epochs and minibatches must be >= 1"),
+        (["trainer", "--ppo.lr", "-1"], "lr must be > 0, got -1.0"),
+        (["replay", "--speed", "0", "x.mcap"], "speed must be > 0, got 0.0"),
+        (["record", "--rotate-mb", "-1"], "rotate_mb and rotate_s must be >= 0"),
+        (["safety", "--watchdog-s", "-1"], "watchdog_s must be > 0, got -1.0"),
+        (["monitor", "--max-rate-hz", "0", "--save", "x.rrd"], "max_rate_hz must be > 0, got 0.0"),
+        (["sim", "--num-envs", "abc"], "--num-envs: invalid literal for int() with base 10: 'abc'"),
+        (["sim", "--no-such-flag", "3"], "Unrecognized options: --no-such-flag"),
     ],
     ids=lambda v: " ".join(v) if isinstance(v, list) else None,
 )
@@ -90,3 +99,12 @@ def test_a_checkpoint_with_bad_metadata_is_refused_before_building(tmp_path, cha
     path = _checkpoint(tmp_path, **changes)
     line = refused("policy", "--checkpoint", str(path))
     assert message in line, line
+
+
+def test_a_stack_file_that_is_not_yaml_is_one_line_with_where(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("services:\n  sim: {args: {num-envs: 2}\n")
+    for args in (["up", str(path)], ["up", "--check", str(path)]):
+        line = refused(*args)
+        assert line.startswith(f"hamnet up: {path}: not valid YAML: expected ',' or '}}'"), line
+        assert "at line 3, column 1" in line, line

@@ -22,7 +22,7 @@ from hamnet.launcher.check import Verdict, not_built
 from hamnet.launcher.output import Output, use_colour
 from hamnet.launcher.secure import UP, security, start_router
 from hamnet.launcher.stack import ROUTER, Stack
-from hamnet.launcher.summary import Report, output_files, process_report
+from hamnet.launcher.summary import Report, output_files, output_state, process_report
 from hamnet.launcher.supervisor import Outcome, Process, Supervisor
 from hamnet.launcher.tokens import note_tokens
 from hamnet.launcher.watch import HEALTH, HealthBoard, Liveliness
@@ -70,7 +70,7 @@ def run(
         log.warning("not built yet, not started: %s", missing)
     output = Output(sys.stdout, [p.label for p in processes], use_colour(sys.stdout))
     supervisor = Supervisor(processes, output)
-    started = time.monotonic()
+    started, before = time.monotonic(), output_state(stack.output_paths)
     transport = replace(common.transport, namespace=stack.namespace)
     try:
         start_router(supervisor, stack, transport)
@@ -89,7 +89,7 @@ def run(
     finally:
         supervisor.stop(stack.stop_grace_s)  # a secure stack's router, last
     log.info("stack %s ended: %s", stack.name, ending.reason)
-    outputs, outputs_missing = output_files(stack.output_paths)
+    outputs, outputs_missing = output_files(stack.output_paths, before)
     return Report(
         stack=stack.name,
         namespace=stack.namespace,

@@ -241,6 +241,16 @@ def load(path: Path) -> Stack:
     except OSError as error:
         raise StackError(f"{path}: cannot read the stack file ({error.strerror})") from None
     except yaml.YAMLError as error:
-        raise StackError(f"{path}: not valid YAML: {error}") from None
+        raise StackError(f"{path}: not valid YAML: {yaml_problem(error)}") from None
     except SchemaError as error:
         raise StackError(f"{path}: {error}") from None
+
+
+def yaml_problem(error: yaml.YAMLError) -> str:
+    """One line for a YAML error: what is wrong and where (line and column, 1-based), without
+    the quoted source PyYAML adds on lines of its own."""
+    mark = getattr(error, "problem_mark", None)
+    problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    context = getattr(error, "context", None)
+    return f"{problem}{where}" + (f" ({context})" if context else "")

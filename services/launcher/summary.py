@@ -16,6 +16,7 @@ from hamnet.launcher.secure import Security
 from hamnet.launcher.supervisor import Process
 from hamnet.launcher.watch import HealthBoard, Liveliness
 from hamnet.runtime.events import success_line
+from hamnet.runtime.numbered_files import recording_files
 
 
 @dataclass(frozen=True)
@@ -66,9 +67,10 @@ class Report:
     not_built: str
     """`sim (issue #3), ...`: services that could not run because they are not built yet."""
     outputs: dict[str, int]
-    """Declared outputs that exist, with their sizes in bytes."""
+    """Files the run wrote for the declared outputs (every part of a sequence), with their
+    sizes in bytes."""
     outputs_missing: list[str]
-    """Declared outputs that do not exist."""
+    """Declared outputs the run wrote nothing for."""
     security: Security = field(default_factory=Security)
     """Whether links were mutual TLS, and whose access rules held."""
 
@@ -108,18 +110,32 @@ def process_report(process: Process, liveliness: Liveliness, health: HealthBoard
     )
 
 
-def output_files(paths: tuple[Path, ...]) -> tuple[dict[str, int], list[str]]:
-    """(existing outputs with their sizes in bytes, missing ones) among the declared outputs.
+def output_state(paths: tuple[Path, ...]) -> dict[str, tuple[int, int]]:
+    """(mtime in ns, size) of every file of the declared outputs' sequences (a file output
+    stands for all of it, `hamnet.runtime.numbered_files`: `stack.mcap`, `stack.1.mcap`,
+    rotated files): taken before a run, it tells which files the run wrote."""
+    files = recording_files([path for path in paths if not path.is_dir()])
+    return {str(f): (f.stat().st_mtime_ns, f.stat().st_size) for f in files if f.is_file()}
 
-    A folder's size is that of every file under it.
-    """
-    existing = {
-        str(path): path.stat().st_size if path.is_file() else sum(
-            f.stat().st_size for f in path.rglob("*") if f.is_file())
-        for path in paths
-        if path.exists()
-    }
-    return existing, [str(path) for path in paths if str(path) not in existing]
+
+def output_files(
+    paths: tuple[Path, ...], before: dict[str, tuple[int, int]]
+) -> tuple[dict[str, int], list[str]]:
+    """(the files the run wrote for the declared outputs, with their sizes in bytes; the
+    outputs it wrote nothing for). `before`: `output_state` at the run's start; a file new
+    since, or changed, is the run's. A folder's size is that of every file under it."""
+    existing: dict[str, int] = {}
+    missing: list[str] = []
+    for path in paths:
+        if path.is_dir():
+            existing[str(path)] = sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+            continue
+        written = {name: size for name, (mtime, size) in output_state((path,)).items()
+                   if before.get(name) != (mtime, size)}  # fmt: skip
+        existing.update(written)
+        if not written:
+            missing.append(str(path))
+    return existing, missing
 
 
 def render(report: Report) -> str:

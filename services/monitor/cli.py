@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Annotated
 
 from hamnet.monitor.config import MonitorLoopConfig, OutputConfig, ViewConfig
-from hamnet.monitor.outputs import open_recording
+from hamnet.monitor.outputs import add_footer, open_recording
 from hamnet.monitor.shell import PORTS, MonitorShell
 from hamnet.monitor.view import MonitorView
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
@@ -42,7 +42,7 @@ def main(argv: Sequence[str]) -> int:
     """Run `hamnet monitor` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "monitor", __doc__, ports=PORTS)
     try:
-        recording = open_recording(config.output)
+        recording, saved = open_recording(config.output)
     except ValueError as error:
         print(f"hamnet monitor: {error}", file=sys.stderr)
         return 2
@@ -58,3 +58,5 @@ def main(argv: Sequence[str]) -> int:
     finally:
         recording.flush()
         recording.disconnect()
+        if saved is not None:
+            add_footer(saved)

@@ -49,7 +49,8 @@ class OutputConfig:
     serve_web: bool = False
     """Serve the data and a web viewer: open http://localhost:<web-port> in a browser."""
     save: Path | None = None
-    """Write everything to this .rrd file (headless); open it later with `rerun FILE`."""
+    """Write everything to this .rrd file (headless); open it later with `rerun FILE`. An
+    existing file is kept: the view then goes to FILE's next free part (`view.1.rrd`)."""
     viewer_port: int = 9876
     """gRPC port of the spawned viewer (`--spawn`) or of the served data (`--serve-web`)."""
     web_port: int = 9090

@@ -16,7 +16,7 @@ import tyro
 
 from hamnet.recorder.info import format_text, summarise
 from hamnet.recorder.reading import unreadable
-from hamnet.recorder.sequence import recording_files
+from hamnet.runtime.numbered_files import recording_files
 from hamnet.runtime.cli import parse
 
 

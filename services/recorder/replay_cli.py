@@ -26,7 +26,7 @@ import tyro
 from hamnet.recorder.config import ReplayConfig
 from hamnet.recorder.reading import read_recording, summary_counts, unreadable
 from hamnet.recorder.replay_shell import ReplayShell
-from hamnet.recorder.sequence import recording_files
+from hamnet.runtime.numbered_files import recording_files
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 

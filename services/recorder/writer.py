@@ -13,7 +13,7 @@ the end is missing). A write that fails (a full disk) raises OSError; `abandon` 
 the file back to its last complete chunk. Rotation starts a new self-contained file (its
 own schemas and channels) by size or by the time it spans. Existing files are never
 replaced: the recording goes to the next free part of the output's sequence
-(`hamnet.recorder.sequence`).
+(`hamnet.runtime.numbered_files`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from mcap_protobuf.schema import register_schema
 
 from hamnet import __version__
 from hamnet.recorder.config import Compression, RecorderConfig
-from hamnet.recorder.sequence import file_path, next_part
+from hamnet.runtime.numbered_files import file_path, next_part
 from hamnet.recorder.sink import FileSink
 from hamnet.runtime.contract import match_key
 

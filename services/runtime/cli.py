@@ -9,7 +9,9 @@ a positive number of seconds.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -65,23 +67,50 @@ def parse(
     """Build `config_type` from `argv`, starting from `default` (the type's defaults when
     None); `--help` prints every option with its docstring.
 
-    A value the config refuses (a `ConfigError`, or a ValueError from a config's
-    `__post_init__` that tyro lets through) is printed as one line, `prog: message`, and
-    raised as SystemExit(2), the way tyro reports the flags it cannot parse itself.
+    A value the config refuses (a `ConfigError`, a ValueError from a config's
+    `__post_init__`, nested or not) or a flag tyro cannot parse (`--num-envs abc`) is
+    printed as one line, `prog: message`, and raised as SystemExit(2): tyro's own report of
+    those is a box of 5-9 lines, which is kept for nothing but its message.
     """
+    captured = io.StringIO()
     try:
-        config = tyro.cli(  # type: ignore[call-overload]
-            config_type,
-            args=list(argv),
-            prog=prog,
-            description=description,
-            default=default,
-        )
+        with contextlib.redirect_stderr(captured):
+            config = tyro.cli(  # type: ignore[call-overload]
+                config_type,
+                args=list(argv),
+                prog=prog,
+                description=description,
+                default=default,
+            )
         check_periods(config)
     except (ConfigError, ValueError) as error:
         print(f"{prog}: {error}", file=sys.stderr)
         raise SystemExit(2) from None
+    except SystemExit as leaving:
+        text = captured.getvalue()
+        print(f"{prog}: {boxed_message(text)}" if leaving.code == 2 else text, end="", file=sys.stderr)
+        if leaving.code == 2:
+            print(file=sys.stderr)
+        raise
+    sys.stderr.write(captured.getvalue())
     return config
+
+
+def boxed_message(text: str) -> str:
+    """The message of tyro's error box (its first section, the lines joined), without the
+    box: `Error parsing run.ppo: lr must be > 0` -> `run.ppo: lr must be > 0`. Text that is
+    not a box is returned on one line as it is."""
+    lines = []
+    for line in text.splitlines():
+        inner = line.strip().strip("│╭╮╰╯").strip()
+        if inner and set(inner) <= set("─ "):
+            if lines:
+                break
+            continue
+        if inner and not line.strip().startswith(("╭", "╰")):
+            lines.append(inner)
+    message = " ".join(lines or [" ".join(text.split())])
+    return message.removeprefix("Error parsing ")
 
 
 def check_periods(config: object) -> None:

@@ -1,11 +1,13 @@
 """Names of a recording's files: the parts of a numbered sequence and, inside a part, the
 files of a rotation.
 
-A recorder never replaces a file. When its output `run.mcap` exists (a recorder restarted
-by `hamnet up`, a stack run again), it writes the next part of the sequence instead:
-`run.mcap`, `run.1.mcap`, `run.2.mcap`, ... A rotating part is written as numbered files
-beside it (`run-0000.mcap`, `run-0001.mcap`; in part 1: `run.1-0000.mcap`, ...). Readers
-given the first file (the base name) read every part, and every part's files, in order.
+Nothing that records replaces a file. When its output `run.mcap` exists (a recorder
+restarted by `hamnet up`, a stack run again), it writes the next part of the sequence
+instead: `run.mcap`, `run.1.mcap`, `run.2.mcap`, ... A rotating part is written as numbered
+files beside it (`run-0000.mcap`, `run-0001.mcap`; in part 1: `run.1-0000.mcap`, ...).
+Readers given the first file (the base name) read every part, and every part's files, in
+order. The same names serve the monitor's Rerun file (`view.rrd`, `view.1.rrd`, ...) and
+the launcher's list of what a run wrote.
 """
 
 from __future__ import annotations
@@ -16,20 +18,21 @@ from pathlib import Path
 
 
 def part_path(base: Path, index: int) -> Path:
-    """Part `index` of the recording named `base`: `base` itself, then `<stem>.<index>.mcap`."""
-    return base if index == 0 else base.with_name(f"{base.stem}.{index}.mcap")
+    """Part `index` of the recording named `base`: `base` itself, then
+    `<stem>.<index><suffix>` (`run.1.mcap`)."""
+    return base if index == 0 else base.with_name(f"{base.stem}.{index}{base.suffix}")
 
 
 def file_path(part: Path, rotates: bool, index: int) -> Path:
-    """The `index`-th file of a part: the part itself, or `<stem>-<index:04d>.mcap` beside it
-    when the recording rotates (names sort in recording order)."""
-    return part.with_name(f"{part.stem}-{index:04d}.mcap") if rotates else part
+    """The `index`-th file of a part: the part itself, or `<stem>-<index:04d><suffix>` beside
+    it when the recording rotates (names sort in recording order)."""
+    return part.with_name(f"{part.stem}-{index:04d}{part.suffix}") if rotates else part
 
 
 def part_files(part: Path) -> list[Path]:
     """The existing files of one part, in order: the part itself and its rotated files."""
-    rotated = sorted(part.parent.glob(f"{glob.escape(part.stem)}-[0-9][0-9][0-9][0-9].mcap"))
-    return ([part] if part.exists() else []) + rotated
+    pattern = f"{glob.escape(part.stem)}-[0-9][0-9][0-9][0-9]{glob.escape(part.suffix)}"
+    return ([part] if part.exists() else []) + sorted(part.parent.glob(pattern))
 
 
 def next_part(base: Path) -> Path:

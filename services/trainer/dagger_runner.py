@@ -94,7 +94,7 @@ class InProcessDagger:
         return self.worker.num_envs
 
     @property
-    def waits_for_update(self) -> bool:
+    def alone_in_update(self) -> bool:
         return True
 
     def collect(

@@ -119,10 +119,11 @@ class RunConfig:
     busy; None: when the policy reads clouds (1.18x for HAMnet at 64 environments in
     `benchmarks/training.py`; a policy without perception is faster on all physics threads)."""
     learner_threads: int = 0
-    """Torch threads of the PPO update; 0: when the environments stand still while it learns
-    (in-process, or workers with `--max-policy-lag` 0), every core (shared among learner
-    ranks): 1.6x faster updates than one thread on the 2-core machine
-    (`benchmarks/learner.py`); else 1, since the workers act meanwhile."""
+    """Torch threads of the PPO update; 0: when the environments wait for it (in process, or
+    synchronous workers, `--max-policy-lag` 0), every core, shared among learner ranks
+    (1.6-1.8x faster updates than one thread on the 2-core machine, `benchmarks/learner.py`);
+    else 1. Set 1 where other services share the cores: the demo's stack of seven services
+    on 2 cores ran its tiny updates too slowly with two threads."""
     log_period_s: float = 10.0
     """Seconds between two progress lines."""
     checkpoint_period_s: float = 600.0
@@ -309,9 +310,9 @@ class RolloutSource(Protocol):
         """B: environments of every rollout, in a fixed order."""
 
     @property
-    def waits_for_update(self) -> bool:
-        """Whether its environments stand still while the trainer learns, so the update may
-        take every core (`RunConfig.learner_threads`)."""
+    def alone_in_update(self) -> bool:
+        """Whether its environments wait while the trainer learns, so the update may take
+        every core (`RunConfig.learner_threads`)."""
 
     def collect(
         self, policy: Policy, steps: int, env_transitions: int, version: int,
@@ -335,7 +336,7 @@ class InProcess:
         return sum(worker.env.num_envs for worker in self.workers)
 
     @property
-    def waits_for_update(self) -> bool:
+    def alone_in_update(self) -> bool:
         return True
 
     def snapshot(self) -> Snapshot:
@@ -383,8 +384,8 @@ class Runner:
             config.seed,
         )
         self.source = InProcess(config) if source is None else source(self.policy)
-        cores = max(1, (os.cpu_count() or 1) // ranks.size)  # the ranks share the machine
-        self.learner_threads = config.learner_threads or (cores if self.source.waits_for_update else 1)
+        cores = max(1, (os.cpu_count() or 1) // ranks.size)  # ranks share the machine
+        self.learner_threads = config.learner_threads or (cores if self.source.alone_in_update else 1)
         """Torch threads of the update (`RunConfig.learner_threads`, resolved)."""
         # After the source: every rank subscribes to its workers' chunks before the main one
         # announces the first weights.

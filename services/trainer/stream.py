@@ -113,8 +113,9 @@ class Streamed:
         return self.stale + refused
 
     @property
-    def waits_for_update(self) -> bool:
-        """Synchronous workers (`max_policy_lag` 0) wait for the new weights."""
+    def alone_in_update(self) -> bool:
+        """Synchronous workers (`max_policy_lag` 0) wait for the new weights; with a lag
+        allowed they act meanwhile."""
         return self.max_policy_lag == 0
 
     def collect(

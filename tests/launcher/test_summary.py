@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from hamnet.launcher.secure import Security
-from hamnet.launcher.summary import ProcessReport, Report, output_files, render
+from hamnet.launcher.summary import ProcessReport, Report, output_files, output_state, render
 from hamnet.launcher.watch import HealthBoard
 from hamnet.proto.health_pb2 import DropCount, Health, ServiceState
 
@@ -38,13 +38,22 @@ def test_health_counters_add_up_over_restarts() -> None:
     assert board.totals("echo", "1").received == {}
 
 
-def test_output_files_lists_files_and_folders_with_sizes(tmp_path: Path) -> None:
+def test_output_files_lists_every_file_the_run_wrote_with_sizes(tmp_path: Path) -> None:
+    """A file output stands for its sequence: the run's new part (`a.1.mcap`, written after
+    an earlier run's `a.mcap`) is listed, the untouched earlier part is not; a monitor's
+    `v.rrd` left as it was and written to `v.1.rrd` likewise; folders by their size."""
     (tmp_path / "a.mcap").write_bytes(b"x" * 10)
+    (tmp_path / "v.rrd").write_bytes(b"x" * 3)
+    paths = (tmp_path / "a.mcap", tmp_path / "ckpt", tmp_path / "v.rrd", tmp_path / "absent.rrd")
+    before = output_state(paths)
+    (tmp_path / "a.1.mcap").write_bytes(b"x" * 7)
+    (tmp_path / "v.1.rrd").write_bytes(b"x" * 4)
     (tmp_path / "ckpt").mkdir()
     (tmp_path / "ckpt" / "1.safetensors").write_bytes(b"x" * 5)
-    paths = (tmp_path / "a.mcap", tmp_path / "ckpt", tmp_path / "absent.rrd")
-    assert output_files(paths) == (
-        {str(tmp_path / "a.mcap"): 10, str(tmp_path / "ckpt"): 5}, [str(tmp_path / "absent.rrd")])
+    assert output_files(paths, before) == (
+        {str(tmp_path / "a.1.mcap"): 7, str(tmp_path / "ckpt"): 5, str(tmp_path / "v.1.rrd"): 4},
+        [str(tmp_path / "absent.rrd")],
+    )
 
 
 def test_render_shows_processes_missing_services_and_outputs() -> None:

@@ -25,6 +25,7 @@ from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.service import EXIT_NO_RESTART
 from hamnet.runtime.transport import TransportConfig, open_session
 from tests.conftest import transport_args
+from tests.monitor.test_outputs import verified
 from tests.stack.test_record_replay import Capture, stop, wait_until_recording
 from tests.stack.test_up import by_label, write_stack
 from tests.stack.up import alive, up
@@ -248,17 +249,28 @@ def test_a_restarted_recorder_leaves_two_readable_files_that_info_and_replay_rea
 
 
 def test_restarts_under_the_launcher_never_replace_the_recording(tmp_path, transport):
-    """Under `hamnet up`, a recorder killed with SIGKILL is restarted and writes the next
-    part: the first one stays as it was."""
+    """Under `hamnet up`, a recorder and a monitor killed with SIGKILL are restarted and
+    write the next part: the first ones stay as they were (the monitor's used to be cut to a
+    fraction by its restart), the summary lists every file the run wrote, and the view the
+    stack closed has Rerun's footer."""
+    (tmp_path / "view.rrd").write_bytes(b"an earlier run's view")
     stack = write_stack(tmp_path, """
 services:
   record: {args: {output: run.mcap, chunk-s: 0.2}}
+  monitor: {args: {save: view.rrd}}
+outputs: [run.mcap, view.rrd]
 """)
     with up(stack, transport, cwd=tmp_path) as run:
-        run.wait_for(r"record/0 ready", timeout=60)
-        first = run.started()["record/0"][0]
-        os.kill(first, 9)
-        run.wait_for(r"record/0 ready", count=2, timeout=60)
+        for label in ("record/0", "monitor/0"):
+            run.wait_for(rf"{label} ready", timeout=60)
+            os.kill(run.started()[label][0], 9)
+            run.wait_for(rf"{label} ready", count=2, timeout=60)
         stop(run.process)
     assert sorted(p.name for p in tmp_path.glob("*.mcap")) == ["run.1.mcap", "run.mcap"]
     assert "run.mcap exists: recording to run.1.mcap" in run.output
+    assert (tmp_path / "view.rrd").read_bytes() == b"an earlier run's view"
+    assert sorted(p.name for p in tmp_path.glob("*.rrd")) == ["view.1.rrd", "view.2.rrd", "view.rrd"]
+    assert verified(tmp_path / "view.2.rrd")  # closed by the stack's stop
+    for name in ("run.mcap", "run.1.mcap", "view.1.rrd", "view.2.rrd"):
+        assert f"written: {name} (" in run.output, run.output
+    assert "written: view.rrd (" not in run.output  # an earlier run's, untouched

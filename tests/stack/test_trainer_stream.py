@@ -22,10 +22,10 @@ from hamnet.policy.registry import build
 from hamnet.proto.health_pb2 import Health
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
-from hamnet.runtime.service import HEALTH, Service, ServiceIdentity
+from hamnet.runtime.service import HEALTH
 from hamnet.runtime.transport import TransportConfig, open_session
 from hamnet.trainer.shell import WEIGHTS, encode_weights
-from hamnet.trainer.stream import ROLLOUT, Streamed
+from hamnet.trainer.stream import ROLLOUT
 from tests.conftest import transport_args
 
 B, T, ITERATIONS = 2, 2, 3
@@ -147,11 +147,3 @@ def test_a_worker_holds_its_chunk_until_a_learner_subscribes(
         session.close()
     assert chunk is not None and chunk.value.header.policy_version == 1
 
-
-@pytest.mark.parametrize("lag", [0, 1])
-def test_only_synchronous_workers_leave_the_update_every_core(transport: TransportConfig, lag: int) -> None:
-    """Workers that wait for each new version stand still while the trainer learns (the
-    update may take every core); with a lag allowed they act meanwhile, and it takes one."""
-    with Service(ServiceIdentity("trainer", "threads"), transport) as service:
-        source = Streamed(service, build("state-mlp", seed=0), 1, B, lag)
-        assert source.waits_for_update == (lag == 0)

@@ -222,7 +222,7 @@ def test_the_update_takes_every_core_while_the_environments_wait(tmp_path: Path,
         config = RunConfig(sim=tiny_sim(), run_dir=tmp_path / str(threads), steps_per_rollout=2,
                            learner_threads=threads, eval_episodes=0)  # fmt: skip
         runner = Runner(config)
-        assert runner.source.waits_for_update and runner.learner_threads == expected
+        assert runner.source.alone_in_update and runner.learner_threads == expected
         runner.iterate()  # fills the input statistics
         runner.iterate()
         assert seen.pop() == expected and torch.get_num_threads() == 1
