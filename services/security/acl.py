@@ -1,23 +1,27 @@
-"""The stack's access rules as Zenoh's own `access_control` config, built from the topic
-contract: who may publish (or answer for) which keys, by certificate common name.
+"""The stack's access rules as Zenoh's own `access_control` config, generated from the topic
+contract (`hamnet.runtime.contract`): who may publish (or answer for) and who may read which
+keys, by certificate common name.
 
-Every identity named after a `hamnet` command (and `operator`) may subscribe to everything
-and publish the open topics; only `safety` may publish commands, only `trainer` weights and
-the step counter (schedule), only `camera` depth frames (perception's view of the
-world), only `perception` the object pose estimate, and only `operator` may use the e-stop (which `safety` serves)
-and the bridge's reset. The real robot's `bridge` may only publish the robot's topics
-(state, scene, transition) and its own events, serve its reset, and subscribe to safety's
-commands and perception's object pose estimate; any other name gets nothing. Zenoh applies the rules where
-a link ends, so they belong on the router every service joins as a client
-(`compose/secure/`, docs/security.md). `python -m hamnet.security.acl` prints the router's
-JSON5 config.
+Each key may be published by exactly the identities its contract entry names as publishers
+(put, delete, and answering queries on it), and read by exactly those it names as readers
+(subscribe; query too where its publishers answer queries with the latest value: the
+scenes, the weights). A key with a `<service>` segment (health reports, liveliness tokens)
+may be published by each service only under its own name. The latches (safety's e-stop,
+the bridge's reset) are served by their service and asked by `operator` alone. The
+observers (`record`, `echo`), which read every topic, may subscribe to the whole namespace
+(`hamnet/<ns>/**`), and `echo` may publish its reflections under `echo/`, a key no service
+reads. Any other name, and any other right, gets nothing (default deny): `hamnet replay`
+may only report its health, so a replay cannot feed a secure stack (docs/security.md).
+
+Zenoh applies the rules where a link ends, so they belong on the router every service joins
+as a client (`compose/secure/`, docs/security.md). `python -m hamnet.security.acl` prints
+the router's JSON5 config.
 """
 
 from __future__ import annotations
 
 import json
 
-from hamnet.cli import COMMANDS
 from hamnet.runtime import contract, keys
 
 MESSAGES = ("put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
@@ -26,51 +30,45 @@ MESSAGES = ("put", "delete", "declare_subscriber", "query", "reply", "declare_qu
 
 PUBLISH = ("put", "delete", "reply", "declare_queryable")
 """What makes data appear on a key: publishing it, or answering queries on it."""
+SERVE = ("declare_queryable", "reply")
+"""Serving a queryable (a latch)."""
+ANNOUNCE = ("liveliness_token",)
+"""Declaring a liveliness token."""
 
-LISTEN = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_token",
-          "liveliness_query")  # fmt: skip
-"""Subscribing and liveliness: open to every member on every key of the stack."""
+SUBSCRIBE = ("declare_subscriber",)
+"""Reading a topic."""
+CATCH_UP = ("declare_subscriber", "query")
+"""Reading a topic whose publishers answer queries with the latest value (`Topic.catch_up`)."""
+ASK = ("query",)
+"""Asking a queryable (a latch: stop, reset, status)."""
+WATCH = ("declare_liveliness_subscriber", "liveliness_query")
+"""Following liveliness tokens (with the tokens already declared)."""
 
-OWNERS: dict[str, str] = {
-    "safety/<w>/command": "safety",
-    "trainer/weights": "trainer",
-    "trainer/schedule": "trainer",
-    "bridge/<w>/event": "bridge",
-    "camera/<w>/frames": "camera",
-    "perception/<w>/object_pose": "perception",
-}
-"""Topics one identity alone may publish; everyone may still read (and query) them."""
-
-SERVED: dict[str, str] = {
-    "safety/<w>/estop": "safety",
-    "bridge/<w>/reset": "bridge",
-}
-"""The latches and who serves them: safety's e-stop and the bridge's robot-error reset."""
-REQUESTER = "operator"
-"""The one identity that may ask a latch (stop, reset, status): a stop from anyone else
-would be a denial of service, a reset a release of a stopped robot."""
-
-BRIDGE = "bridge"
-ROBOT = ("sim/<w>/state", "sim/<w>/scene", "sim/<w>/transition")
-"""What the real robot's bridge (issue 17) may publish, or answer queries on: the robot's
-topics, which it publishes in place of the sim; and its own health and liveliness token."""
-BRIDGE_HEARS = ("safety/<w>/command", "perception/<w>/object_pose")
-"""What the bridge may subscribe to: the commands only safety may publish, and the object
-pose estimate only perception may publish (it goes into the robot's state)."""
-BOOKKEEPING = ("health/<service>/<w>", "alive/<service>/<w>")
-"""Every service's own health reports and liveliness token."""
-
-OPERATOR = "operator"
-MEMBER = "member"
-"""Subject of every identity named after a `hamnet` command (and `operator`) but the
-bridge: a certificate of the stack's CA under another name gets nothing, and the bridge
-only its own rules (Zenoh's allow rules add up; a deny rule cannot take back what a
-default-deny config allowed)."""
+REFLECTIONS = "echo/*/reflect/**"
+"""Where `hamnet echo --reflect` republishes (`hamnet.tools.echo.reflect_key`), after the
+namespace: no contract key, read by no service."""
+REFLECTOR = "echo"
 
 
-def members() -> list[str]:
-    """Names of the MEMBER subject: every `hamnet` command but the bridge, and the operator."""
-    return sorted({command.name for command in COMMANDS} - {BRIDGE} | {OPERATOR})
+def identities() -> list[str]:
+    """Every identity the contract names (publishers and readers), sorted."""
+    return sorted({name for t in contract.TOPICS for name in (*t.publishers, *t.readers)})
+
+
+def publish_rights(topic: contract.Topic) -> tuple[str, ...]:
+    """The messages a publisher of `topic` may send on its keys."""
+    if topic.queryable:
+        return SERVE
+    return PUBLISH if topic.message is not None else ANNOUNCE
+
+
+def read_rights(topic: contract.Topic) -> tuple[str, ...]:
+    """The messages a reader of `topic` may send on its keys."""
+    if topic.queryable:
+        return ASK
+    if topic.message is None:
+        return WATCH
+    return CATCH_UP if topic.catch_up else SUBSCRIBE
 
 
 def stack_acl(namespace: str = "*") -> dict[str, object]:
@@ -79,48 +77,42 @@ def stack_acl(namespace: str = "*") -> dict[str, object]:
     Returns:
         A dict for the `access_control` key of a Zenoh config (default deny).
     """
-    for path in (*OWNERS, *SERVED, *ROBOT, *BRIDGE_HEARS, *BOOKKEEPING):
-        contract.topic(path)  # a renamed topic must fail here, not open a hole
-    open_keys = [t.pattern_in(namespace) for t in contract.TOPICS
-                 if t.path not in OWNERS and t.path not in SERVED]  # fmt: skip
-    owned = {path: contract.topic(path).pattern_in(namespace) for path in OWNERS}
-    served = {path: contract.topic(path).pattern_in(namespace) for path in SERVED}
     everything = f"{keys.ROOT}/{namespace}/**"
-    health, alive = (_own(path, namespace, BRIDGE) for path in BOOKKEEPING)
-    rules = [
-        _rule("deliver", MESSAGES, [everything], flow="egress"),
-        _rule("listen", LISTEN, [everything]),
-        _rule("publish open topics", (*PUBLISH, "query"), open_keys),
-        _rule("query owned topics", ("query",), list(owned.values())),
-        *(_rule(f"publish {path}", PUBLISH, [key]) for path, key in owned.items()),
-        *(_rule(f"serve {path}", ("declare_queryable", "reply"), [key]) for path, key in served.items()),
-        _rule("request latches", ("query",), list(served.values())),
-        _rule("publish the robot", PUBLISH,
-              [*(contract.topic(path).pattern_in(namespace) for path in ROBOT), health]),
-        _rule("hear safety", ("declare_subscriber",),
-              [contract.topic(path).pattern_in(namespace) for path in BRIDGE_HEARS]),
-        _rule("announce the bridge", ("liveliness_token",), [alive]),
-    ]  # fmt: skip
-    identities = sorted({*OWNERS.values(), *SERVED.values(), REQUESTER, BRIDGE})
-    subjects = [{"id": MEMBER, "cert_common_names": members()}] + [
-        {"id": name, "cert_common_names": [name]} for name in identities]  # fmt: skip
-    grants = {MEMBER: ["deliver", "listen", "publish open topics", "query owned topics"],
-              REQUESTER: ["request latches"],
-              BRIDGE: ["deliver", "publish the robot", "hear safety", "announce the bridge"]}  # fmt: skip
-    for path, owner in OWNERS.items():
-        grants.setdefault(owner, []).append(f"publish {path}")
-    for path, server in SERVED.items():
-        grants.setdefault(server, []).append(f"serve {path}")
+    rules = [_rule("deliver", MESSAGES, [everything], flow="egress")]
+    grants: dict[str, list[str]] = {name: ["deliver"] for name in identities()}
+    for topic in contract.TOPICS:
+        verb = "serve" if topic.queryable else "publish"
+        if "service" in topic.placeholders:  # each publisher under its own name only
+            for name in topic.publishers:
+                rule_id = f"{verb} {topic.path.replace('<service>', name)}"
+                rules.append(_rule(rule_id, publish_rights(topic), [_own(topic, namespace, name)]))
+                grants[name].append(rule_id)
+        else:
+            rule_id = f"{verb} {topic.path}"
+            rules.append(_rule(rule_id, publish_rights(topic), [topic.pattern_in(namespace)]))
+            for name in topic.publishers:
+                grants[name].append(rule_id)
+        rule_id = f"{'ask' if topic.queryable else 'read'} {topic.path}"
+        rules.append(_rule(rule_id, read_rights(topic), [topic.pattern_in(namespace)]))
+        for name in topic.readers:
+            grants[name].append(rule_id)
+    rules.append(_rule("observe the stack", SUBSCRIBE, [everything]))
+    for name in contract.OBSERVERS:
+        grants[name].append("observe the stack")
+    rules.append(_rule("reflect", ("put", "delete"), [f"{keys.ROOT}/{namespace}/{REFLECTIONS}"]))
+    grants[REFLECTOR].append("reflect")
+    subjects = [{"id": name, "cert_common_names": [name]} for name in grants]
     policies = [{"id": f"{name} may", "rules": rules_, "subjects": [name]}
                 for name, rules_ in grants.items()]  # fmt: skip
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}  # fmt: skip
 
 
-def _own(path: str, namespace: str, service: str) -> str:
-    """Key expression of contract topic `path` for `service` only (any worker)."""
-    segments = ("*" if s.startswith("<") and s != "<service>" else s for s in path.split("/"))
-    return "/".join((keys.ROOT, namespace, *(service if s == "<service>" else s for s in segments)))
+def _own(topic: contract.Topic, namespace: str, service: str) -> str:
+    """Key expression of `topic` (a `<service>` key) for `service` only, any other field."""
+    segments = (service if s == "<service>" else "*" if s.startswith("<") else s
+                for s in topic.path.split("/"))  # fmt: skip
+    return "/".join((keys.ROOT, namespace, *segments))
 
 
 def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str],

@@ -9,13 +9,16 @@ from pathlib import Path
 
 import pytest
 
+from hamnet.cli import COMMANDS
+from hamnet.runtime.contract import OPERATOR
 from hamnet.security.certs import init_ca, issue
 
-IDENTITIES = (
-    "alice", "bob", "router", "up", "safety", "trainer", "operator", "sim", "policy", "intruder",
-    "bridge", "perception", "rollout",
-)  # fmt: skip
-"""Identities the stack's CA issues in these tests; `intruder` is no identity of the stack."""
+STACK = tuple(sorted({command.name for command in COMMANDS} | {OPERATOR, "intruder"}))
+"""Every name a certificate of a stack's CA could carry: each command's (a process of
+`hamnet <command>` presents it), the operator's, and `intruder`, no identity of the stack."""
+
+IDENTITIES = ("alice", "bob", *STACK)
+"""Identities the stack's CA issues in these tests (alice and bob: two peers of test_tls)."""
 
 
 @pytest.fixture(scope="session")

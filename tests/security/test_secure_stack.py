@@ -1,10 +1,10 @@
-"""The four attacks of issue 16 against the secure stack (real Zenoh, loopback): one
-`hamnet router` with mutual TLS and the access rules of `hamnet.security.acl`, every
-party a client of it under its own certificate.
+"""The four attacks of issue 16, and issue 29's, against the secure stack (real Zenoh,
+loopback): one `hamnet router` with mutual TLS and the access rules of
+`hamnet.security.acl`, every party a client of it under its own certificate.
 
-Each test lets the legitimate sender and the attacker publish side by side, waits (with a
+Each test lets the legitimate sender and the attackers publish side by side, waits (with a
 generous deadline) until the legitimate message has arrived, then checks that nothing of
-the attacker's did, and that the router's log names the refusal."""
+the attackers' did, and that the router's log names the refusals."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import pytest
@@ -22,13 +22,16 @@ import zenoh
 
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafeCommand
+from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
+from hamnet.runtime import contract
 from hamnet.runtime.codec import encode
 from hamnet.runtime.transport import TransportConfig, free_port, zenoh_config
 from hamnet.security.acl import router_config_text, stack_acl
 from tests.estop import ask_estop
 from tests.messages import random_message
 from tests.security.clients import Clients
+from tests.security.conftest import STACK
 
 DEADLINE_S = 40.0
 """Generous bound for anything to arrive (the machine is shared with training runs)."""
@@ -57,6 +60,7 @@ class Stack(Clients):
         config.write_text(router_config_text())
         self.log = tmp_path / "router.log"
         self.processes: list[subprocess.Popen] = []
+        self.opened: dict[str, zenoh.Session] = {}
         self.spawn("router", "--tls-dir", str(certs), "--listen", self.endpoint,
                    "--zenoh-config", str(config),
                    "--zenoh-log", "warn,zenoh::net::routing::interceptor::access_control=trace")  # fmt: skip
@@ -76,12 +80,23 @@ class Stack(Clients):
         self.processes.append(process)
         return process
 
-    def wait_log(self, text: str) -> None:
-        """Wait until the router's log holds `text`."""
+    def session(self, identity: str) -> zenoh.Session:
+        """This stack's one client session under `identity` (opened on first use)."""
+        if identity not in self.opened:
+            self.opened[identity] = self.client(identity)
+        return self.opened[identity]
+
+    def wait_log(self, *texts: str) -> None:
+        """Wait until the router's log holds every one of `texts`."""
         deadline = time.monotonic() + DEADLINE_S
-        while text not in self.log.read_text():
-            assert self.processes[0].poll() is None, self.log.read_text()[-2000:]
-            assert time.monotonic() < deadline, f"router log never showed: {text}"
+        missing = set(texts)
+        while missing:
+            log = self.log.read_text()
+            missing = {text for text in missing if text not in log}
+            if not missing:
+                return
+            assert self.processes[0].poll() is None, log[-2000:]
+            assert time.monotonic() < deadline, f"router log never showed: {sorted(missing)}"
             time.sleep(0.2)
 
     def close(self) -> None:
@@ -105,26 +120,96 @@ def stack(certs: Path, tmp_path: Path) -> Iterator[Stack]:
 
 
 def race(stack: Stack, path: str, owner: str, reader: str, make: Callable[[int], bytes],
-         attacker: str = "intruder") -> None:  # fmt: skip
-    """`attacker` and `owner` both publish on `path`; `reader` must get only the owner's."""
-    key = stack.key(path)
-    received: list[bytes] = []
-    stack.client(reader).declare_subscriber(key, lambda s: received.append(s.payload.to_bytes()))
-    intruder, legitimate = stack.client(attacker), stack.client(owner)
-    attack, genuine = make(1), make(2)
-    deadline = time.monotonic() + DEADLINE_S
-    while genuine not in received:
-        assert time.monotonic() < deadline, f"{owner}'s message on {key} never arrived"
-        intruder.put(key, attack)
-        legitimate.put(key, genuine)
-        time.sleep(0.1)
-    intruder.put(key, attack)
-    legitimate.put(key, genuine)  # delivered after the attack that precedes it, if any
-    while received.count(genuine) < 2:
-        assert time.monotonic() < deadline, f"{owner}'s second message never arrived"
-        time.sleep(0.05)
-    assert attack not in received
-    stack.wait_log(refusal(attacker, intruder, "Put", key))
+         attacker: str | Sequence[str] = "intruder", key: str | None = None,
+         eavesdroppers: Sequence[str] = ()) -> None:  # fmt: skip
+    """The `attacker`s and `owner` all publish on `path` (worker 0, or `key`); `reader` must
+    get only the owner's, and the `eavesdroppers` (subscribed too) nothing of anyone else's.
+    Sessions are the stack's, opened once per identity."""
+    attackers = [attacker] if isinstance(attacker, str) else list(attacker)
+    key = key or stack.key(path)
+    heard: dict[str, list[bytes]] = {name: [] for name in eavesdroppers}
+    subscribers = [stack.session(name).declare_subscriber(
+        key, lambda s, into=heard[name]: into.append(s.payload.to_bytes()),
+        allowed_origin=zenoh.Locality.REMOTE) for name in eavesdroppers]  # fmt: skip
+    received: list[bytes] = []  # through the router: the reader may be an attacker too
+    subscribers.append(stack.session(reader).declare_subscriber(
+        key, lambda s: received.append(s.payload.to_bytes()),
+        allowed_origin=zenoh.Locality.REMOTE))  # fmt: skip
+    intruders = {name: stack.session(name) for name in attackers}
+    legitimate = stack.session(owner)
+    attacks = {name: make(1 + index) for index, name in enumerate(attackers)}
+    genuine = make(0)
+    try:
+        deadline = time.monotonic() + DEADLINE_S
+
+        def both() -> None:
+            for name, session in intruders.items():
+                session.put(key, attacks[name])
+            legitimate.put(key, genuine)  # delivered after the attacks that precede it, if any
+
+        while genuine not in received:
+            assert time.monotonic() < deadline, f"{owner}'s message on {key} never arrived"
+            both()
+            time.sleep(0.1)
+        both()
+        while received.count(genuine) < 2:
+            assert time.monotonic() < deadline, f"{owner}'s second message never arrived"
+            time.sleep(0.05)
+    finally:
+        for subscriber in subscribers:
+            subscriber.undeclare()
+    through = [name for name, attack in attacks.items() if attack in received]
+    assert through == [], f"{through} published on {key}"
+    assert {name: len(into) for name, into in heard.items() if into} == {}, f"eavesdropped {key}"
+    stack.wait_log(*(refusal(name, session, "Put", key) for name, session in intruders.items()))
+
+
+@pytest.fixture(scope="module")
+def shared(certs: Path, tmp_path_factory) -> Iterator[Stack]:
+    """One secure router for many races, and one session per identity."""
+    secure = Stack(certs, tmp_path_factory.mktemp("shared"))
+    yield secure
+    secure.close()
+
+
+PUBLISHED = [t for t in contract.TOPICS if t.message is not None]
+"""The topics that carry messages (not the latches, not the liveliness tokens)."""
+
+
+@pytest.mark.parametrize("topic", PUBLISHED, ids=lambda t: t.path)
+def test_only_the_contracts_publishers_reach_a_reader(shared: Stack, topic: contract.Topic) -> None:
+    """Issue 29: a valid certificate of the monitor or of the trainer published robot states
+    (20 of 20 delivered). Now on every key of the contract the legitimate publisher and
+    every other identity (each command's, the operator's, a name of no identity) publish
+    side by side: a legitimate reader gets the publisher's messages only, and no identity
+    that is not a reader of the key hears anything on it. Health reports: each service
+    under its own name only (another's, here the sim's, is refused)."""
+    owner = topic.publishers[0]
+    key = (topic.key(shared.namespace, service=owner, w="0") if "service" in topic.placeholders
+           else shared.key(topic.path))  # fmt: skip
+    legitimate = {owner} if "service" in topic.placeholders else set(topic.publishers)
+    reader = next((r for r in topic.readers if r not in contract.OBSERVERS), topic.readers[0])
+    attackers = [name for name in STACK if name not in legitimate]
+    eavesdroppers = [name for name in STACK if name not in topic.readers and name != owner]
+    race(shared, topic.path, owner=owner, reader=reader, attacker=attackers, key=key,
+         eavesdroppers=eavesdroppers, make=lambda seed: f"{key} #{seed}".encode())  # fmt: skip
+
+
+def test_the_monitors_and_trainers_certificates_cannot_publish_robot_states(
+    shared: Stack,
+) -> None:
+    """The attack of issue 29 as it was: forged states, with steps of 10^12, from the
+    monitor's and the trainer's certificates; policy and safety get the sim's only."""
+
+    def state(seed: int) -> bytes:
+        message = random_message(RobotState, seed=seed)
+        if seed:  # the attackers'
+            message.header.step = 10**12
+        return encode(message)
+
+    for reader in ("policy", "safety"):
+        race(shared, "sim/<w>/state", owner="sim", reader=reader, attacker=["monitor", "trainer"],
+             make=state)  # fmt: skip
 
 
 @pytest.mark.parametrize("attacker", ["intruder", "rollout"])

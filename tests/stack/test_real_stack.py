@@ -69,7 +69,8 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
     path = folder / "real.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False))
     assert certs(["stack", str(path)]) == 0
-    issue(folder / "certs", "monitor", days=1)  # the test reads (and forges) as the monitor
+    for identity in ("monitor", "record"):  # the test reads (and forges) as these
+        issue(folder / "certs", identity, days=1)
     return path, endpoint
 
 
@@ -93,7 +94,7 @@ def test_the_real_stack_drives_franky_sim_safely(tmp_path: Path, steps: int) -> 
 def drive_then_kill(stack: Running, steps: int) -> None:
     states = stack.collect("sim/<w>/state", RobotState)
     actions = stack.collect("policy/<w>/action", PolicyAction)
-    robot_events = stack.collect("bridge/<w>/event", SafetyEvent)
+    robot_events = stack.collect("bridge/<w>/event", SafetyEvent, "record")  # observers read it
     safety_events = stack.collect("safety/<w>/event", SafetyEvent)
     stack.wait(lambda: len(actions) >= 20, "the student acts on the bridge's states")
     forger = stack.client("monitor")
@@ -109,6 +110,7 @@ def drive_then_kill(stack: Running, steps: int) -> None:
         lambda: any(e.kind == SafetyEventKind.WATCHDOG_STOP for e in safety_events), "the watchdog"
     )
     answered: set[int] = set()
+    broken = stack.client("policy")  # only the policy's identity may publish actions
 
     def nan_answered_and_rejected() -> bool:
         """Answer the newest state with a NaN action (once), as a broken policy would."""
@@ -116,7 +118,7 @@ def drive_then_kill(stack: Running, steps: int) -> None:
         if step not in answered:
             nan = PolicyAction(header=Header(step=step))
             to_tensor(np.full((1, 21), np.nan, np.float32), nan.action)
-            forger.put(stack.key("policy/<w>/action"), encode(nan))
+            broken.put(stack.key("policy/<w>/action"), encode(nan))
             answered.add(step)
         return any(e.kind == SafetyEventKind.REJECTED_NONFINITE for e in safety_events)
 
