@@ -3,24 +3,22 @@
 Each service's command must be a `hamnet` command; a built command's arguments are parsed
 with that command's own `CONFIG` (exactly the line the launcher would start), so a
 misspelt flag or a bad value fails here instead of in a crash loop. Commands not built
-yet cannot be validated: they are reported as missing, which is not an error.
+yet cannot be validated: they are reported as missing, which is not an error. Parsing
+imports each command's module, so `hamnet up` parses in a child process
+(`hamnet.launcher.validate`) and stays free of the learning stack.
 """
 
 from __future__ import annotations
 
-import contextlib
-import importlib
-import io
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from hamnet.cli import COMMANDS, Subcommand
 from hamnet.launcher.argv import service_argv
 from hamnet.launcher.secure import Security
 from hamnet.launcher.stack import ArgValue, Stack
-from hamnet.runtime.cli import check_remap, parse
-from hamnet.runtime.errors import ConfigError
+from hamnet.launcher.validate import in_child, validate_args
 
 
 @dataclass(frozen=True)
@@ -52,53 +50,32 @@ def issue_text(command: Subcommand | None) -> str:
     return f" (issue #{command.issue})" if command and command.issue else ""
 
 
-def check(stack: Stack, forward: Mapping[str, ArgValue]) -> list[Verdict]:
-    """A verdict for every service of `stack`, in file order."""
+def check(stack: Stack, forward: Mapping[str, ArgValue], isolated: bool = False) -> list[Verdict]:
+    """A verdict for every service of `stack`, in file order.
+
+    `isolated` parses the built services' arguments in a child process (`hamnet up`, which
+    then supervises for the whole run without the commands' modules); otherwise here.
+    """
     commands = {command.name: command for command in COMMANDS}
     verdicts = []
+    to_parse: list[tuple[int, Subcommand, list[str]]] = []
     for name, spec in stack.services.items():
         command = commands.get(spec.command)
+        error = ""
         if command is None:
             known = ", ".join(commands)
             error = f"unknown command {spec.command!r} (hamnet commands: {known})"
         elif command.name == "up":
             error = "a stack cannot run `hamnet up`"
-        elif command.module is None:
-            error = ""
-        else:
+        elif command.module is not None:
             argv = service_argv(spec, spec.workers[0], stack.namespace, forward)
-            error = validate_args(command, argv[1:])
+            to_parse.append((len(verdicts), command, argv[1:]))
         verdicts.append(Verdict(name, command, error))
+    requests = [(command, argv) for _, command, argv in to_parse]
+    errors = in_child(requests) if isolated else [validate_args(c, a) for c, a in requests]
+    for (index, _, _), error in zip(to_parse, errors, strict=True):
+        verdicts[index] = replace(verdicts[index], error=error)
     return verdicts
-
-
-def validate_args(command: Subcommand, argv: list[str]) -> str:
-    """Parse `argv` with the command's CONFIG and check its `--remap` against the command's
-    PORTS; returns the complaint or ''."""
-    module = importlib.import_module(command.module)
-    output = io.StringIO()
-    try:
-        with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
-            config = parse(module.CONFIG, argv, f"hamnet {command.name}", "")
-        if hasattr(config, "common"):
-            check_remap(config.common, getattr(module, "PORTS", None))
-    except SystemExit:  # tyro reports bad flags and nested `__post_init__` errors this way
-        return _first_lines(output.getvalue()) or "invalid arguments"
-    except (ValueError, ConfigError) as error:  # a top-level config's `__post_init__`, a remap
-        return str(error)
-    return ""
-
-
-def _first_lines(text: str) -> str:
-    """The gist of tyro's boxed error text: its message lines, without help text."""
-    lines = []
-    for line in text.splitlines():
-        line = line.strip(" │")
-        if line.startswith(("Argument helptext", "For full helptext", "usage:")):
-            break
-        if line and not set(line) <= set("-─╭╮╰╯"):
-            lines.append(line)
-    return "; ".join(lines[1:] or lines)
 
 
 def not_built(verdicts: list[Verdict]) -> str:

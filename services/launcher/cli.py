@@ -66,7 +66,9 @@ def main(argv: Sequence[str]) -> int:
         print(f"hamnet up: {error}", file=sys.stderr)
         return 2
     stack, common = secured(stack, common)
-    verdicts = check.check(stack, forwarded(common))
+    # A run parses the services' arguments in a child: the supervisor never imports their
+    # modules (torch, mujoco, ...), which it would otherwise hold for the whole run.
+    verdicts = check.check(stack, forwarded(common), isolated=not config.check)
     errors = [v for v in verdicts if v.error]
     tls_dir = common.transport.tls_dir
     missing = missing_certificates(stack, tls_dir) if stack.secure and tls_dir else []

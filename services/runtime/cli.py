@@ -98,18 +98,23 @@ def parse(
 
 def boxed_message(text: str) -> str:
     """The message of tyro's error box (its first section, the lines joined), without the
-    box: `Error parsing run.ppo: lr must be > 0` -> `run.ppo: lr must be > 0`. Text that is
-    not a box is returned on one line as it is."""
-    lines = []
+    box: `Error parsing run.ppo: lr must be > 0` -> `run.ppo: lr must be > 0`. tyro draws
+    the box in lines (a title in the top border) on a terminal, and without borders (the
+    title on a line of its own, sections between rules of dashes) into a buffer; text that
+    is neither is returned on one line as it is."""
+    sections: list[list[str]] = [[]]
     for line in text.splitlines():
-        inner = line.strip().strip("│╭╮╰╯").strip()
-        if inner and set(inner) <= set("─ "):
-            if lines:
-                break
-            continue
-        if inner and not line.strip().startswith(("╭", "╰")):
-            lines.append(inner)
-    message = " ".join(lines or [" ".join(text.split())])
+        if line.strip().startswith(("╭", "╰")):
+            continue  # the box's top (with its title) and bottom
+        inner = line.strip().strip("│").strip()
+        if inner and set(inner) <= set("─- "):
+            sections.append([])
+        elif inner:
+            sections[-1].append(inner)
+    sections = [section for section in sections if section]
+    if len(sections) > 1 and len(sections[0]) == 1 and ":" not in sections[0][0]:
+        sections = sections[1:]  # the borderless box's title line
+    message = " ".join(sections[0]) if sections else " ".join(text.split())
     return message.removeprefix("Error parsing ")
 
 

@@ -30,9 +30,9 @@ def test_built_command_with_valid_args_is_ok() -> None:
     [
         (
             {"period-s": "fast"},
-            "error: Error parsing --period-s: could not convert string to float: 'fast'",
+            "error: hamnet echo: --period-s: could not convert string to float: 'fast'",
         ),
-        ({"perod-s": 1}, "error: Unrecognized options: --perod-s"),
+        ({"perod-s": 1}, "error: hamnet echo: Unrecognized options: --perod-s"),
         ({"shm-pool-mb": 0}, "error: hamnet echo: shm_pool_mb must be > 0"),
     ],
 )
@@ -87,7 +87,7 @@ def test_check_exits_2_and_names_the_problem(tmp_path: Path, capsys) -> None:
     path.write_text("services: {watch: {command: echo, args: {period-s: fast}}}")
     assert main(["--check", str(path)]) == 2
     out = capsys.readouterr().out
-    assert "watch  hamnet echo [0]  critical   error: Error parsing --period-s" in out
+    assert "watch  hamnet echo [0]  critical   error: hamnet echo: --period-s" in out
     assert out.rstrip().endswith("1 of 1 services cannot run as written")
 
 
