@@ -34,6 +34,22 @@ def transport_args(transport: TransportConfig) -> list[str]:
     return ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
 
 
+STACK_FOLDERS = ("stack", "security")
+"""Test folders whose tests start `hamnet` processes (services, routers, stacks)."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark `stack` every test that starts `hamnet` processes (those in `STACK_FOLDERS`, and
+    any other that uses the `spawn` fixture) and `benchmark` those of tests/benchmarks, which
+    run each benchmark's `--quick`: `bash scripts/test.sh --fast` leaves both out."""
+    for item in items:
+        folder = item.path.parent.name
+        if folder in STACK_FOLDERS or "spawn" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.stack)
+        if folder == "benchmarks":
+            item.add_marker(pytest.mark.benchmark)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     """Keep each phase's report on the test (`item.report_call`) for fixtures to read."""

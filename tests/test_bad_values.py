@@ -16,6 +16,8 @@ from safetensors.torch import save as save_tensors
 from hamnet.policy.registry import build
 from hamnet.policy.weights import from_bytes, to_bytes
 
+pytestmark = pytest.mark.stack  # each test runs `hamnet` commands as processes
+
 
 def refused(*args: str) -> str:
     """Run `hamnet <args>`; assert it failed with one line on stderr and return that line."""

@@ -136,6 +136,7 @@ def test_a_run_stopped_mid_iteration_goes_back_to_its_start_and_resumes_exactly(
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
 
 
+@pytest.mark.stack  # `hamnet trainer` as a process
 def test_sigterm_in_the_middle_of_a_rollout_saves_the_run_and_resume_continues(
     tmp_path: Path,
 ) -> None:
