@@ -7,9 +7,9 @@ keeps that index in memory until the file closes, which grew the monitor by abou
 file's size over a long run (issue 13). When the monitor ends (its duration, SIGTERM,
 Ctrl-C, an error) the file gets its footer from a short-lived `rerun rrd merge`
 (`add_footer`), so `rerun rrd verify` accepts it; a monitor killed outright leaves it as
-streamed, still readable. Like the recorder's, it
-never replaces a file: when FILE exists (a monitor restarted, a stack run again) the view
-goes to the next free part, `view.1.rrd`, `view.2.rrd`, ... (`hamnet.runtime.numbered_files`)."""
+streamed, still readable. Like the recorder, the monitor never replaces a file: when FILE
+exists (a monitor restarted, a stack run again) the view goes to the next free part,
+`view.1.rrd`, `view.2.rrd`, ... (`hamnet.runtime.numbered_files`)."""
 
 from __future__ import annotations
 

@@ -87,10 +87,10 @@ def parse(
         print(f"{prog}: {error}", file=sys.stderr)
         raise SystemExit(2) from None
     except SystemExit as leaving:
-        text = captured.getvalue()
-        print(f"{prog}: {boxed_message(text)}" if leaving.code == 2 else text, end="", file=sys.stderr)
-        if leaving.code == 2:
-            print(file=sys.stderr)
+        if leaving.code == 2:  # tyro's error box
+            print(f"{prog}: {boxed_message(captured.getvalue())}", file=sys.stderr)
+        else:
+            sys.stderr.write(captured.getvalue())
         raise
     sys.stderr.write(captured.getvalue())
     return config
