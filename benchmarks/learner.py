@@ -37,8 +37,9 @@ from hamnet.policy.shipped import read_shipped
 from hamnet.policy.weights import load_into
 from hamnet.runtime.compute import torch_threads
 from hamnet.sim.stages import stage_config
-from hamnet.trainer.ppo import Batch, UpdateStats, update
-from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, update
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
 
 TEACHER = "easy-teacher"
 SETUPS = {"baseline": (1, False), "critic": (1, True), "default": (os.cpu_count() or 1, True)}

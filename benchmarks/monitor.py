@@ -29,6 +29,7 @@ import rerun as rr
 from common import report, summary, timer
 
 from hamnet.fr3.limits import Q_HOME
+from hamnet.messages.robot_state import Observation
 from hamnet.monitor.decode import decode_action, decode_state, decode_tokens, decode_transition
 from hamnet.monitor.view import MonitorView
 from hamnet.proto.common_pb2 import Header
@@ -37,11 +38,10 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState, Transition
 from hamnet.runtime.codec import encode, parse
 from hamnet.runtime.tensor import to_tensor
-from hamnet.sim.env import Observation
 from hamnet.sim.shell import encode_state
+from hamnet.task.rewards import REWARD_NAMES
 
 J, P, N, D, L, M = 7, 512, 17, 128, 5, 8
-REWARD_NAMES = ("success", "goal", "contact")
 DISTINCT = 10
 """Different payloads per size, cycled (a step of 1024 envs is about 45 MB)."""
 TYPES = {"state": RobotState, "tokens": PerceptionTokens, "action": PolicyAction,

@@ -22,9 +22,9 @@ import trimesh
 # Run as a script, so benchmarks/ is on sys.path: the helpers every benchmark shares.
 from common import durations, report, summary
 
-from hamnet.perception.clouds import sample_surface
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.scene_cloud import sample_surface
 from hamnet.perception.unicorn import UniCORN
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv

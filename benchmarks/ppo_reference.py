@@ -40,11 +40,12 @@ import numpy as np
 # Run as a script, so benchmarks/ is on sys.path.
 from common import header, progress, report
 
+from hamnet.runtime.runs import commit
+
 # Imported before the worker processes fork, so every run trains with the code checked out
 # when the benchmark started, even if the working tree changes while it runs.
 from hamnet.trainer.config import PPO_PRESETS, PPOConfig
 from hamnet.trainer.gym_adapter import STANDARD_PPO, GymPPO, GymPPOConfig
-from hamnet.trainer.summary import commit
 
 if TYPE_CHECKING:  # gymnasium is imported where a run needs it: the reference extra
     from gymnasium.vector import SyncVectorEnv

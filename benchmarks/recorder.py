@@ -35,9 +35,9 @@ from common import loopback_transport, progress, report, spawn, stop
 from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.recorder.config import RecorderConfig
-from hamnet.recorder.reading import read_file
 from hamnet.recorder.writer import RecordingWriter
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.recordings import read_file
 from hamnet.runtime.tensor import to_tensor
 from hamnet.runtime.transport import open_session
 

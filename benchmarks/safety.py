@@ -55,8 +55,9 @@ from hamnet.safety.cartesian import cartesian_clip
 from hamnet.safety.config import SafetyConfig, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.pipeline import target_bounds, tau_limit
+from hamnet.safety.references import TrajectoryConfig
+from hamnet.safety.ruckig_references import TrajectoryGenerator
 from hamnet.safety.schedule import per_joint, schedule_values
-from hamnet.safety.trajectory import TrajectoryConfig, TrajectoryGenerator
 
 POLICY_PERIOD_S = 0.1
 """10 Hz policy."""

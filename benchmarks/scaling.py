@@ -3,7 +3,7 @@ worker, the learner's share of the time, and what TLS costs against plain TCP.
 
 Every setup is deployed as across machines, on loopback: a `hamnet router` (its own port),
 `hamnet rollout` processes as its clients, and the trainer's loop (`Runner` learning from
-`hamnet.trainer.stream.Streamed`, synchronous) in this process as a client too. Each worker
+`hamnet.trainer.collection.streamed.Streamed`, synchronous) in this process as a client too. Each worker
 has the same `--num-envs` environments, so an update learns from workers x num-envs of
 them: linear scaling means the rate grows with the workers. One warm-up iteration (it
 includes the workers' start) is not measured. The TLS setup is the 2-worker one with
@@ -41,8 +41,9 @@ from common import header, loopback_transport, progress, report, spawn, stop
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.runtime.transport import free_port
 from hamnet.sim.stages import stage_config
-from hamnet.trainer.runner import RunConfig, Runner
-from hamnet.trainer.stream import Streamed
+from hamnet.trainer.collection.streamed import Streamed
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
 
 WORKERS = (1, 2, 4)
 """Rollout worker processes of the plain setups."""

@@ -43,7 +43,7 @@ import tyro
 from common import header, median_p99, print_header, progress, report
 from mujoco.batch import Batch
 
-from hamnet.sim.commands import hold_command
+from hamnet.messages.safe_command import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import curriculum_values, scene_config_at
 from hamnet.sim.env import VectorEnv

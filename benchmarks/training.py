@@ -5,7 +5,7 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
 - inprocess: `hamnet trainer --inprocess`'s loop (`Runner.iterate`: two groups of environments, one
   group's physics overlapping the other's networks), learning included;
 - workers: the same loop learning from `hamnet rollout` processes over Zenoh on loopback
-  (`hamnet.trainer.stream.Streamed`), with 1 worker of B environments and 2 of B/2 each;
+  (`hamnet.trainer.collection.streamed.Streamed`), with 1 worker of B environments and 2 of B/2 each;
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
 - physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
@@ -53,8 +53,9 @@ from sim import raw_copy
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import stage_config
-from hamnet.trainer.runner import RunConfig, Runner
-from hamnet.trainer.stream import Streamed
+from hamnet.trainer.collection.streamed import Streamed
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
 
 FULL_STEPS, QUICK_STEPS = 128, 32
 """T of the benchmark's iterations: at 64 environments 128 makes the run's 8192 samples per

@@ -34,6 +34,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the real-message helpers live in tests/monitor/recorded.py
 
+from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.monitor.config import OutputConfig, ViewConfig
 from hamnet.monitor.decode import (
     decode_action,
@@ -48,9 +49,8 @@ from hamnet.monitor.outputs import add_footer, open_recording
 from hamnet.monitor.view import MonitorView
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Perception
-from hamnet.perception.shell import decode_scene as perception_scene
-from hamnet.perception.shell import decode_state as perception_state
-from hamnet.perception.shell import encode_tokens
+from hamnet.perception.messages import decode_scene as perception_scene
+from hamnet.perception.messages import decode_state as perception_state
 from hamnet.perception.unicorn import UniCORN
 from hamnet.sim.scene_view import save_scene
 from tests.monitor.recorded import B, action, metrics, sim_messages, statistics_event

@@ -32,10 +32,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from hamnet.policy.weights import policy_from, read_checkpoint
+from hamnet.runtime.runs import commit, read_metrics
 from hamnet.runtime.transport import free_port
-from hamnet.trainer.evaluate import evaluate
-from hamnet.trainer.plot import read_metrics
-from hamnet.trainer.summary import commit, repository_path, run_of
+from hamnet.trainer.results.evaluate import evaluate
+from hamnet.trainer.results.summary import repository_path, run_of
 
 ROOT = Path(__file__).resolve().parents[1]
 

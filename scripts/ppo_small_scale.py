@@ -29,8 +29,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from hamnet.trainer.plot import read_metrics
-from hamnet.trainer.summary import commit
+from hamnet.runtime.runs import commit, read_metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -167,8 +166,13 @@ def main() -> int:
         "env_transitions": args.transitions,
         "variants": variants,
         "anchor": ANCHOR,
-        "command": " ".join(["python", "scripts/ppo_small_scale.py",
-                             *(a for a in sys.argv[1:] if a != "--from-runs")]),  # fmt: skip
+        "command": " ".join(
+            [
+                "python",
+                "scripts/ppo_small_scale.py",
+                *(a for a in sys.argv[1:] if a != "--from-runs"),
+            ]
+        ),  # fmt: skip
         "seed": args.seed,
         "commit": code,
     }

@@ -22,8 +22,8 @@ from hamnet.perception.checkpoint import SHIPPED_ENCODER
 from hamnet.perception.config import student_clouds
 from hamnet.policy.shipped import SHIPPED_DIR, card_path, encoder_sha256, read_shipped, weights_path
 from hamnet.policy.weights import policy_from, read_checkpoint, sha256, to_bytes
-from hamnet.trainer.evaluate import evaluate
-from hamnet.trainer.summary import repository_path, run_of
+from hamnet.trainer.results.evaluate import evaluate
+from hamnet.trainer.results.summary import repository_path, run_of
 
 
 def main() -> int:

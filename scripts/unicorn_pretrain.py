@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 
 from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
-from hamnet.trainer.summary import commit
+from hamnet.runtime.runs import commit
 
 ROOT = Path(__file__).resolve().parents[1]
 ENCODERS = ("unicorn", "random-frozen", "pointnet")

@@ -30,24 +30,75 @@ class Subcommand:
 
 
 COMMANDS: tuple[Subcommand, ...] = (
-    Subcommand("sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", "hamnet.sim.cli", 3),
-    Subcommand("bridge", "real FR3 in place of the sim (same contract; `hamnet bridge check`)", "hamnet.bridge.cli", 17),
-    Subcommand("camera", "depth frames of the robot's cameras (realsense, sim render or replay)", "hamnet.camera.cli", 17),
+    Subcommand(
+        "sim", "vectorized MuJoCo FR3 with procedural scenes (publishes state)", "hamnet.sim.cli", 3
+    ),
+    Subcommand(
+        "bridge",
+        "real FR3 in place of the sim (same contract; `hamnet bridge check`)",
+        "hamnet.bridge.cli",
+        17,
+    ),
+    Subcommand(
+        "camera",
+        "depth frames of the robot's cameras (realsense, sim render or replay)",
+        "hamnet.camera.cli",
+        17,
+    ),
     Subcommand("perception", "point clouds and UniCORN tokens", "hamnet.perception.cli", 6),
-    Subcommand("policy", "HAMnet and baseline inference with hot-reloaded weights", "hamnet.policy.cli", 5),
-    Subcommand("safety", "clipping, Ruckig smoothing and watchdog between policy and robot", "hamnet.safety.cli", 4),
-    Subcommand("trainer", "PPO from streamed rollouts (or --inprocess: one process, no Zenoh)", "hamnet.trainer.cli", 12),
-    Subcommand("rollout", "rollout worker: in-process cores acting with the trainer's weights", "hamnet.trainer.rollout_cli", 12),
-    Subcommand("pretrain", "UniCORN pre-training: contact pairs, training, held-out evaluation", "hamnet.pretrain.cli", 14),
+    Subcommand(
+        "policy", "HAMnet and baseline inference with hot-reloaded weights", "hamnet.policy.cli", 5
+    ),
+    Subcommand(
+        "safety",
+        "clipping, Ruckig smoothing and watchdog between policy and robot",
+        "hamnet.safety.cli",
+        4,
+    ),
+    Subcommand(
+        "trainer",
+        "PPO from streamed rollouts (or --inprocess: one process, no Zenoh)",
+        "hamnet.trainer.cli",
+        12,
+    ),
+    Subcommand(
+        "rollout",
+        "rollout worker: in-process cores acting with the trainer's weights",
+        "hamnet.trainer.rollout_cli",
+        12,
+    ),
+    Subcommand(
+        "pretrain",
+        "UniCORN pre-training: contact pairs, training, held-out evaluation",
+        "hamnet.pretrain.cli",
+        14,
+    ),
     Subcommand("monitor", "live Rerun view of the whole stack", "hamnet.monitor.cli", 7),
-    Subcommand("record", "record topics to MCAP (`hamnet record info FILE` summarises one)", "hamnet.recorder.cli", 7),
+    Subcommand(
+        "record",
+        "record topics to MCAP (`hamnet record info FILE` summarises one)",
+        "hamnet.recorder.cli",
+        7,
+    ),
     Subcommand("replay", "replay an MCAP recording onto Zenoh", "hamnet.recorder.replay_cli", 7),
-    Subcommand("up", "run a stack file: start, supervise and stop its services", "hamnet.launcher.cli"),
+    Subcommand(
+        "up", "run a stack file: start, supervise and stop its services", "hamnet.launcher.cli"
+    ),
     Subcommand("router", "Zenoh router for multi-machine deployments", "hamnet.tools.router"),
-    Subcommand("certs", "local CA and one TLS certificate per service identity", "hamnet.security.certs_cli"),
-    Subcommand("topics", "list every key expression with its message type and publisher", "hamnet.tools.topics"),
-    Subcommand("echo", "print, count or reflect what is published on the stack", "hamnet.tools.echo"),
-)  # fmt: skip
+    Subcommand(
+        "certs",
+        "local CA and one TLS certificate per service identity",
+        "hamnet.launcher.certs_cli",
+    ),
+    Subcommand(
+        "topics",
+        "list every key expression with its message type and publisher",
+        "hamnet.tools.topics",
+    ),
+    Subcommand(
+        "echo", "print, count or reflect what is published on the stack", "hamnet.tools.echo"
+    ),
+)
 """Every command of `hamnet`, in the order `--help` lists them."""
 
 

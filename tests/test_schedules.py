@@ -15,10 +15,11 @@ import pytest
 import torch
 
 from hamnet.fr3.limits import Q_HOME
-from hamnet.policy.policy import log_std_at
 from hamnet.policy.config import LOG_STD_AUTHORS
+from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import build, with_changes
-from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
+from hamnet.policy.serving import PolicyLoopConfig
+from hamnet.policy.shell import PolicyShell
 from hamnet.proto.trainer_pb2 import Schedule
 from hamnet.runtime.codec import encode
 from hamnet.runtime.counter import AUTHORS_NUM_ENVS, UNIT

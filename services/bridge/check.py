@@ -18,9 +18,9 @@ import numpy as np
 
 from hamnet.bridge.cli import DriverConfig, make_driver
 from hamnet.bridge.core import BridgeCommand, BridgeCore
+from hamnet.messages.safe_command import hold_command
 from hamnet.runtime.cli import parse
 from hamnet.runtime.errors import ConfigError
-from hamnet.sim.commands import hold_command
 
 
 @dataclass(frozen=True)
@@ -50,14 +50,20 @@ def check(config: CheckConfig) -> list[str]:
     problems = []
     try:
         limits, reading = core.limits, core.read()
-        print(f"connected: control period {1e3 * core.driver.control_period_s:.1f} ms, "
-              f"{core.samples} samples per {1e3 * config.policy_period_s:.0f} ms policy period")  # fmt: skip
-        print(f"limits: q_min {np.round(limits.q_min, 3).tolist()}, "
-              f"q_max {np.round(limits.q_max, 3).tolist()}, tau_max {limits.tau_max.tolist()}")  # fmt: skip
+        print(
+            f"connected: control period {1e3 * core.driver.control_period_s:.1f} ms, "
+            f"{core.samples} samples per {1e3 * config.policy_period_s:.0f} ms policy period"
+        )
+        print(
+            f"limits: q_min {np.round(limits.q_min, 3).tolist()}, "
+            f"q_max {np.round(limits.q_max, 3).tolist()}, tau_max {limits.tau_max.tolist()}"
+        )
         if reading is None:
             return ["cannot read the state"]
-        print(f"state: q {np.round(reading.q, 3).tolist()}, "
-              f"ee {np.round(reading.ee_position, 3).tolist()} m")  # fmt: skip
+        print(
+            f"state: q {np.round(reading.q, 3).tolist()}, "
+            f"ee {np.round(reading.ee_position, 3).tolist()} m"
+        )
         finite = all(np.isfinite(v).all() for v in (reading.q, reading.dq, reading.tau))
         if not finite:
             problems.append("the state holds NaN or Inf")
@@ -73,13 +79,17 @@ def check(config: CheckConfig) -> list[str]:
             if reading is None or not core.streaming:
                 break
         worst = max(trips)
-        print(f"round trip over {len(trips)} holds: median {1e3 * np.median(trips):.2f} ms, "
-              f"max {1e3 * worst:.2f} ms")  # fmt: skip
+        print(
+            f"round trip over {len(trips)} holds: median {1e3 * np.median(trips):.2f} ms, "
+            f"max {1e3 * worst:.2f} ms"
+        )
         if core.errors:
             problems += [f"robot error {e.name}: {e.reason}" for e in core.errors]
         if worst > config.max_round_trip_fraction * config.policy_period_s:
-            problems.append(f"round trip {1e3 * worst:.1f} ms is over "
-                            f"{config.max_round_trip_fraction:.0%} of the policy period")  # fmt: skip
+            problems.append(
+                f"round trip {1e3 * worst:.1f} ms is over "
+                f"{config.max_round_trip_fraction:.0%} of the policy period"
+            )
     finally:
         core.driver.close()
     return problems

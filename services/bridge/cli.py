@@ -20,7 +20,8 @@ from hamnet.bridge.core import BridgeCore
 from hamnet.bridge.driver import Driver
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
 from hamnet.bridge.franky_driver import FrankyDriver, FrankyDriverConfig
-from hamnet.bridge.shell import PORTS, BridgeLoopConfig, BridgeShell
+from hamnet.bridge.loop import BridgeLoopConfig
+from hamnet.bridge.shell import PORTS, BridgeShell
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 

@@ -2,7 +2,7 @@
 error events back, and the rule that an error stops the command stream until a reset.
 
 Every command is checked before it reaches the driver with the same reflex checks the strict
-fake applies (`hamnet.safety.fake_fr3.reflex_flags`: finite, inside the position limits,
+fake applies (`hamnet.fr3.reflexes.reflex_flags`: finite, inside the position limits,
 velocity, acceleration and jerk from the samples already sent; an episode's first command
 from rest at its first sample, which must lie within START_TOLERANCE of the measured
 position), plus its gains and torque limits; one that fails is never sent: it becomes a
@@ -35,12 +35,13 @@ from hamnet.bridge.driver import (
 )
 from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.fr3.model import ee_pos_rot6d
-from hamnet.messages import robot_state
+from hamnet.fr3.reflexes import REFLEXES, reflex_flags
+from hamnet.messages import robot_state, safe_command
 from hamnet.messages.robot_state import StateIn
+from hamnet.messages.safe_command import Command
+from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime.errors import ConfigError
-from hamnet.safety.fake_fr3 import REFLEXES, reflex_flags
-from hamnet.sim.env import Command
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +63,19 @@ class BridgeCommand:
     """References (1, S, J) and gains (1, J)."""
 
 
+def decode_command(message: SafeCommand, samples: int, control_dt: float) -> BridgeCommand:
+    """SafeCommand k for one robot: S = `samples` references at the driver's period
+    `control_dt` (s), and the episode it was planned for (-1 when it names none).
+
+    Raises:
+        PayloadError: as `hamnet.messages.safe_command.decode` (another batch, sample count
+            or sample period, non-finite values).
+    """
+    step, command = safe_command.decode(message, 1, samples, control_dt)
+    episode = -1 if command.episode_ids is None else int(command.episode_ids[0])
+    return BridgeCommand(step, episode, command)
+
+
 class BridgeCore:
     """One robot: its driver, the stream's state (streaming or stopped by errors), episodes."""
 
@@ -72,8 +86,10 @@ class BridgeCore:
         self.limits = driver.limits()
         samples = policy_period_s / driver.control_period_s
         if samples < 1 or abs(samples - round(samples)) > 1e-6:
-            raise ConfigError(f"--policy-period-s {policy_period_s} is not a whole number of "
-                              f"the driver's {driver.control_period_s} s periods")  # fmt: skip
+            raise ConfigError(
+                f"--policy-period-s {policy_period_s} is not a whole number of "
+                f"the driver's {driver.control_period_s} s periods"
+            )
         self.samples = round(samples)
         """S: reference samples per policy period."""
         self.errors: tuple[RobotError, ...] = ()
@@ -205,8 +221,10 @@ class BridgeCore:
         """Stop the arm and the stream; the first errors since the last reset are kept."""
         if self.streaming:
             self.errors = tuple(errors)
-            log.warning("robot error, stream stopped until a reset: %s",
-                        "; ".join(f"{e.name} ({e.reason})" for e in errors))  # fmt: skip
+            log.warning(
+                "robot error, stream stopped until a reset: %s",
+                "; ".join(f"{e.name} ({e.reason})" for e in errors),
+            )
         self.driver.stop()
 
 
@@ -226,9 +244,17 @@ def encode_state(
         object_pose: (7,) the object pose estimate, the same layout; None leaves the field
             out (a student policy then answers nothing, and safety holds the arm).
     """
-    return robot_state.encode(StateIn(
-        0, step, reading.q[None], reading.dq[None], np.array([episode_id]), np.array([episode_step]),
-        tau=reading.tau[None], ee_pos_rot6d=ee_pos_rot6d(reading.ee_position, reading.ee_rotation)[None],
-        goal_pose=np.asarray(goal_pose)[None],
-        object_pose_estimate=None if object_pose is None else np.asarray(object_pose)[None],
-    ))  # fmt: skip
+    return robot_state.encode(
+        StateIn(
+            0,
+            step,
+            reading.q[None],
+            reading.dq[None],
+            np.array([episode_id]),
+            np.array([episode_step]),
+            tau=reading.tau[None],
+            ee_pos_rot6d=ee_pos_rot6d(reading.ee_position, reading.ee_rotation)[None],
+            goal_pose=np.asarray(goal_pose)[None],
+            object_pose_estimate=None if object_pose is None else np.asarray(object_pose)[None],
+        )
+    )

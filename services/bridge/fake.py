@@ -1,5 +1,5 @@
-"""The `fake` driver: the strict simulated FR3 of safety's tests (`hamnet.safety.fake_fr3`)
-behind the bridge's `Driver` interface, for tests and for `hamnet bridge --driver fake`.
+"""The `fake` driver: the strict simulated FR3 (`hamnet.bridge.fake_fr3`) behind the bridge's
+`Driver` interface, for tests and for `hamnet bridge --driver fake`.
 
 The arm tracks every accepted reference sample exactly (no dynamics: the fake judges what is
 commanded, as libfranka's reflexes do), so the measured velocity is the backward difference
@@ -28,10 +28,10 @@ from hamnet.bridge.driver import (
     RobotError,
     RobotReading,
 )
+from hamnet.bridge.fake_fr3 import FakeFR3, FakeFR3Config
 from hamnet.fr3.limits import FR3, Q_HOME, FR3Limits
 from hamnet.fr3.model import load_pinocchio, pinocchio_ee_placement
 from hamnet.runtime.errors import ConfigError
-from hamnet.safety.fake_fr3 import FakeFR3, FakeFR3Config
 
 
 @dataclass(frozen=True)
@@ -133,8 +133,12 @@ class FakeDriver:
         moving = np.any(self._last[1] != self._last[0])
         late = self._clock() - self._last_send > self.config.deadline_s
         if self._connected and not self._stopped and moving and late:
-            self._errors.append(RobotError(DEADLINE_MISSED, f"no reference for over "
-                                           f"{self.config.deadline_s} s while moving"))  # fmt: skip
+            self._errors.append(
+                RobotError(
+                    DEADLINE_MISSED,
+                    f"no reference for over {self.config.deadline_s} s while moving",
+                )
+            )
             self.stop()
         errors, self._errors = self._errors, []
         return errors

@@ -171,8 +171,13 @@ class FrankyDriver:
         self._check_link(float(state.time.to_sec()))
         q = np.asarray(state.q, dtype=np.float64)
         position, rotation = pinocchio_ee_placement(self._model, self._data, q)
-        return RobotReading(q, np.asarray(state.dq, dtype=np.float64),
-                            np.asarray(state.tau_J, dtype=np.float64), position, rotation)  # fmt: skip
+        return RobotReading(
+            q,
+            np.asarray(state.dq, dtype=np.float64),
+            np.asarray(state.tau_J, dtype=np.float64),
+            position,
+            rotation,
+        )
 
     def _state(self) -> Any:
         """libfranka's latest robot state; ConnectionError when there is no link."""
@@ -253,9 +258,11 @@ class FrankyDriver:
         """Start franky's tracking motion at the measured position, then the streamer."""
         franky = self._franky
         self._motion = franky.JointImpedanceTrackingMotion(
-            stiffness=reference.kp, damping=reference.kd, compensate_coriolis=False,
+            stiffness=reference.kp,
+            damping=reference.kd,
+            compensate_coriolis=False,
             gains_time_constant=self.config.gains_time_constant_s,
-        )  # fmt: skip
+        )
         self._motion.set_reference(franky.JointReference(q=np.asarray(self._state().q)))
         self._robot.move(self._motion, asynchronous=True)
         self._streamer = threading.Thread(target=self._stream, name="franky-streamer", daemon=True)

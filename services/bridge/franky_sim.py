@@ -36,8 +36,10 @@ def franky_sim() -> Iterator[tuple[str, subprocess.Popen]]:
     with tempfile.NamedTemporaryFile("w+", suffix=".log") as log:
         process = subprocess.Popen(
             [str(executable), "--simulator", "mujoco", "--hostname", host],
-            stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
-        )  # fmt: skip
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
         try:
             deadline = time.monotonic() + STARTUP_S
             while "Connect to the server" not in Path(log.name).read_text():

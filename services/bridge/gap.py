@@ -39,11 +39,11 @@ from hamnet.bridge.core import BridgeCommand, BridgeCore
 from hamnet.bridge.franky_driver import CONTROL_PERIOD_S, FrankyDriver, FrankyDriverConfig
 from hamnet.bridge.franky_sim import franky_sim
 from hamnet.fr3.limits import JOINT_NAMES
+from hamnet.messages.safe_command import Command
 from hamnet.runtime.cli import parse
 from hamnet.runtime.errors import ConfigError
 from hamnet.safety.filter import SafetyFilter
-from hamnet.safety.trajectory import TrajectoryConfig
-from hamnet.sim.env import Command
+from hamnet.safety.references import TrajectoryConfig
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.robot import JOINT_FRICTION, FrictionMode
@@ -144,8 +144,10 @@ def at_physics_steps(q_ref: np.ndarray, sample_period_s: float, timestep: float)
     which must be whole)."""
     steps = q_ref.shape[1] * sample_period_s / timestep
     if abs(steps - round(steps)) > 1e-6:
-        raise ConfigError(f"{q_ref.shape[1]} samples of {sample_period_s} s are not whole "
-                          f"{timestep} s physics steps")  # fmt: skip
+        raise ConfigError(
+            f"{q_ref.shape[1]} samples of {sample_period_s} s are not whole "
+            f"{timestep} s physics steps"
+        )
     middle = (np.arange(round(steps)) + 0.5) * timestep / sample_period_s
     return q_ref[:, np.minimum(middle.astype(int), q_ref.shape[1] - 1)]
 

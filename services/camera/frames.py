@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hamnet.perception.cameras import DepthView
+from hamnet.camera.views import DepthView
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.proto.common_pb2 import Header
 from hamnet.runtime.tensor import PayloadError, field_array, to_tensor

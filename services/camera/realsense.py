@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from hamnet.camera.sources import Frames
+from hamnet.camera.views import DepthView
 from hamnet.messages.robot_state import StateIn
-from hamnet.perception.cameras import DepthView
 from hamnet.runtime.errors import ConfigError
 
 
@@ -65,8 +65,10 @@ class RealSenseSource:
         try:
             import pyrealsense2 as rs
         except ImportError:
-            raise ConfigError("--source realsense needs pyrealsense2, which is not installed "
-                              "(pip install pyrealsense2)") from None  # fmt: skip
+            raise ConfigError(
+                "--source realsense needs pyrealsense2, which is not installed "
+                "(pip install pyrealsense2)"
+            ) from None
         if config.extrinsics is None:
             raise ConfigError(
                 "--source realsense needs --realsense.extrinsics (serial -> camera-to-world)"

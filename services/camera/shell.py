@@ -16,7 +16,7 @@ from hamnet.camera.sources import FrameSource
 from hamnet.messages import robot_state
 from hamnet.messages.robot_state import StateIn
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
@@ -55,11 +55,8 @@ class CameraShell:
         self.report = LoopReport(report.report_period_s, self._line, logger=log)
         port = service.ports(PORTS)
         if source.needs_state:
-            service.inbox.subscribe(
-                "state",
-                port["state"],
-                decoder=lambda key, p: decode_pose(parse(RobotState, p)),
-            )
+            decoder = payload_decoder(RobotState, decode_pose)
+            service.inbox.subscribe("state", port["state"], decoder=decoder)
         self.frames = service.publisher(port["frames"])
         self.robot: StateIn | None = None
         self.published = 0
@@ -83,5 +80,7 @@ class CameraShell:
 
     def _line(self, w: Window) -> str:
         made = len(w.samples.get("frame_set_s", ()))
-        return (f"{made / w.seconds:.1f} frame sets/s, median {w.median_ms('frame_set_s'):.1f} "
-                "ms to make one")  # fmt: skip
+        return (
+            f"{made / w.seconds:.1f} frame sets/s, median {w.median_ms('frame_set_s'):.1f} "
+            "ms to make one"
+        )

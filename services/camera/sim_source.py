@@ -1,4 +1,4 @@
-"""`--source sim`: the four virtual D435s of the paper's rig (`hamnet.perception.render`)
+"""`--source sim`: the four virtual D435s of the paper's rig (`hamnet.camera.render`)
 render a procedurally generated one-environment scene (a `VectorEnv` of one environment
 reset with `seed`), with the arm at the joint positions of the latest robot state, so the
 real perception path runs end to end without cameras, with the sim or the bridge as the
@@ -16,9 +16,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is first imported: it
 
 import numpy as np
 
+from hamnet.camera import render
 from hamnet.camera.sources import Frames, SimSourceConfig
 from hamnet.messages.robot_state import StateIn
-from hamnet.perception import render
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 

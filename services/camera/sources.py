@@ -22,15 +22,19 @@ from pathlib import Path
 from typing import Protocol
 
 from hamnet.camera.frames import decode_frames
+from hamnet.camera.views import DepthView
 from hamnet.messages.robot_state import StateIn
-from hamnet.perception.cameras import DepthView
 from hamnet.proto.camera_pb2 import DepthFrames
-from hamnet.recorder.pacing import ReplayClock
-from hamnet.recorder.reading import RecordedMessage, read_recording, unreadable
-from hamnet.recorder.replay_shell import selected
 from hamnet.runtime import contract
 from hamnet.runtime.codec import parse
 from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.recordings import (
+    RecordedMessage,
+    ReplayClock,
+    read_recording,
+    selected,
+    unreadable,
+)
 from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)

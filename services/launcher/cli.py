@@ -46,8 +46,12 @@ class UpConfig:
     common: Annotated[CommonConfig, Flattened] = field(default_factory=CommonConfig)
 
     def __post_init__(self) -> None:
-        if self.duration_s is not None and not (self.duration_s > 0 and math.isfinite(self.duration_s)):
-            raise ConfigError(f"--duration-s must be a positive number of seconds, got {self.duration_s}")
+        if self.duration_s is not None and not (
+            self.duration_s > 0 and math.isfinite(self.duration_s)
+        ):
+            raise ConfigError(
+                f"--duration-s must be a positive number of seconds, got {self.duration_s}"
+            )
 
 
 CONFIG = UpConfig
@@ -73,17 +77,25 @@ def main(argv: Sequence[str]) -> int:
     tls_dir = common.transport.tls_dir
     missing = missing_certificates(stack, tls_dir) if stack.secure and tls_dir else []
     if config.check:
-        print(check.render(str(config.stack), stack, verdicts, security(stack, common.transport),
-                           missing))  # fmt: skip
+        print(
+            check.render(
+                str(config.stack), stack, verdicts, security(stack, common.transport), missing
+            )
+        )
         return 2 if errors else 0
     for verdict in errors:
-        print(f"hamnet up: {config.stack}: service {verdict.service}: {verdict.error}",
-              file=sys.stderr)
+        print(
+            f"hamnet up: {config.stack}: service {verdict.service}: {verdict.error}",
+            file=sys.stderr,
+        )
     if errors:
         return 2
     if missing:
-        print(f"hamnet up: {config.stack}: {check.missing_text(missing)}; make them with "
-              f"`hamnet certs stack {config.stack}`", file=sys.stderr)  # fmt: skip
+        print(
+            f"hamnet up: {config.stack}: {check.missing_text(missing)}; make them with "
+            f"`hamnet certs stack {config.stack}`",
+            file=sys.stderr,
+        )
         return 2
     if tls_dir is not None and not common.transport.identity:
         common = replace(common, transport=replace(common.transport, identity=UP))

@@ -63,8 +63,12 @@ def run(
                 for w in spec.workers
             ]
     missing = not_built(verdicts)
-    log.info("stack %s (namespace %s): processes to start: %d", stack.name, stack.namespace,
-             len(processes))
+    log.info(
+        "stack %s (namespace %s): processes to start: %d",
+        stack.name,
+        stack.namespace,
+        len(processes),
+    )
     log.info("%s", security(stack, common.transport).text())
     if missing:
         log.warning("not built yet, not started: %s", missing)
@@ -126,22 +130,25 @@ def _supervise(
                 continue
             if process.spec.is_critical:
                 return Ending(f"{process.label} crashed with no restarts left", 1)
-            log.error("%s failed (%s); it is auxiliary: the rest of the stack goes on without it",
-                      process.label, process.exit_text)
+            log.error(
+                "%s failed (%s); it is auxiliary: the rest of the stack goes on without it",
+                process.label,
+                process.exit_text,
+            )
         if until and all(p.outcome is Outcome.FINISHED for p in until):
             return Ending(f"{stack.until} finished", 0)
         if all(p.outcome in (Outcome.FINISHED, Outcome.FAILED) for p in processes):
             return Ending("every process finished", 0)
         if duration_s is not None and time.monotonic() - started >= duration_s:
             return Ending(f"duration of {duration_s:g} s reached", 0)
-        note_tokens(processes, liveliness, health, stack.ready_timeout_s, warned,
-                    time.monotonic())  # fmt: skip
+        note_tokens(processes, liveliness, health, stack.ready_timeout_s, warned, time.monotonic())
         if not all_ready and all(p.ready_s is not None for p in processes):
             all_ready = True
-            log.info("stack ready: every process announced itself after %.1f s",
-                     time.monotonic() - started)
+            log.info(
+                "stack ready: every process announced itself after %.1f s",
+                time.monotonic() - started,
+            )
         received = service.receive(timeout=0.05)
         if received is not None:
             health.add(received.value)
     return Ending("stopped by a signal", 0)
-

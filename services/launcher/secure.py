@@ -16,8 +16,8 @@ from hamnet.launcher.stack import ROUTER, ServiceSpec, Stack
 from hamnet.launcher.supervisor import Supervisor
 from hamnet.runtime.cli import CommonConfig
 from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.tls_files import ca_files, identity_files
 from hamnet.runtime.transport import TransportConfig, tls_files
-from hamnet.security.files import ca_files, identity_files
 
 UP = "up"
 """The launcher's identity."""
@@ -49,13 +49,27 @@ def secured(stack: Stack, common: CommonConfig) -> tuple[Stack, CommonConfig]:
         f"--{name}" for name in PLACEMENT if getattr(transport, name) != getattr(default, name)
     ]
     if clashing:
-        raise ConfigError(f"stack {stack.name} is secure: it starts its own router and places "
-                          f"every process; drop {', '.join(clashing)}")  # fmt: skip
+        raise ConfigError(
+            f"stack {stack.name} is secure: it starts its own router and places "
+            f"every process; drop {', '.join(clashing)}"
+        )
     endpoint = stack.secure.listen
-    client = replace(transport, mode="client", rendezvous="", connect=(endpoint,),
-                     tls_dir=transport.tls_dir or Path(stack.secure.tls_dir))  # fmt: skip
-    router = ServiceSpec(command=ROUTER, args={"mode": "router", "connect": (), "listen": (endpoint,),
-                                               "zenoh-config": stack.secure.access})  # fmt: skip
+    client = replace(
+        transport,
+        mode="client",
+        rendezvous="",
+        connect=(endpoint,),
+        tls_dir=transport.tls_dir or Path(stack.secure.tls_dir),
+    )
+    router = ServiceSpec(
+        command=ROUTER,
+        args={
+            "mode": "router",
+            "connect": (),
+            "listen": (endpoint,),
+            "zenoh-config": stack.secure.access,
+        },
+    )
     return replace(stack, services={ROUTER: router, **stack.services}), replace(
         common, transport=client
     )
@@ -91,13 +105,19 @@ class Security:
     def text(self) -> str:
         """One line for a person."""
         if self.access is not None:
-            return (f"secure: mutual TLS (certificates in {self.tls_dir}), access control by "
-                    f"{self.access} on the stack's router at {self.router}")  # fmt: skip
+            return (
+                f"secure: mutual TLS (certificates in {self.tls_dir}), access control by "
+                f"{self.access} on the stack's router at {self.router}"
+            )
         if self.tls_dir is not None:
-            return (f"mutual TLS (certificates in {self.tls_dir}); no access control of its "
-                    "own (only what a router it joins enforces)")  # fmt: skip
-        return ("not secure: plain links, no access control (any process that reaches them "
-                "may publish on any key; docs/security.md)")  # fmt: skip
+            return (
+                f"mutual TLS (certificates in {self.tls_dir}); no access control of its "
+                "own (only what a router it joins enforces)"
+            )
+        return (
+            "not secure: plain links, no access control (any process that reaches them "
+            "may publish on any key; docs/security.md)"
+        )
 
 
 def security(stack: Stack, transport: TransportConfig) -> Security:
@@ -133,11 +153,14 @@ def start_router(supervisor: Supervisor, stack: Stack, transport: TransportConfi
     deadline = time.monotonic() + stack.ready_timeout_s
     while not _shakes_hands(address, context):
         if process.popen.poll() is not None:
-            raise RouterError(f"{process.label} exited (status {process.popen.returncode}) "
-                              f"before listening on {endpoint}")  # fmt: skip
+            raise RouterError(
+                f"{process.label} exited (status {process.popen.returncode}) "
+                f"before listening on {endpoint}"
+            )
         if time.monotonic() > deadline:
-            raise RouterError(f"{process.label} is not listening on {endpoint} after "
-                              f"{stack.ready_timeout_s:g} s")  # fmt: skip
+            raise RouterError(
+                f"{process.label} is not listening on {endpoint} after {stack.ready_timeout_s:g} s"
+            )
         time.sleep(0.1)
 
 
@@ -164,8 +187,9 @@ def _shakes_hands(address: tuple[str, int], context: ssl.SSLContext) -> bool:
         with context.wrap_socket(raw, server_hostname=address[0]):
             return True
     except (ssl.SSLError, ssl.CertificateError) as error:
-        raise RouterError(f"TLS handshake with the router at {address[0]}:{address[1]} "
-                          f"failed: {error}") from None  # fmt: skip
+        raise RouterError(
+            f"TLS handshake with the router at {address[0]}:{address[1]} failed: {error}"
+        ) from None
     except OSError:
         return False
     finally:

@@ -223,8 +223,9 @@ def parse(document: object, default_name: str) -> Stack:
     stack = build(Stack, data)
     for name, spec in stack.services.items() if stack.secure is not None else ():
         if ROUTER in (name, spec.command):
-            raise SchemaError(f"services.{name}: a secure stack starts its own router; remove "
-                              "this service")  # fmt: skip
+            raise SchemaError(
+                f"services.{name}: a secure stack starts its own router; remove this service"
+            )
     return stack
 
 

@@ -77,8 +77,11 @@ class Report:
     @property
     def auxiliary_failed(self) -> list[str]:
         """`record/0 (exit 74)`: every failed process of an auxiliary service."""
-        return [f"{p.service}/{p.worker} ({p.exit})" for p in self.processes
-                if p.outcome == "failed" and not p.critical]
+        return [
+            f"{p.service}/{p.worker} ({p.exit})"
+            for p in self.processes
+            if p.outcome == "failed" and not p.critical
+        ]
 
     def to_json(self) -> str:
         """The report as a JSON document."""
@@ -130,8 +133,11 @@ def output_files(
         if path.is_dir():
             existing[str(path)] = sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
             continue
-        written = {name: size for name, (mtime, size) in output_state((path,)).items()
-                   if before.get(name) != (mtime, size)}  # fmt: skip
+        written = {
+            name: size
+            for name, (mtime, size) in output_state((path,)).items()
+            if before.get(name) != (mtime, size)
+        }
         existing.update(written)
         if not written:
             missing.append(str(path))
@@ -141,33 +147,60 @@ def output_files(
 def render(report: Report) -> str:
     """The report as a readable table."""
     lines = [
-        (f"stack {report.stack} (namespace {report.namespace}): {report.ended} "
-         f"after {report.elapsed_s:.1f} s; exit status {report.exit_code}"),
+        (
+            f"stack {report.stack} (namespace {report.namespace}): {report.ended} "
+            f"after {report.elapsed_s:.1f} s; exit status {report.exit_code}"
+        ),
         report.security.text(),
-    ]  # fmt: skip
-    rows = [("PROCESS", "COMMAND", "OUTCOME", "EXIT", "RESTARTS", "UPTIME", "READY",
-             "RECEIVED", "PUBLISHED", "DROPS", "LOOP")]
+    ]
+    rows = [
+        (
+            "PROCESS",
+            "COMMAND",
+            "OUTCOME",
+            "EXIT",
+            "RESTARTS",
+            "UPTIME",
+            "READY",
+            "RECEIVED",
+            "PUBLISHED",
+            "DROPS",
+            "LOOP",
+        )
+    ]
     for p in report.processes:
-        rows.append((
-            f"{p.service}/{p.worker}", p.command, p.outcome, p.exit, str(p.restarts),
-            f"{p.uptime_s:.1f} s", "-" if p.ready_s is None else f"{p.ready_s:.1f} s",
-            str(sum(p.received.values())), str(sum(p.published.values())),
-            str(sum(p.drops.values())),
-            "-" if p.loop_rate_hz is None else f"{p.loop_rate_hz:.1f} Hz",
-        ))
+        rows.append(
+            (
+                f"{p.service}/{p.worker}",
+                p.command,
+                p.outcome,
+                p.exit,
+                str(p.restarts),
+                f"{p.uptime_s:.1f} s",
+                "-" if p.ready_s is None else f"{p.ready_s:.1f} s",
+                str(sum(p.received.values())),
+                str(sum(p.published.values())),
+                str(sum(p.drops.values())),
+                "-" if p.loop_rate_hz is None else f"{p.loop_rate_hz:.1f} Hz",
+            )
+        )
     if report.processes:
         widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
         lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
     for p in report.processes:
         lines += [f"  {p.service}/{p.worker} dropped {n} on {kind}" for kind, n in p.drops.items()]
-        lines += [f"  {p.service}/{p.worker}: {n} {name.replace('_', ' ')}"
-                  for name, n in p.events.items()]  # fmt: skip
+        lines += [
+            f"  {p.service}/{p.worker}: {n} {name.replace('_', ' ')}"
+            for name, n in p.events.items()
+        ]
     for p in report.processes:
         success = success_line(p.events)
         if success is not None:
             lines.append(f"{p.service}/{p.worker}: {success}")
     if report.auxiliary_failed:
-        lines.append(f"auxiliary, failed while the stack went on: {', '.join(report.auxiliary_failed)}")
+        lines.append(
+            f"auxiliary, failed while the stack went on: {', '.join(report.auxiliary_failed)}"
+        )
     if report.not_built:
         lines.append(f"not built yet: {report.not_built}")
     for path, size in report.outputs.items():

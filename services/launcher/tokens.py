@@ -49,8 +49,10 @@ def note_tokens(
             gone = lost_at is not None and now - lost_at >= TOKEN_GONE_GRACE_S
             if gone and not health.stopping(service, worker) and process.label not in warned:
                 warned.add(process.label)
-                log.warning("%s lost its liveliness token while running: hung or cut off "
-                            "from the network", process.label)  # fmt: skip
+                log.warning(
+                    "%s lost its liveliness token while running: hung or cut off from the network",
+                    process.label,
+                )
             continue
         seen = liveliness.announced_since(service, worker, process.started_at)
         if seen is not None:

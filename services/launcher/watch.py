@@ -103,8 +103,12 @@ class HealthTotals:
 
     def totals(self) -> HealthTotals:
         """The counters of every run, the current one included."""
-        total = HealthTotals(Counter(self.received), Counter(self.published), Counter(self.drops),
-                             Counter(self.events))  # fmt: skip
+        total = HealthTotals(
+            Counter(self.received),
+            Counter(self.published),
+            Counter(self.drops),
+            Counter(self.events),
+        )
         if self.last is not None:
             total._fold(self.last)
         total.loop_rates_hz = list(self.loop_rates_hz)

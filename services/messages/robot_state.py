@@ -17,7 +17,7 @@ from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.messages.fields import Spec, arrays, batch_size
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.tensor import to_tensor
+from hamnet.runtime.tensor import PayloadError, to_tensor
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class Observation:
     goal_pose: np.ndarray  # (B, 7): position + quaternion wxyz
     object_pose: np.ndarray  # (B, 7), privileged
     object_velocity: np.ndarray  # (B, 6): linear, angular, privileged
-    physics_params: np.ndarray  # (B, P), privileged (episodes.PHYSICS_PARAM_NAMES)
+    physics_params: np.ndarray  # (B, P), privileged (`hamnet.task.physics.PHYSICS_PARAM_NAMES`)
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Privileged:
     object_velocity: np.ndarray
     """(B, 6) float32 linear (m/s) and angular (rad/s) velocity, world frame."""
     physics_params: np.ndarray
-    """(B, P) float32 (episodes.PHYSICS_PARAM_NAMES)."""
+    """(B, P) float32 (`hamnet.task.physics.PHYSICS_PARAM_NAMES`)."""
 
 
 @dataclass(frozen=True)
@@ -99,22 +99,37 @@ _PRIVILEGED = {
 
 
 def decode(
-    message: RobotState, num_envs: int | None = None, required: Iterable[str] = ()
+    message: RobotState,
+    num_envs: int | None = None,
+    required: Iterable[str] = (),
+    privileged_for: str = "",
+    physics_params: int | None = None,
 ) -> StateIn:
-    """RobotState k, every field it carries checked against one batch size B.
+    """RobotState k, every field it carries checked against one batch size B: the decoder
+    of every consumer, which adds only what is its own (a precision, a row in focus).
 
     Args:
         num_envs: B; None takes it from the message (episode_ids, else q).
         required: fields that must be set (names of `StateIn`'s arrays).
+        privileged_for: why this consumer needs the privileged block, in the `missing`
+            error when a state lacks it (a real robot sends none); empty: not needed.
+        physics_params: P, the width of the privileged physics parameters this consumer
+            reads; None: any.
     Raises:
-        PayloadError: `missing` (a required field, or a privileged block without all three
-            fields), `dtype` (not as documented), `shape` (batch or width), `nonfinite`.
+        PayloadError: `missing` (a required field or block, or a privileged block without
+            all three fields), `dtype` (not as documented), `shape` (batch or width),
+            `nonfinite`.
     """
     b = num_envs if num_envs is not None else batch_size(message, _FIELDS, ("episode_ids", "q"))
     decoded = arrays(message, _FIELDS, b, required)
     privileged = None
     if message.HasField("privileged"):
-        privileged = Privileged(**arrays(message.privileged, _PRIVILEGED, b, _PRIVILEGED))
+        specs = _PRIVILEGED
+        if physics_params is not None:
+            specs = {**specs, "physics_params": Spec(np.float32, (physics_params,))}
+        privileged = Privileged(**arrays(message.privileged, specs, b, specs))
+    elif privileged_for:
+        raise PayloadError("missing", f"RobotState.privileged is not set: {privileged_for}")
     header = message.header
     return StateIn(
         header.run, header.step, privileged=privileged, stamp_ns=header.stamp_ns, **decoded
@@ -140,6 +155,18 @@ def encode_observation(obs: Observation, step: int) -> RobotState:
     """RobotState k as the sim publishes it after `step` steps: every field, the exact object
     pose as the estimate too, and the privileged block."""
     privileged = Privileged(obs.object_pose, obs.object_velocity, obs.physics_params)
-    return encode(StateIn(0, step, obs.q, obs.dq, obs.episode_ids, obs.episode_step,
-                          tau=obs.tau, ee_pos_rot6d=obs.ee_pos_rot6d, goal_pose=obs.goal_pose,
-                          object_pose_estimate=obs.object_pose, privileged=privileged))  # fmt: skip
+    return encode(
+        StateIn(
+            0,
+            step,
+            obs.q,
+            obs.dq,
+            obs.episode_ids,
+            obs.episode_step,
+            tau=obs.tau,
+            ee_pos_rot6d=obs.ee_pos_rot6d,
+            goal_pose=obs.goal_pose,
+            object_pose_estimate=obs.object_pose,
+            privileged=privileged,
+        )
+    )

@@ -1,5 +1,9 @@
 """SafeCommand (safety -> sim, bridge): the joint references and gains an executor applies
 for one policy period, encoded from the safety filter's output and decoded into `Command`.
+
+`hold_command` is the one Command made without the filter: holding the arm where it is (the
+sim before its first SafeCommand, the bridge's check, benchmarks and tests that stand in for
+the safety filter).
 """
 
 from __future__ import annotations
@@ -9,7 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.fr3.limits import FR3, NUM_JOINTS
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import CommandMode, SafeCommand
 from hamnet.runtime.tensor import PayloadError, field_array, from_tensor, to_tensor
@@ -39,6 +43,34 @@ class Command:
     """(B, J) torque clip, N m."""
     episode_ids: np.ndarray | None = None
     """(B,) int64 episodes of the state the command answers (None: not sent)."""
+
+
+HOLD_KP = 100.0
+"""Stiffness of a hold, N m/rad: the middle of the impedance range kp in [10, 200]."""
+HOLD_RHO = 1.0
+"""Damping ratio of a hold (critically damped-ish): kd = rho*sqrt(kp), N m s/rad."""
+
+
+def hold_command(
+    q: np.ndarray, control_samples: int, kp: float = HOLD_KP, rho: float = HOLD_RHO
+) -> Command:
+    """Track the joint positions `q` for one policy period.
+
+    Args:
+        q: (B, J) joint positions to hold, rad.
+        control_samples: S, reference samples per policy period.
+        kp: stiffness, N m/rad; rho: damping ratio.
+    Returns:
+        A Command with q_ref (B, S, J) = q, kp, kd (B, J) and tau_limit (B, J) = FR3.tau_max.
+    """
+    q = np.asarray(q, dtype=np.float64)  # (B, J)
+    b, j = q.shape
+    return Command(
+        q_ref=np.repeat(q[:, None, :], control_samples, axis=1),  # (B, S, J)
+        kp=np.full((b, j), kp),
+        kd=np.full((b, j), rho * np.sqrt(kp)),
+        tau_limit=np.tile(FR3.tau_max, (b, 1)),
+    )
 
 
 def decode(

@@ -38,8 +38,13 @@ def encode(
     if env_ids is not None:
         to_tensor(np.asarray(env_ids, dtype=np.int32), message.env_ids)  # (K,)
     message.stages.extend(
-        StageStatsMessage(stage=s.stage, commands=s.commands, clipped=s.clipped,
-                          mean_excess=s.mean_excess, max_excess=s.max_excess)
+        StageStatsMessage(
+            stage=s.stage,
+            commands=s.commands,
+            clipped=s.clipped,
+            mean_excess=s.mean_excess,
+            max_excess=s.max_excess,
+        )
         for s in stats
-    )  # fmt: skip
+    )
     return message

@@ -56,8 +56,10 @@ def decode(message: Transition) -> TransitionIn:
     names = tuple(message.reward_names)
     terms = np.array(field_array(message, "reward_terms", np.float32, (None, len(names))))
     b = len(terms)
-    flags = {name: np.array(field_array(message, name, np.bool_, (b,)))
-             for name in ("terminated", "truncated", "success")}  # fmt: skip
+    flags = {
+        name: np.array(field_array(message, name, np.bool_, (b,)))
+        for name in ("terminated", "truncated", "success")
+    }
     ids = np.array(field_array(message, "episode_ids", np.int64, (b,)))
     header = message.header
     return TransitionIn(header.step, header.stamp_ns, ids, names, terms, **flags)

@@ -51,14 +51,19 @@ THROUGHPUT_METRICS = ("env_steps_per_s", "policy_lag", "episode_length")
 
 def _plot(origin: str, name: str, contents: list[str] | None = None) -> rrb.TimeSeriesView:
     """A time series view with its legend in the top left corner."""
-    return rrb.TimeSeriesView(origin=origin, contents=contents or "$origin/**", name=name,
-                              plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop))  # fmt: skip
+    return rrb.TimeSeriesView(
+        origin=origin,
+        contents=contents or "$origin/**",
+        name=name,
+        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+    )
 
 
 def _heat_map(origin: str, name: str) -> rrb.TensorView:
     """A tensor view coloured 0 -> 1 by `MODULE_COLORMAP`."""
-    return rrb.TensorView(origin=origin, name=name,
-                          scalar_mapping=rrb.TensorScalarMapping(colormap=MODULE_COLORMAP))  # fmt: skip
+    return rrb.TensorView(
+        origin=origin, name=name, scalar_mapping=rrb.TensorScalarMapping(colormap=MODULE_COLORMAP)
+    )
 
 
 def learning() -> rrb.Container:

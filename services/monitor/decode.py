@@ -28,7 +28,7 @@ from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
 from hamnet.runtime.tensor import PayloadError, field_array
-from hamnet.sim.scene import NUM_CUBOIDS
+from hamnet.task.cuboids import NUM_CUBOIDS
 
 
 def focus_row(array: np.ndarray, env: int) -> np.ndarray:
@@ -58,8 +58,17 @@ def decode_state(message: RobotState, env: int) -> StateFrame:
     )
 
 
-_SCENE_READS = ("episode_ids", "object_ids", "object_points", "start_pose", "goal_pose",
-                "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active")  # fmt: skip
+_SCENE_READS = (
+    "episode_ids",
+    "object_ids",
+    "object_points",
+    "start_pose",
+    "goal_pose",
+    "cuboid_pos",
+    "cuboid_quat",
+    "cuboid_half_size",
+    "cuboid_active",
+)
 
 
 def decode_scene(message: Scene, env: int) -> SceneFrame | None:
@@ -131,8 +140,9 @@ def decode_event(message: SafetyEvent) -> EventFrame:
         kind = SafetyEventKind.Name(message.kind)
     except ValueError:
         raise PayloadError("decode", f"SafetyEvent.kind {message.kind} is unknown") from None
-    env_ids = field_array(message, "env_ids", np.int32, (None,)) if message.HasField("env_ids") else (
-        np.zeros(0, dtype=np.int32))  # fmt: skip
+    env_ids = np.zeros(0, dtype=np.int32)
+    if message.HasField("env_ids"):
+        env_ids = field_array(message, "env_ids", np.int32, (None,))
     stages = tuple(
         StageFigures(s.stage, s.commands, s.clipped, s.mean_excess, s.max_excess)
         for s in message.stages

@@ -44,8 +44,10 @@ def open_recording(output: OutputConfig) -> tuple[rr.RecordingStream, Path | Non
         ValueError: when no output is chosen.
     """
     if not output.chosen:
-        raise ValueError("choose where the view goes: --spawn, --connect-viewer URL, "
-                         "--serve-web or --save FILE.rrd (any combination)")  # fmt: skip
+        raise ValueError(
+            "choose where the view goes: --spawn, --connect-viewer URL, "
+            "--serve-web or --save FILE.rrd (any combination)"
+        )
     sinks: list[object] = []
     saved = None if output.save is None else next_part(output.save)
     if saved is not None:
@@ -61,8 +63,9 @@ def open_recording(output: OutputConfig) -> tuple[rr.RecordingStream, Path | Non
     recording = rr.RecordingStream(APPLICATION_ID)
     recording.set_sinks(*sinks, default_blueprint=blueprint())
     if output.serve_web:
-        rr.serve_web_viewer(web_port=output.web_port, open_browser=False,
-                            connect_to=local_url(output.viewer_port))  # fmt: skip
+        rr.serve_web_viewer(
+            web_port=output.web_port, open_browser=False, connect_to=local_url(output.viewer_port)
+        )
         log.info("web viewer on http://localhost:%d", output.web_port)
     if saved is not None:
         log.info("writing %s", saved)

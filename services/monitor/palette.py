@@ -15,10 +15,19 @@ from hamnet.safety.stats import STAGE_NAMES
 Rgb = tuple[int, int, int]
 
 CATEGORICAL: tuple[Rgb, ...] = (
-    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
-    (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
-    (0, 0, 128), (128, 0, 0),
-)  # fmt: skip
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+    (0, 0, 128),
+    (128, 0, 0),
+)
 """Twelve colours a reader tells apart (matplotlib's tab10, then navy and maroon)."""
 
 REWARD_COLOURS: dict[str, Rgb] = {
@@ -27,7 +36,7 @@ REWARD_COLOURS: dict[str, Rgb] = {
     "contact": (230, 120, 20),
     "total": (60, 60, 60),
 }
-"""Each reward term's colour (`hamnet.sim.rewards.REWARD_NAMES`; a test checks they all
+"""Each reward term's colour (`hamnet.task.rewards.REWARD_NAMES`; a test checks they all
 have one), and the sum's."""
 
 STAGE_COLOURS: dict[str, Rgb] = dict(zip(STAGE_NAMES, CATEGORICAL, strict=False))

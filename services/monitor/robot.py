@@ -29,8 +29,13 @@ geoms of one kind in their body's frame."""
 
 
 def _boxes(pos, quat, size, rgba) -> rr.Boxes3D:
-    return rr.Boxes3D(centers=pos, half_sizes=size, quaternions=quat[:, XYZW], colors=rgba,
-                      fill_mode=rr.components.FillMode.Solid)  # fmt: skip
+    return rr.Boxes3D(
+        centers=pos,
+        half_sizes=size,
+        quaternions=quat[:, XYZW],
+        colors=rgba,
+        fill_mode=rr.components.FillMode.Solid,
+    )
 
 
 def _capsules(pos, quat, size, rgba) -> rr.Capsules3D:
@@ -38,19 +43,33 @@ def _capsules(pos, quat, size, rgba) -> rr.Capsules3D:
     # translation, `length` along z. Start at the lower cap's centre.
     axis = quaternion.to_matrix(quat)[:, :, 2]  # (G, 3) geom z in the body frame
     start = pos - size[:, 1:2] * axis  # (G, 3)
-    return rr.Capsules3D(lengths=2 * size[:, 1], radii=size[:, 0], translations=start,
-                         quaternions=quat[:, XYZW], colors=rgba)  # fmt: skip
+    return rr.Capsules3D(
+        lengths=2 * size[:, 1],
+        radii=size[:, 0],
+        translations=start,
+        quaternions=quat[:, XYZW],
+        colors=rgba,
+    )
 
 
 def _cylinders(pos, quat, size, rgba) -> rr.Cylinders3D:
-    return rr.Cylinders3D(lengths=2 * size[:, 1], radii=size[:, 0], centers=pos,
-                          quaternions=quat[:, XYZW], colors=rgba,
-                          fill_mode=rr.components.FillMode.Solid)  # fmt: skip
+    return rr.Cylinders3D(
+        lengths=2 * size[:, 1],
+        radii=size[:, 0],
+        centers=pos,
+        quaternions=quat[:, XYZW],
+        colors=rgba,
+        fill_mode=rr.components.FillMode.Solid,
+    )
 
 
 def _spheres(pos, quat, size, rgba) -> rr.Ellipsoids3D:
-    return rr.Ellipsoids3D(centers=pos, half_sizes=np.repeat(size[:, :1], 3, axis=1),
-                           colors=rgba, fill_mode=rr.components.FillMode.Solid)  # fmt: skip
+    return rr.Ellipsoids3D(
+        centers=pos,
+        half_sizes=np.repeat(size[:, :1], 3, axis=1),
+        colors=rgba,
+        fill_mode=rr.components.FillMode.Solid,
+    )
 
 
 SHAPES: dict[int, tuple[str, Callable[..., object]]] = {
@@ -74,7 +93,9 @@ class RobotView:
         self.paths = [f"{ROOT}/{self.model.body(int(b)).name}" for b in self.bodies]
         unknown = set(self.model.geom_type.tolist()) - set(SHAPES)
         if unknown:
-            raise ValueError(f"the robot model has geom types {sorted(unknown)} the view cannot draw")
+            raise ValueError(
+                f"the robot model has geom types {sorted(unknown)} the view cannot draw"
+            )
 
     def body_poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World poses of the bodies that carry geoms.

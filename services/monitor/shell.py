@@ -37,7 +37,7 @@ from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import SafetyEvent
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.proto.trainer_pb2 import Metrics
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
@@ -59,8 +59,6 @@ PORTS = Ports(
 )
 """What the monitor reads and writes (`hamnet.runtime.ports`)."""
 
-Decoder = Callable[[str, bytes], Any]
-
 
 class MonitorShell:
     """One monitor on the network: subscriptions, pacing and the loop."""
@@ -75,30 +73,38 @@ class MonitorShell:
         port = service.ports(PORTS)
         env = self.env
         self.scene_key = port["scene"]
-        subscriptions: dict[str, tuple[str, Decoder]] = {
-            "state": (port["state"], self._paced(RobotState, decode_state)),
-            "tokens": (port["tokens"], self._paced(PerceptionTokens, decode_tokens)),
-            "action": (port["action"], self._paced(PolicyAction, decode_action)),
-            "transition": (port["transition"], self._decode_transition),
-            "scene": (self.scene_key, lambda key, p: decode_scene(parse(Scene, p), env)),
-            "event": (port["event"], lambda key, p: decode_event(parse(SafetyEvent, p))),
-            "metrics": (port["metrics"], lambda key, p: decode_metrics(parse(Metrics, p))),
+        reads: dict[str, tuple[type[Message], Callable[[Any], Any]]] = {
+            "state": (RobotState, self._paced(decode_state)),
+            "tokens": (PerceptionTokens, self._paced(decode_tokens)),
+            "action": (PolicyAction, self._paced(decode_action)),
+            "transition": (Transition, self._transition),
+            "scene": (Scene, lambda message: decode_scene(message, env)),
+            "event": (SafetyEvent, decode_event),
+            "metrics": (Metrics, decode_metrics),
         }
-        for name, (key, decoder) in subscriptions.items():
-            service.inbox.subscribe(name, key, decoder=decoder)
+        for name, read in reads.items():
+            service.inbox.subscribe(name, port[name], decoder=payload_decoder(*read))
         self.handlers: dict[str, Callable[[Any], None]] = {
-            "state": view.on_state, "tokens": view.on_clouds, "action": view.on_action,
-            "transition": view.on_transition, "scene": view.on_scene, "event": view.on_event,
+            "state": view.on_state,
+            "tokens": view.on_clouds,
+            "action": view.on_action,
+            "transition": view.on_transition,
+            "scene": view.on_scene,
+            "event": view.on_event,
             "metrics": view.on_metrics,
-        }  # fmt: skip
+        }
         self.report = LoopReport(self.loop.report.report_period_s, self._line, logger=log)
         self.scene_seen = False
         """Whether the focus environment's scene has arrived (else the sim is asked for it)."""
 
     def run(self) -> int:
         """Draw what arrives until stopped; returns the exit status."""
-        log.info("watching worker %s, environment %d, at most %.0f steps/s",
-                 self.service.identity.worker, self.env, self.view.config.max_rate_hz)  # fmt: skip
+        log.info(
+            "watching worker %s, environment %d, at most %.0f steps/s",
+            self.service.identity.worker,
+            self.env,
+            self.view.config.max_rate_hz,
+        )
         while self.service.running:
             received = self.service.receive(timeout=0.1)
             if received is not None and received.value is not None:  # None: not the focus env
@@ -110,26 +116,30 @@ class MonitorShell:
             self.report.tick()
         return 0
 
-    def _paced(self, message_type: type[Message], decode: Callable[[Any, int], Any]) -> Decoder:
-        """Decoder that drops the message of a step the pacer skips, before decoding it."""
+    def _paced(self, decode: Callable[[Any, int], Any]) -> Callable[[Message], Any]:
+        """`decode` of the focus environment, for the messages of a step the pacer draws:
+        the message of a skipped step is dropped before any tensor is decoded."""
 
-        def decoder(key: str, payload: bytes) -> Any:
-            message = parse(message_type, payload)
+        def read(message: Message) -> Any:
             step = message.header.step
             if not self.pacer.draw(step, time.monotonic()):
-                raise PayloadError("rate", f"step {step} not drawn: at most "
-                                   f"{self.view.config.max_rate_hz:g} steps/s (--max-rate-hz)")  # fmt: skip
+                raise PayloadError(
+                    "rate",
+                    f"step {step} not drawn: at most "
+                    f"{self.view.config.max_rate_hz:g} steps/s (--max-rate-hz)",
+                )
             return decode(message, self.env)
 
-        return decoder
+        return read
 
-    def _decode_transition(self, key: str, payload: bytes) -> Any:
-        message = parse(Transition, payload)
+    def _transition(self, message: Transition) -> Any:
         drawn = self.pacer.draw(message.header.step, time.monotonic())
         return decode_transition(message, self.env, drawn)
 
     def _line(self, w: Window) -> str:
         success = self.view.success
-        return (f"{w.rate('drawn'):.1f} steps/s drawn, {self.pacer.skipped} skipped in all, "
-                f"step {self.view.step}, {success.finished} episodes finished, success rate "
-                f"{success.rate:.2f}, {self.service.drops.total} payloads dropped in all")  # fmt: skip
+        return (
+            f"{w.rate('drawn'):.1f} steps/s drawn, {self.pacer.skipped} skipped in all, "
+            f"step {self.view.step}, {success.finished} episodes finished, success rate "
+            f"{success.rate:.2f}, {self.service.drops.total} payloads dropped in all"
+        )

@@ -46,8 +46,8 @@ from hamnet.monitor.frames import (
 from hamnet.monitor.pacing import SuccessRate
 from hamnet.monitor.palette import REWARD_COLOURS, STAGE_COLOURS, Palette, Rgb, indexed
 from hamnet.monitor.robot import XYZW, RobotView
-from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene_view import log_pedestal, log_scene
+from hamnet.task.rewards import REWARD_NAMES
 
 OBJECT_RED = (220, 50, 50, 255)
 GOAL_BLUE = (50, 90, 220, 120)
@@ -133,18 +133,25 @@ class MonitorView:
         """M for which the module series got their names."""
         self._styled: set[str] = set()
         """Series entities that got their name and colour."""
-        self.palettes = {"rewards": Palette(REWARD_COLOURS), "stages": Palette(STAGE_COLOURS),
-                         "trainer": Palette(trainer_colours())}  # fmt: skip
+        self.palettes = {
+            "rewards": Palette(REWARD_COLOURS),
+            "stages": Palette(STAGE_COLOURS),
+            "trainer": Palette(trainer_colours()),
+        }
         """One palette per group of plots, so a name keeps its colour in its group."""
         self.metrics_seen = False
         """Whether trainer metrics have arrived (until then `trainer/status` says why not)."""
         recording.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         recording.log("legend", rr.TextDocument(LEGEND, media_type="text/markdown"), static=True)
-        recording.log("trainer/status", rr.TextDocument(NO_METRICS, media_type="text/markdown"),
-                      static=True)  # fmt: skip
+        recording.log(
+            "trainer/status", rr.TextDocument(NO_METRICS, media_type="text/markdown"), static=True
+        )
         scale = np.linspace(0.0, 1.0, SCALE_STEPS, dtype=np.float32)[None]  # (1, SCALE_STEPS)
-        recording.log("policy/module_scale", rr.Tensor(scale, dim_names=("scale", "weight 0 to 1"),
-                      value_range=(0.0, 1.0)), static=True)  # fmt: skip
+        recording.log(
+            "policy/module_scale",
+            rr.Tensor(scale, dim_names=("scale", "weight 0 to 1"), value_range=(0.0, 1.0)),
+            static=True,
+        )
         log_pedestal(recording)
         self.robot.log_geometry(recording)
 
@@ -179,10 +186,15 @@ class MonitorView:
         """A new episode: its cuboids, start and goal, and the object's surface."""
         self._at(frame.step, frame.stamp_ns)
         rec = self.recording
-        cuboids = _Cuboids(frame.centre[None], frame.quat[None], frame.half_extent[None],
-                           frame.active[None])  # fmt: skip
-        start_goal = _StartGoal(frame.start_pose[None, :3], frame.start_pose[None, 3:],
-                                frame.goal_pose[None, :3], frame.goal_pose[None, 3:])  # fmt: skip
+        cuboids = _Cuboids(
+            frame.centre[None], frame.quat[None], frame.half_extent[None], frame.active[None]
+        )
+        start_goal = _StartGoal(
+            frame.start_pose[None, :3],
+            frame.start_pose[None, 3:],
+            frame.goal_pose[None, :3],
+            frame.goal_pose[None, 3:],
+        )
         log_scene(cuboids, 0, start_goal, recording=rec)  # type: ignore[arg-type]
         for name, colour in (("object", OBJECT_RED), ("goal", GOAL_BLUE)):
             points = rr.Points3D(frame.object_points, radii=CLOUD_RADIUS, colors=colour)
@@ -206,11 +218,16 @@ class MonitorView:
         rec = self.recording
         if frame.module_weights is not None:
             weights = frame.module_weights  # (L, M)
-            rec.log("policy/module_weights",
-                    rr.Tensor(weights, dim_names=("layer", "module"), value_range=(0.0, 1.0)))  # fmt: skip
+            rec.log(
+                "policy/module_weights",
+                rr.Tensor(weights, dim_names=("layer", "module"), value_range=(0.0, 1.0)),
+            )
             modules = weights.shape[1]
             if self._module_names != modules:
-                names, colours = [f"module {m}" for m in range(modules)], list(map(indexed, range(modules)))
+                names, colours = (
+                    [f"module {m}" for m in range(modules)],
+                    list(map(indexed, range(modules))),
+                )
                 rec.log("policy/modules", rr.SeriesLines(names=names, colors=colours), static=True)
                 self._module_names = modules
             rec.log("policy/modules", rr.Scalars(weights.mean(axis=0)))  # (M,)
@@ -229,8 +246,11 @@ class MonitorView:
             for name, value in zip(frame.reward_names, frame.reward_terms, strict=True):
                 self._scalar("rewards", "rewards", name, float(value), name)
         if self.success.add(frame.done, frame.success):
-            self._series("episodes/success_rate", [SUCCESS_LABEL.format(self.config.success_window)],
-                         [SUCCESS_COLOUR])  # fmt: skip
+            self._series(
+                "episodes/success_rate",
+                [SUCCESS_LABEL.format(self.config.success_window)],
+                [SUCCESS_COLOUR],
+            )
             rec.log("episodes/success_rate", rr.Scalars(self.success.rate))
         if frame.done[self.config.env]:
             self._series("episodes/return", ["return (env in focus)"], [REWARD_COLOURS["total"]])
@@ -249,8 +269,7 @@ class MonitorView:
             return
         focus = " (env in focus)" if self.config.env in frame.env_ids else ""
         level = rr.TextLogLevel.WARN if frame.kind in WARNING_KINDS else rr.TextLogLevel.INFO
-        text = (f"{frame.kind} [{frame.stage}] {frame.reason}; "
-                f"{len(frame.env_ids)} envs{focus}")  # fmt: skip
+        text = f"{frame.kind} [{frame.stage}] {frame.reason}; {len(frame.env_ids)} envs{focus}"
         rec.log("safety/events", rr.TextLog(text, level=level))
 
     def on_metrics(self, frame: MetricsFrame) -> None:
@@ -265,8 +284,11 @@ class MonitorView:
             rec.set_time("env_transitions", sequence=int(transitions))
         for name, value in frame.scalars.items():
             self._scalar("trainer", "trainer", name, value, trainer_label(name))
-        rec.log("trainer/status", rr.TextDocument(status_line(frame), media_type="text/markdown"),
-                static=True)  # fmt: skip
+        rec.log(
+            "trainer/status",
+            rr.TextDocument(status_line(frame), media_type="text/markdown"),
+            static=True,
+        )
         self.metrics_seen = True
 
 

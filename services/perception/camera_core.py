@@ -5,7 +5,7 @@ scene message and privileged object pose.
 From one frame time's views of one robot (B = 1): the segmenter splits the fused points
 into object and scene (`segmenters`); the scene points, resampled to the scene pool S, give
 the environment cloud (its first P points, as `core.Perception`) and the local cloud (the P
-pool points nearest 64 FPS keypoints of the object cloud, `clouds.local_cloud`); the object
+pool points nearest 64 FPS keypoints of the object cloud, `cloud_ops.local_cloud`); the object
 cloud is resampled to P. Everything is re-encoded each frame: the cameras see the scene
 change as the arm moves and the object as it is pushed.
 
@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from hamnet.perception.cameras import DepthView, resample
-from hamnet.perception.clouds import farthest_point_sample, gather, local_cloud
+from hamnet.camera.views import DepthView
+from hamnet.perception.cameras import resample
+from hamnet.perception.cloud_ops import farthest_point_sample, gather, local_cloud
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import Percepts, encoder_for
 from hamnet.perception.object_pose import estimate_pose

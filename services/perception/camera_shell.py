@@ -14,7 +14,9 @@ backlog is skipped to the newest; open3d and torch release the GIL), so that a s
 the policy's rate) is answered at once from the newest percepts: the fusion and the encoder
 stay off the path from state to command. A state that comes before any usable frame waits
 (counted as `waiting_for_frames`) and is answered when one is processed. Frames that show
-no object are counted (`nothing_seen`) and skipped. A state sent again gets the same answer.
+no object are counted (`nothing_seen`) and skipped. A state sent again gets the same answer,
+an older one than the last answered is dropped, another run is followed, as on the sim path
+(`hamnet.runtime.freshness`).
 """
 
 from __future__ import annotations
@@ -26,32 +28,23 @@ import time
 import numpy as np
 
 from hamnet.camera.frames import decode_frames
-from hamnet.messages import robot_state
+from hamnet.camera.views import DepthView
 from hamnet.messages.object_pose import encode as encode_pose
 from hamnet.messages.robot_state import StateIn
 from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.camera_core import CameraPerception, NothingSeen
-from hamnet.perception.cameras import DepthView
 from hamnet.perception.core import Percepts
+from hamnet.perception.messages import decode_step
 from hamnet.perception.shell import PORTS, PerceptionLoopConfig
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
+from hamnet.runtime.freshness import Answered, Verdict
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
 
 log = logging.getLogger(__name__)
-
-
-def decode_step(message: RobotState) -> StateIn:
-    """RobotState k of one robot: the camera path answers its step and episode id.
-
-    Raises:
-        PayloadError: `missing`, `dtype`, `shape` (more than one environment: the cameras
-            see one robot).
-    """
-    return robot_state.decode(message, 1, required=("episode_ids",))
 
 
 class CameraPerceptionShell:
@@ -62,8 +55,11 @@ class CameraPerceptionShell:
     ) -> None:
         self.service, self.core, self.version, self.config = service, core, version, config
         port = service.ports(PORTS)
-        service.inbox.subscribe("frames", port["frames"], decoder=self._decode_frames)
-        service.inbox.subscribe("state", port["state"], decoder=self._decode_state)
+        frames = payload_decoder(DepthFrames, decode_frames)
+        service.inbox.subscribe("frames", port["frames"], decoder=frames)
+        service.inbox.subscribe(
+            "state", port["state"], decoder=payload_decoder(RobotState, decode_step)
+        )
         self.tokens = service.publisher(port["tokens"])
         self.pose = service.publisher(port["object_pose"])
         self.frames: list[DepthView] | None = None
@@ -73,7 +69,8 @@ class CameraPerceptionShell:
         (guarded by `changed`)."""
         self.changed = threading.Condition()
         self.waiting: StateIn | None = None
-        self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
+        self.answered: Answered[PerceptionTokens] = Answered()
+        """The state's run followed, the last step answered in it and its tokens."""
         self.report = LoopReport(config.report.report_period_s, self._line, logger=log)
         self.counts = self.report.counts
         """What happened since the last rate line."""
@@ -124,9 +121,13 @@ class CameraPerceptionShell:
             self.report.sample("frame_set_s", time.perf_counter() - started)
 
     def _on_state(self, state: StateIn) -> None:
-        if self.answered is not None and self.answered[0] == (state.run, state.step):
-            self.tokens.put(self.answered[1])
+        verdict = self.answered.follow(state.run, state.step)
+        if verdict is Verdict.REPEAT:
+            self.tokens.put(self.answered.message)
             self.counts["repeated"] += 1
+            return
+        if verdict in (Verdict.STALE, Verdict.IMPLAUSIBLE):
+            self.counts[verdict.value] += 1
             return
         with self.changed:
             latest = self.percepts
@@ -138,17 +139,14 @@ class CameraPerceptionShell:
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
         self.pose.put(encode_pose(pose, state.step))
-        self.answered = ((state.run, state.step), message)
+        self.answered.answer(state.step, message)
         self.counts["published"] += 1
 
     def _line(self, w: Window) -> str:
-        return (f"{w.rate('published'):.1f} token messages/s, median "
-                f"{w.median_ms('frame_set_s'):.1f} ms per frame set, {w.count('repeated')} "
-                f"repeated, {w.count('waiting_for_frames')} states waiting for frames, "
-                f"{w.count('nothing_seen')} frames without an object")  # fmt: skip
-
-    def _decode_state(self, key: str, payload: bytes) -> StateIn:
-        return decode_step(parse(RobotState, payload))
-
-    def _decode_frames(self, key: str, payload: bytes) -> list[DepthView]:
-        return decode_frames(parse(DepthFrames, payload))
+        return (
+            f"{w.rate('published'):.1f} token messages/s, median "
+            f"{w.median_ms('frame_set_s'):.1f} ms per frame set, {w.count('repeated')} "
+            f"repeated, {w.count('stale')} stale, {w.count('waiting_for_frames')} states "
+            "waiting for frames, "
+            f"{w.count('nothing_seen')} frames without an object"
+        )

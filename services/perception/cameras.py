@@ -4,35 +4,17 @@ intrinsics, extrinsics and a segmentation mask become one object cloud and one s
 Per view and label: back-project the masked depth image; then over all views: workspace
 crop, voxel downsampling (overlapping views would otherwise weigh double), statistical
 outlier removal, and resampling to a fixed number of points. Cameras follow the OpenCV
-convention (x right, y down, z forward); depth is in metres, 0 where invalid.
+convention (x right, y down, z forward); depth is in metres, 0 where invalid. The views
+(`hamnet.camera.views.DepthView`) come from the camera service.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import open3d as o3d
 
+from hamnet.camera.views import OBJECT, SCENE, DepthView
 from hamnet.perception.config import CameraConfig
-
-SCENE, OBJECT = 1, 2
-"""Segmentation labels (0: anything else, e.g. the robot or the floor)."""
-
-
-@dataclass(frozen=True)
-class DepthView:
-    """One camera's frame."""
-
-    depth: np.ndarray
-    """(H, W) float32 depth along the optical axis, m; 0 where there is no reading."""
-    labels: np.ndarray | None
-    """(H, W) uint8 segmentation: SCENE, OBJECT or 0; None when the camera has none (a real
-    camera: `hamnet.perception.segmenters` then splits the fused cloud)."""
-    intrinsics: np.ndarray
-    """(3, 3) pinhole matrix, pixels."""
-    camera_to_world: np.ndarray
-    """(4, 4) pose of the camera in the world (OpenCV axes)."""
 
 
 def fuse(views: list[DepthView], label: int | None, config: CameraConfig) -> np.ndarray:
@@ -50,9 +32,12 @@ def fuse(views: list[DepthView], label: int | None, config: CameraConfig) -> np.
         k = view.intrinsics
         intrinsic = o3d.camera.PinholeCameraIntrinsic(w, h, k[0, 0], k[1, 1], k[0, 2], k[1, 2])
         cloud += o3d.geometry.PointCloud.create_from_depth_image(
-            o3d.geometry.Image(depth), intrinsic, np.linalg.inv(view.camera_to_world),
-            depth_scale=1.0, depth_trunc=config.max_depth,
-        )  # fmt: skip
+            o3d.geometry.Image(depth),
+            intrinsic,
+            np.linalg.inv(view.camera_to_world),
+            depth_scale=1.0,
+            depth_trunc=config.max_depth,
+        )
     box = o3d.geometry.AxisAlignedBoundingBox(
         np.array(config.workspace_min), np.array(config.workspace_max)
     )
@@ -83,13 +68,3 @@ def camera_clouds(
     return tuple(
         resample(fuse(views, label, config), config.num_points, rng) for label in (OBJECT, SCENE)
     )
-
-
-def d435_rig(
-    target: np.ndarray, radius: float = 1.0, height: float = 0.7
-) -> list[tuple[np.ndarray, float, float]]:
-    """Four cameras around the table as in the paper's setup: (look-at point (3,), azimuth
-    deg, elevation deg) each, at `radius` m from `target` and `height` m above it, 90 degrees
-    apart, starting 45 degrees off the robot's axis (the robot is at the origin facing +x)."""
-    elevation = -np.degrees(np.arctan2(height, radius))
-    return [(np.asarray(target, float), 45.0 + 90.0 * i, float(elevation)) for i in range(4)]

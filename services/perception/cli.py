@@ -78,8 +78,10 @@ class PerceptionServiceConfig:
         if self.random_init and self.checkpoint != SHIPPED_ENCODER:
             raise ValueError("give either --checkpoint PATH or --random-init, not both")
         if self.cameras.num_points != self.clouds.num_points:
-            raise ValueError(f"--cameras.num-points ({self.cameras.num_points}) must equal "
-                             f"--clouds.num-points ({self.clouds.num_points})")  # fmt: skip
+            raise ValueError(
+                f"--cameras.num-points ({self.cameras.num_points}) must equal "
+                f"--clouds.num-points ({self.clouds.num_points})"
+            )
 
 
 CONFIG = PerceptionServiceConfig

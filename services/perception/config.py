@@ -132,8 +132,10 @@ class EncoderConfig:
         _at_least(self, 1, "frequencies")
         hidden = self.tokenizer_hidden
         if not isinstance(hidden, tuple) or not hidden or min(hidden) < 1:
-            raise ValueError(f"tokenizer_hidden must be a tuple of positive widths (the MLP over "
-                             f"the flattened patch), got {hidden!r}")  # fmt: skip
+            raise ValueError(
+                f"tokenizer_hidden must be a tuple of positive widths (the MLP over "
+                f"the flattened patch), got {hidden!r}"
+            )
         if self.width % self.heads:
             raise ValueError(f"width ({self.width}) must be divisible by heads ({self.heads})")
         if self.patch_size > self.num_points or self.num_patches > self.num_points:

@@ -4,7 +4,7 @@ the per-step work (pose the object, gather the local cloud, encode it).
 What changes when (paper: object tokens once per episode, scene tokens at reset, local
 tokens every step):
 - at an episode's start (`start_episodes`): the scene's visible surface, cropped to the
-  workspace over the table (`clouds.workspace_box`), is sampled into a dense pool (S
+  workspace over the table (`scene_cloud.workspace_box`), is sampled into a dense pool (S
   points), its first P points are the global cloud, encoded once; the object's surface
   points (own frame) are encoded once, and 64 FPS keypoints are picked from them;
 - every step (`step`): the object cloud and the keypoints are posed, the local cloud is the P
@@ -27,18 +27,16 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from hamnet.perception.clouds import (
-    Cuboids,
+from hamnet.perception.cloud_ops import (
     corrupt,
     farthest_point_sample,
     gather,
     local_cloud,
     pose_points,
     quaternion_matrix,
-    sample_surface,
-    workspace_box,
 )
 from hamnet.perception.config import CloudConfig
+from hamnet.perception.scene_cloud import Cuboids, sample_surface, workspace_box
 from hamnet.perception.unicorn import UniCORN
 from hamnet.perception.visibility import (
     CameraView,
@@ -47,12 +45,17 @@ from hamnet.perception.visibility import (
     keep,
     outward_normals,
 )
-from hamnet.sim.scene import TABLE
+from hamnet.task.cuboids import TABLE
 
 CACHES = (
-    "episode_ids", "scene_pool", "environment_cloud", "object_points", "keypoints",
-    "object_tokens", "global_tokens",
-)  # fmt: skip
+    "episode_ids",
+    "scene_pool",
+    "environment_cloud",
+    "object_points",
+    "keypoints",
+    "object_tokens",
+    "global_tokens",
+)
 """`Perception`'s per-episode caches, (B, ...) tensors (`Perception.caches` adds the
 cameras' own)."""
 
@@ -92,10 +95,17 @@ class EpisodeScenes:
         tensor = lambda a, dtype: torch.tensor(np.asarray(a), dtype=dtype)  # noqa: E731
         f32 = torch.float32
         cuboids = Cuboids.from_quat(
-            tensor(centre, f32), tensor(quat, f32), tensor(half_extent, f32), tensor(active, torch.bool)
+            tensor(centre, f32),
+            tensor(quat, f32),
+            tensor(half_extent, f32),
+            tensor(active, torch.bool),
         )
-        return cls(tensor(env_ids, torch.long), tensor(episode_ids, torch.long), cuboids,
-                   tensor(object_points, f32))  # fmt: skip
+        return cls(
+            tensor(env_ids, torch.long),
+            tensor(episode_ids, torch.long),
+            cuboids,
+            tensor(object_points, f32),
+        )
 
 
 @dataclass(frozen=True)
@@ -113,7 +123,9 @@ class Percepts:
 def encoder_for(encoder: UniCORN, config: CloudConfig, device: torch.device) -> UniCORN:
     """`encoder` on `device` for inference, checked to take clouds of `config`'s size."""
     if encoder.config.num_points != config.num_points:
-        raise ValueError(f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}")
+        raise ValueError(
+            f"the encoder takes {encoder.config.num_points} points, clouds have {config.num_points}"
+        )
     return encoder.to(device).eval()
 
 
@@ -187,14 +199,19 @@ class Perception:
             self.cameras = update(self.cameras, cameras)
         environment = corrupt(pool[:, : config.num_points], config.noise_std, config.dropout, g)
         points = scenes.object_points.to(self.device, torch.float32)  # (K, P, 3)
-        keypoints = gather(points, farthest_point_sample(points, config.num_keypoints))  # (K, 64, 3)
+        keypoints = gather(
+            points, farthest_point_sample(points, config.num_keypoints)
+        )  # (K, 64, 3)
         if self.camera_view is None:
             points = corrupt(points, config.noise_std, config.dropout, g)
         else:  # `step` corrupts what the cameras see
             self.object_normals = update(self.object_normals, outward_normals(points))
         self.scene_pool = update(self.scene_pool, pool)
         self.environment_cloud = update(self.environment_cloud, environment)
-        self.object_points, self.keypoints = update(self.object_points, points), update(self.keypoints, keypoints)
+        self.object_points, self.keypoints = (
+            update(self.object_points, points),
+            update(self.keypoints, keypoints),
+        )
         self.global_tokens = update(self.global_tokens, self.encoder(environment))
         self.object_tokens = update(self.object_tokens, self.encoder(points))
         self.episode_ids = update(self.episode_ids, scenes.episode_ids.to(self.device, torch.long))

@@ -18,7 +18,8 @@ from typing import Protocol
 import numpy as np
 import open3d as o3d
 
-from hamnet.perception.cameras import OBJECT, SCENE, DepthView, fuse
+from hamnet.camera.views import OBJECT, SCENE, DepthView
+from hamnet.perception.cameras import fuse
 from hamnet.perception.config import CameraConfig, PlaneConfig, SegmenterName
 
 

@@ -12,10 +12,13 @@ A state is answered only when every environment's cached scene belongs to its cu
 episode; otherwise it waits (counted as `waiting_for_scene`) and is answered as soon as the
 scene arrives (Zenoh orders messages per key, not across keys, so a scene may follow its
 state); meanwhile the sim is asked for its scenes (a service started late missed them). A
-state sent again gets the same answer.
+state sent again gets the same answer; a state older than the last answered is dropped
+(counted as stale), unless it comes from another run of the sim, which is followed at once,
+as the policy does (`hamnet.runtime.freshness`).
 A state without the privileged object pose (the real bridge) is dropped and counted: the
 object cloud must then come from the depth cameras (`--clouds-from cameras`,
-`hamnet.perception.camera_shell`).
+`hamnet.perception.camera_shell`). Without Zenoh: decode (`hamnet.perception.messages`), the
+clouds and tokens (`hamnet.perception.core`).
 """
 
 from __future__ import annotations
@@ -27,22 +30,22 @@ from typing import Annotated
 
 import torch
 
-from hamnet.messages import robot_state, scene
 from hamnet.messages.robot_state import StateIn
 from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.messages import decode_scene, decode_state
 from hamnet.perception.unicorn import UniCORN
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.runtime.cli import Flattened
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
 from hamnet.runtime.compute import torch_device
+from hamnet.runtime.freshness import Answered, Verdict
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
-from hamnet.runtime.tensor import PayloadError
 
 log = logging.getLogger(__name__)
 
@@ -52,51 +55,6 @@ PORTS = Ports(
 )
 """What perception reads and writes (`hamnet.runtime.ports`): frames and object_pose with
 `--clouds-from cameras` (`camera_shell`), scene without."""
-
-
-# --- decode / encode: pure functions, tested without a session -------------------------
-
-
-def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
-    """RobotState k with its episode ids and privileged block (the sim's object pose);
-    `num_envs` None accepts any batch size.
-
-    Raises:
-        PayloadError: `missing` (no episode ids, or no privileged object pose: a real robot
-            needs the camera path), `dtype`, `shape`, `nonfinite`.
-    """
-    state = robot_state.decode(message, num_envs, required=("episode_ids",))
-    if state.privileged is None:
-        raise PayloadError(
-            "missing",
-            "RobotState.privileged.object_pose is not set: without the sim's object pose the "
-            "object cloud must come from depth cameras (hamnet perception --clouds-from cameras)",
-        )
-    return state
-
-
-_SCENE_READS = ("episode_ids", "cuboid_pos", "cuboid_quat", "cuboid_half_size", "cuboid_active",
-                "object_points")  # fmt: skip
-
-
-def decode_scene(message: Scene, num_envs: int | None, num_points: int) -> EpisodeScenes:
-    """The K scenes of a Scene message as CPU tensors.
-
-    Raises:
-        PayloadError: `missing`, `dtype`, `shape` (counts disagree, object points not
-            (K, num_points, 3)), `nonfinite`, `range` (an environment index outside [0, B),
-            or a scene without any active cuboid).
-    """
-    decoded = scene.decode(message, _SCENE_READS, num_envs=num_envs, num_points=num_points)
-    if len(decoded.env_ids) and not decoded.cuboid_active.any(1).all():
-        raise PayloadError("range", "Scene holds a scene without any active cuboid")
-    return EpisodeScenes.from_arrays(
-        decoded.env_ids, decoded.episode_ids, decoded.cuboid_pos, decoded.cuboid_quat,
-        decoded.cuboid_half_size, decoded.cuboid_active, decoded.object_points,
-    )  # fmt: skip
-
-
-# --- the loop ------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -131,8 +89,10 @@ class PerceptionShell:
         port = service.ports(PORTS)
         self.num_envs: int | None = self.config.num_envs or None
         self.scene_key = port["scene"]
-        service.inbox.subscribe("scene", self.scene_key, decoder=self._decode_scene)
-        service.inbox.subscribe("state", port["state"], decoder=self._decode_state)
+        scene = lambda m: decode_scene(m, self.num_envs, self.clouds.num_points)
+        state = lambda m: decode_state(m, self.num_envs)
+        service.inbox.subscribe("scene", self.scene_key, decoder=payload_decoder(Scene, scene))
+        service.inbox.subscribe("state", port["state"], decoder=payload_decoder(RobotState, state))
         self.tokens = service.publisher(port["tokens"])
         self.core: Perception | None = None
         self.pending: list[EpisodeScenes] = []
@@ -140,8 +100,8 @@ class PerceptionShell:
         self.waiting: StateIn | None = None
         """The newest state whose scenes have not all arrived: answered when they do (Zenoh
         does not order messages across keys, so a scene may follow its state)."""
-        self.answered: tuple[tuple[int, int], PerceptionTokens] | None = None
-        """((run, step), tokens) of the last state answered."""
+        self.answered: Answered[PerceptionTokens] = Answered()
+        """The sim's run followed, the last step answered in it and its tokens."""
         self.report = LoopReport(self.config.report.report_period_s, self._line, logger=log)
         self.counts = self.report.counts
         """What happened since the last rate line."""
@@ -170,10 +130,16 @@ class PerceptionShell:
             self._on_state(state)
 
     def _on_state(self, state: StateIn) -> None:
-        if self.answered is not None and self.answered[0] == (state.run, state.step):
-            self.tokens.put(self.answered[1])  # the sim sent it again: same answer
+        verdict = self.answered.follow(state.run, state.step)
+        if verdict is Verdict.REPEAT:
+            self.tokens.put(self.answered.message)  # the sim sent it again: same answer
             self.counts["repeated"] += 1
             return
+        if verdict in (Verdict.STALE, Verdict.IMPLAUSIBLE):
+            self.counts[verdict.value] += 1
+            return
+        if verdict is Verdict.RESTART:
+            log.warning("the sim restarted (another run): following it from step %d", state.step)
         if self.core is None:
             self.num_envs = len(state.episode_ids)
             self.core = Perception(
@@ -182,8 +148,11 @@ class PerceptionShell:
             log.info("%d environments, first state %d", self.num_envs, state.step)
             for scenes in self.pending:
                 if len(scenes.env_ids) and int(scenes.env_ids.max()) >= self.num_envs:
-                    self.service.drops.drop(self.scene_key,
-                                            "range", "scene for an environment beyond the first state's batch")  # fmt: skip
+                    self.service.drops.drop(
+                        self.scene_key,
+                        "range",
+                        "scene for an environment beyond the first state's batch",
+                    )
                     continue
                 self.core.start_episodes(scenes)
             self.pending.clear()
@@ -199,17 +168,13 @@ class PerceptionShell:
         percepts = self.core.step(torch.from_numpy(state.privileged.object_pose))
         message = encode_tokens(percepts, state.step, state.episode_ids, self.version)
         self.tokens.put(message)
-        self.answered = ((state.run, state.step), message)
+        self.answered.answer(state.step, message)
         self.counts["published"] += 1
         self.report.sample("step_s", time.perf_counter() - started)
 
     def _line(self, w: Window) -> str:
-        return (f"{w.rate('published'):.1f} token messages/s, median {w.median_ms('step_s'):.1f} "
-                f"ms per step, {w.count('repeated')} repeated, {w.count('waiting_for_scene')} "
-                "states waiting for their scene")  # fmt: skip
-
-    def _decode_state(self, key: str, payload: bytes) -> StateIn:
-        return decode_state(parse(RobotState, payload), self.num_envs)
-
-    def _decode_scene(self, key: str, payload: bytes) -> EpisodeScenes:
-        return decode_scene(parse(Scene, payload), self.num_envs, self.clouds.num_points)
+        return (
+            f"{w.rate('published'):.1f} token messages/s, median {w.median_ms('step_s'):.1f} "
+            f"ms per step, {w.count('repeated')} repeated, {w.count('stale')} stale, "
+            f"{w.count('waiting_for_scene')} states waiting for their scene"
+        )

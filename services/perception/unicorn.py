@@ -21,11 +21,13 @@ import math
 import torch
 from torch import nn
 
-from hamnet.perception.clouds import farthest_point_sample, gather, knn
+from hamnet.perception.cloud_ops import farthest_point_sample, gather, knn
 from hamnet.perception.config import EncoderConfig
 
 
-def patchify(points: torch.Tensor, num_patches: int, patch_size: int) -> tuple[torch.Tensor, torch.Tensor]:
+def patchify(
+    points: torch.Tensor, num_patches: int, patch_size: int
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Centres and centre-relative patches of clouds (B, P, 3).
 
     Returns:
@@ -84,9 +86,14 @@ class UniCORN(nn.Module):
         self.emb = nn.Parameter(torch.randn(1, 1, config.width) * 0.02)
         self.layers = nn.ModuleList(
             nn.TransformerEncoderLayer(
-                config.width, config.heads, config.mlp_ratio * config.width, dropout=0.0,
-                activation="gelu", batch_first=True, norm_first=True,
-            )  # fmt: skip
+                config.width,
+                config.heads,
+                config.mlp_ratio * config.width,
+                dropout=0.0,
+                activation="gelu",
+                batch_first=True,
+                norm_first=True,
+            )
             for _ in range(config.depth)
         )
         self.norm = nn.LayerNorm(config.width)
@@ -95,7 +102,9 @@ class UniCORN(nn.Module):
         """points (B, P, 3), m -> tokens (B, K + 1, D)."""
         config = self.config
         if points.ndim != 3 or points.shape[1:] != (config.num_points, 3):
-            raise ValueError(f"expected clouds (B, {config.num_points}, 3), got {tuple(points.shape)}")
+            raise ValueError(
+                f"expected clouds (B, {config.num_points}, 3), got {tuple(points.shape)}"
+            )
         centres, patches = patchify(points, config.num_patches, config.patch_size)
         tokens = self.tokenizer(patches) + self.position(centres)  # (B, K, D)
         tokens = torch.cat([tokens, self.emb.expand(len(points), -1, -1)], 1)  # (B, K + 1, D)

@@ -1,6 +1,6 @@
 """What the four depth cameras see, in simulation: masks of the surface points visible from
-at least one camera of the paper's rig (four D435s around the table, `cameras.d435_rig`,
-placed as `render.render_views` places them), and the fixed-size clouds kept from them.
+at least one camera of the paper's rig (four D435s around the table, `hamnet.camera.views.d435_rig`,
+placed as `hamnet.camera.render` places them), and the fixed-size clouds kept from them.
 The student's clouds are these (docs/policy.md, "Student inputs"); the teacher's stay full.
 
 - Scene (`scene_visible`), exact: a point on a cuboid's surface is visible from a camera
@@ -30,8 +30,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from hamnet.perception.cameras import d435_rig
-from hamnet.perception.clouds import Cuboids, _env_chunks, gather, knn
+from hamnet.camera.views import d435_rig
+from hamnet.perception.cloud_ops import env_chunks, gather, knn
+from hamnet.perception.scene_cloud import Cuboids
 
 RIG_RADIUS = 1.0
 """Horizontal distance of the cameras from the table centre, m (`d435_rig`'s default)."""
@@ -75,8 +76,9 @@ def camera_positions(
     `radius` m back along each azimuth and `height` m up."""
     azimuth = torch.tensor(
         [np.radians(a) for _, a, _ in d435_rig(np.zeros(3), radius, height)],
-        dtype=target.dtype, device=target.device,
-    )  # (4,) rad  # fmt: skip
+        dtype=target.dtype,
+        device=target.device,
+    )  # (4,) rad
     offset = torch.stack(
         (
             -radius * torch.cos(azimuth),
@@ -92,10 +94,12 @@ def scene_visible(points: Tensor, cuboids: Cuboids, cameras: Tensor, tolerance: 
     """(B, N) bool: the surface points (B, N, 3) that some camera (B, K, 3) sees past every
     active cuboid (each shrunk by `tolerance` m, so the face a point lies on does not hide
     it). Works a few environments at a time: the (B, N, K, C) slab tests are large."""
-    return torch.cat([
-        _unblocked(points[rows], cuboids.rows(rows), cameras[rows], tolerance).any(-1)
-        for rows in _env_chunks(len(points))
-    ])  # fmt: skip
+    return torch.cat(
+        [
+            _unblocked(points[rows], cuboids.rows(rows), cameras[rows], tolerance).any(-1)
+            for rows in env_chunks(len(points))
+        ]
+    )
 
 
 def _unblocked(points: Tensor, cuboids: Cuboids, cameras: Tensor, tolerance: float) -> Tensor:

@@ -31,8 +31,8 @@ import torch
 from torch import Tensor
 
 from hamnet.policy.networks import PolicyInputs
-from hamnet.trainer.trajectory import Rollout, cat_rows
-from hamnet.trainer.trees import zip_trees
+from hamnet.policy.rollout_record import Rollout, cat_rows
+from hamnet.runtime.trees import zip_trees
 
 DROP_REASONS = ("missing_step", "missing_transition", "episode_mismatch", "batch_size", "restart")
 """Why a partial chunk was dropped."""
@@ -74,7 +74,7 @@ class Outcome:
 
 @dataclass(frozen=True)
 class Chunk:
-    """A complete chunk, ready for `hamnet.trainer.chunks.encode_rollout`."""
+    """A complete chunk, ready for `hamnet.trainer.storage.rollout_chunks.encode_rollout`."""
 
     rollout: Rollout
     version: int
@@ -134,9 +134,11 @@ class ChunkAssembler:
             self.ignored += 1
             return []
         self.steps[step] = Served(
-            np.asarray(episode_ids, np.int64).copy(), _cpu_copy(inputs),
-            *(_cpu_copy(x).float() for x in (action, log_prob, values)), version,
-        )  # fmt: skip
+            np.asarray(episode_ids, np.int64).copy(),
+            _cpu_copy(inputs),
+            *(_cpu_copy(x).float() for x in (action, log_prob, values)),
+            version,
+        )
         self.newest = step
         if self.start is None:
             self.start = step
@@ -163,8 +165,10 @@ class ChunkAssembler:
         self.outcomes[step] = Outcome(
             np.asarray(episode_ids, np.int64).copy(),
             torch.as_tensor(np.asarray(reward_terms, np.float32)),
-            flag(terminated), flag(truncated), flag(success),
-        )  # fmt: skip
+            flag(terminated),
+            flag(truncated),
+            flag(success),
+        )
         while len(self.outcomes) > self.window + self.horizon:  # none served to join them
             del self.outcomes[min(self.outcomes)]
             self.ignored += 1

@@ -25,7 +25,8 @@ import tyro
 
 from hamnet.policy.params import parameter_table
 from hamnet.policy.registry import ARCHITECTURES, build
-from hamnet.policy.shell import PORTS, PolicyLoopConfig, PolicyShell
+from hamnet.policy.serving import PolicyLoopConfig
+from hamnet.policy.shell import PORTS, PolicyShell
 from hamnet.policy.shipped import read_weights
 from hamnet.policy.weights import WeightsError, policy_from
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
@@ -56,10 +57,13 @@ class PolicyServiceConfig:
         if self.checkpoint is not None and self.random_init is not None:
             raise ValueError("give either --checkpoint or --random-init, not both")
         if self.checkpoint is None and self.random_init is None and not self.print_params:
-            raise ValueError("hamnet policy needs --checkpoint PATH (or --random-init ARCH for a demo)")
+            raise ValueError(
+                "hamnet policy needs --checkpoint PATH (or --random-init ARCH for a demo)"
+            )
         if self.random_init is not None and self.random_init not in ARCHITECTURES:
-            raise ValueError(f"unknown architecture {self.random_init!r}; known: "
-                             f"{', '.join(ARCHITECTURES)}")  # fmt: skip
+            raise ValueError(
+                f"unknown architecture {self.random_init!r}; known: {', '.join(ARCHITECTURES)}"
+            )
 
 
 CONFIG = PolicyServiceConfig
@@ -74,8 +78,11 @@ def main(argv: Sequence[str]) -> int:
         return 0
     if config.random_init is not None:
         policy, version = build(config.random_init, seed=config.loop.compute.seed), 0
-        log.warning("serving RANDOM %s weights (version 0): actions are meaningless until the "
-                    "trainer publishes weights", config.random_init)  # fmt: skip
+        log.warning(
+            "serving RANDOM %s weights (version 0): actions are meaningless until the "
+            "trainer publishes weights",
+            config.random_init,
+        )
     else:
         try:
             weights = read_weights(config.checkpoint)

@@ -17,7 +17,7 @@ from typing import Any, Literal, TypeVar, get_args
 from hamnet.fr3.limits import ACTION_DIM
 from hamnet.policy.observation import ObservationSpec
 from hamnet.runtime.counter import from_vectorized_steps
-from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.task.rewards import REWARD_NAMES
 
 SceneInput = Literal["tokens", "env_code"]
 """What tells the modulation network about the scene: UniCORN scene tokens (local and global
@@ -69,10 +69,13 @@ class LogStdConfig:
         low, high = LOG_STD_RANGE
         for name in ("initial", "final"):
             if not low <= getattr(self, name) <= high:
-                raise ValueError(f"log_std.{name} must be in [{low:g}, {high:g}], "
-                                 f"got {getattr(self, name)}")  # fmt: skip
+                raise ValueError(
+                    f"log_std.{name} must be in [{low:g}, {high:g}], got {getattr(self, name)}"
+                )
         if self.mode not in get_args(LogStdMode):
-            raise ValueError(f"log_std.mode must be one of {get_args(LogStdMode)}, got {self.mode!r}")
+            raise ValueError(
+                f"log_std.mode must be one of {get_args(LogStdMode)}, got {self.mode!r}"
+            )
         if self.horizon < 0:
             raise ValueError(f"log_std.horizon must be >= 0, got {self.horizon}")
         if not math.isfinite(self.decay) or self.decay > 0.0:
@@ -166,14 +169,26 @@ class ModelConfig:
         if self.init not in get_args(Initialization):
             raise ValueError(f"init must be one of {get_args(Initialization)}, got {self.init!r}")
         if self.scene_input not in get_args(SceneInput):
-            raise ValueError(f"scene_input must be one of {get_args(SceneInput)}, "
-                             f"got {self.scene_input!r}")  # fmt: skip
-        for name in ("num_tokens", "token_dim", "env_code_dim", "base_memory", "num_modules",
-                     "hyper_rank", "routing_dim", "action_dim", "num_values"):  # fmt: skip
+            raise ValueError(
+                f"scene_input must be one of {get_args(SceneInput)}, got {self.scene_input!r}"
+            )
+        for name in (
+            "num_tokens",
+            "token_dim",
+            "env_code_dim",
+            "base_memory",
+            "num_modules",
+            "hyper_rank",
+            "routing_dim",
+            "action_dim",
+            "num_values",
+        ):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        for dim, heads in ((self.object_attention_dim, self.object_heads),
-                           (self.scene_attention_dim, self.scene_heads)):  # fmt: skip
+        for dim, heads in (
+            (self.object_attention_dim, self.object_heads),
+            (self.scene_attention_dim, self.scene_heads),
+        ):
             if heads < 1 or dim < 1 or dim % heads:
                 raise ValueError(f"attention dim {dim} is not a positive multiple of {heads} heads")
         for name in (

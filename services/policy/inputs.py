@@ -47,10 +47,12 @@ def robot_observation(observation, device="cpu") -> RobotObservation:
         "object_velocity",
         "physics_params",
     )
-    return RobotObservation(**{
-        name: torch.as_tensor(getattr(observation, name), dtype=torch.float32, device=device)
-        for name in fields
-    })  # fmt: skip
+    return RobotObservation(
+        **{
+            name: torch.as_tensor(getattr(observation, name), dtype=torch.float32, device=device)
+            for name in fields
+        }
+    )
 
 
 def initial_carry(policy: Policy, batch: int) -> Carry:
@@ -71,8 +73,9 @@ def begin_step(carry: Carry, episode_ids: Tensor, episode_step: Tensor) -> Carry
         episode_step: (B,) policy steps since each episode started (0 at its first).
     """
     if len(episode_ids) != len(carry.episode_ids):
-        raise ValueError(f"carry of {len(carry.episode_ids)} environments, "
-                         f"step of {len(episode_ids)}")  # fmt: skip
+        raise ValueError(
+            f"carry of {len(carry.episode_ids)} environments, step of {len(episode_ids)}"
+        )
     keep = ((episode_step != 0) & (episode_ids == carry.episode_ids)).unsqueeze(1)  # (B, 1)
     memory = None if carry.memory is None else carry.memory * keep
     return Carry(episode_ids, carry.previous_action * keep, memory)
@@ -116,9 +119,12 @@ def policy_inputs(
     """
     if not config.privileged and pose_noise is not None and robot.object_pose is not None:
         robot = RobotObservation(
-            robot.q, robot.dq, robot.ee_pos_rot6d, robot.goal_pose,
+            robot.q,
+            robot.dq,
+            robot.ee_pos_rot6d,
+            robot.goal_pose,
             estimated_pose(robot.object_pose, pose_noise, generator),
-        )  # fmt: skip
+        )
     b = len(robot.q)
     code = None
     if config.scene_input == "env_code":

@@ -70,9 +70,14 @@ class CrossAttention(nn.Module):
     """
 
     def __init__(
-        self, query_dim: int, token_dim: int, dim: int, heads: int, out_dims: Sequence[int],
+        self,
+        query_dim: int,
+        token_dim: int,
+        dim: int,
+        heads: int,
+        out_dims: Sequence[int],
         embed_tokens: bool,
-    ) -> None:  # fmt: skip
+    ) -> None:
         super().__init__()
         self.heads, self.head_dim = heads, dim // heads
         self.query = (
@@ -173,7 +178,9 @@ class ModularLinear(nn.Module):
         super().__init__()
         self.in_dim, self.out_dim, self.num_modules = in_dim, out_dim, num_modules
         bound = 1.0 / math.sqrt(in_dim)  # nn.Linear's initialisation, module by module
-        self.weight = nn.Parameter(torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound))
+        self.weight = nn.Parameter(
+            torch.empty(num_modules, in_dim, out_dim).uniform_(-bound, bound)
+        )
         self.bias = nn.Parameter(torch.empty(num_modules, out_dim).uniform_(-bound, bound))
 
     def forward(

@@ -79,8 +79,14 @@ class ContextEncoder(nn.Module):
         spec = config.observation
         self.tokens = config.scene_input == "tokens"
         if self.tokens:
-            args = (spec.width("scene_query"), config.token_dim, config.scene_attention_dim,
-                    config.scene_heads, config.attention_out, True)  # fmt: skip
+            args = (
+                spec.width("scene_query"),
+                config.token_dim,
+                config.scene_attention_dim,
+                config.scene_heads,
+                config.attention_out,
+                True,
+            )
             self.local_attention = CrossAttention(*args)
             self.global_attention = CrossAttention(*args)
             scene = 2 * self.local_attention.width
@@ -109,9 +115,13 @@ class ObjectEncoder(nn.Module):
         super().__init__()
         spec = config.observation
         self.attention = CrossAttention(
-            spec.width("object_query"), config.token_dim, config.object_attention_dim,
-            config.object_heads, config.attention_out, False,
-        )  # fmt: skip
+            spec.width("object_query"),
+            config.token_dim,
+            config.object_attention_dim,
+            config.object_heads,
+            config.attention_out,
+            False,
+        )
         self.width = self.attention.width + spec.width("base")
 
     def forward(self, inputs: PolicyInputs) -> Tensor:
@@ -199,7 +209,7 @@ class HAMNet(nn.Module):
     def value_features(self, inputs: PolicyInputs) -> tuple[Tensor, Tensor]:
         """What the critic reads, (x (B, E + S [+ H]), z (B, Z)): everything before it, so
         PPO's critic-only steps, once the actor and the layers it shares are frozen, compute
-        them once per update instead of once per step (`hamnet.trainer.ppo`)."""
+        them once per update instead of once per step (`hamnet.trainer.algorithms.ppo`)."""
         x, z, _ = self._features(inputs)
         return x, z
 

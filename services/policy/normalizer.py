@@ -42,9 +42,10 @@ class InputNormalizer(nn.Module):
         """The observation standardised and clipped, group by group ((B, width) each); zeros
         before any statistics."""
         if not self.count:
-            return dataclasses.replace(observation, **{
-                group: torch.zeros_like(getattr(observation, group)) for group in GROUPS
-            })  # fmt: skip
+            return dataclasses.replace(
+                observation,
+                **{group: torch.zeros_like(getattr(observation, group)) for group in GROUPS},
+            )
         changes = {}
         for group in GROUPS:
             mean, var = getattr(self, f"{group}_mean"), getattr(self, f"{group}_var")

@@ -18,7 +18,7 @@ import torch
 from torch import Tensor
 
 from hamnet.fr3.limits import ACTION_DIM, NUM_JOINTS
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 
 POSE_WIDTH = 9
 """Translation (3) + 6D rotation (6)."""
@@ -42,8 +42,13 @@ class ObservationSpec:
     """Width of the sim's physics parameters (teacher only)."""
 
     context: tuple[str, ...] = (
-        "physics_params", "object_state", "goal", "previous_action", "hand_state", "robot_state"
-    )  # fmt: skip
+        "physics_params",
+        "object_state",
+        "goal",
+        "previous_action",
+        "hand_state",
+        "robot_state",
+    )
     """Non-geometric inputs of the modulation network, in the authors' key_ctx order
     (rss_train.yaml:280-289, after the three clouds); pieces a student lacks are skipped."""
     base: tuple[str, ...] = ("object_state", "goal", "previous_action", "hand_state", "robot_state")
@@ -140,24 +145,33 @@ def rotation_matrix(quat: Tensor) -> Tensor:
     w, x, y, z = torch.unbind(quat / quat.norm(dim=-1, keepdim=True), dim=-1)
     return torch.stack(
         (
-            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - w * z),
+            2 * (x * z + w * y),
+            2 * (x * y + w * z),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - w * x),
+            2 * (x * z - w * y),
+            2 * (y * z + w * x),
+            1 - 2 * (x * x + y * y),
         ),
         dim=-1,
-    ).reshape(*quat.shape[:-1], 3, 3)  # fmt: skip
+    ).reshape(*quat.shape[:-1], 3, 3)
 
 
 def quaternion_multiply(a: Tensor, b: Tensor) -> Tensor:
     """(..., 4) wxyz Hamilton product a * b (rotate by b, then by a)."""
     aw, ax, ay, az = torch.unbind(a, dim=-1)
     bw, bx, by, bz = torch.unbind(b, dim=-1)
-    return torch.stack((
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ), dim=-1)  # fmt: skip
+    return torch.stack(
+        (
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ),
+        dim=-1,
+    )
 
 
 def six_d(rotation: Tensor) -> Tensor:
@@ -204,8 +218,10 @@ def _pieces(robot: RobotObservation, previous_action: Tensor, spec: ObservationS
     }
     if spec.privileged:
         if robot.object_velocity is None or robot.physics_params is None:
-            raise ValueError("a teacher observation needs the privileged block (object "
-                             "velocity, physics parameters)")  # fmt: skip
+            raise ValueError(
+                "a teacher observation needs the privileged block (object "
+                "velocity, physics parameters)"
+            )
         pieces["object_state"] = torch.cat((pieces["object_state"], robot.object_velocity), -1)
         pieces["physics_params"] = robot.physics_params  # (B, P)
     for name, width in spec.pieces.items():

@@ -104,7 +104,7 @@ class Policy(nn.Module):
     def critic_parameters(self) -> list[nn.Parameter]:
         """Parameters only the value loss reaches (the network's `critic`, and HAMnet's
         `critic_heads`): the optimizer may step them at their own rate and clip their
-        gradient on its own (`hamnet.trainer.ppo`)."""
+        gradient on its own (`hamnet.trainer.algorithms.ppo`)."""
         heads = getattr(self.network, "critic_heads", None)
         own = list(heads.parameters()) if heads is not None else []
         return list(self.network.critic.parameters()) + own

@@ -44,24 +44,55 @@ def register(name: str, network: type[nn.Module], summary: str, paper: str, **pr
     ARCHITECTURES[name] = Architecture(network, ModelConfig(**preset), summary, paper)
 
 
-register("hamnet", HAMNet, "UniCORN-HAMnet teacher (modules + gates)",
-         "about 1.76 M: Table tab:mlp-scale sizes the MLP to match it")  # fmt: skip
-register("hamnet-paper", HAMNet, "HAMnet as the paper's text sizes it: cross-attention "
-         "width 64 (Table tab:network), one softmax and gate per layer", "not reported",
-         object_attention_dim=64, scene_attention_dim=64, attention_out=(64,),
-         bias_weights=False)  # fmt: skip
+register(
+    "hamnet",
+    HAMNet,
+    "UniCORN-HAMnet teacher (modules + gates)",
+    "about 1.76 M: Table tab:mlp-scale sizes the MLP to match it",
+)
+register(
+    "hamnet-paper",
+    HAMNet,
+    "HAMnet as the paper's text sizes it: cross-attention "
+    "width 64 (Table tab:network), one softmax and gate per layer",
+    "not reported",
+    object_attention_dim=64,
+    scene_attention_dim=64,
+    attention_out=(64,),
+    bias_weights=False,
+)
 register("hamnet-nogate", HAMNet, "HAMnet without gates (ablation)", "not reported", gates=False)
-register("hamnet-envcode", HAMNet, "EnvCode-HAMnet: oracle scene code instead of scene tokens",
-         "not reported", scene_input="env_code")  # fmt: skip
-register("mlp", MonolithicMLP, "UniCORN-MONO: MLP (847, 424, 424, 212), the paper's "
-         "(768, 384, 384, 192) scaled to HAMnet's parameter count",
-         "1.76 M (Table tab:mlp-scale), matched to HAMnet")  # fmt: skip
+register(
+    "hamnet-envcode",
+    HAMNet,
+    "EnvCode-HAMnet: oracle scene code instead of scene tokens",
+    "not reported",
+    scene_input="env_code",
+)
+register(
+    "mlp",
+    MonolithicMLP,
+    "UniCORN-MONO: MLP (847, 424, 424, 212), the paper's "
+    "(768, 384, 384, 192) scaled to HAMnet's parameter count",
+    "1.76 M (Table tab:mlp-scale), matched to HAMnet",
+)
 register("hyper", HyperNetwork, "UniCORN-HYPER: low-rank hypernetwork (rank 16)", "not reported")
 register("sm", SoftModularization, "UniCORN-SM: soft modularization", "not reported")
-register("state-mlp", StateMLP, "plain PPO baseline: MLP (256, 256) on the privileged state, "
-         "no clouds", "not in the paper", clouds=False)  # fmt: skip
-register("student", HAMNet, "student: HAMnet with GRUs, real-robot inputs only",
-         "not reported", privileged=False, recurrent=True)  # fmt: skip
+register(
+    "state-mlp",
+    StateMLP,
+    "plain PPO baseline: MLP (256, 256) on the privileged state, no clouds",
+    "not in the paper",
+    clouds=False,
+)
+register(
+    "student",
+    HAMNet,
+    "student: HAMnet with GRUs, real-robot inputs only",
+    "not reported",
+    privileged=False,
+    recurrent=True,
+)
 
 
 def architecture(name: str) -> Architecture:

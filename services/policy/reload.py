@@ -47,8 +47,12 @@ class HotReload:
         try:
             self._load_spare(message)
         except WeightsError as error:
-            log.error("rejected weights version %d: %s; still serving version %d", version,
-                      error, self.version)  # fmt: skip
+            log.error(
+                "rejected weights version %d: %s; still serving version %d",
+                version,
+                error,
+                self.version,
+            )
             return False
         self.policy, self.spare, self.version = self.spare, self.policy, version
         if self.env_transitions is not None:

@@ -18,11 +18,11 @@ from collections.abc import Callable
 import numpy as np
 
 from hamnet.messages.transition import TransitionIn
+from hamnet.policy.chunk_codec import encode_rollout
 from hamnet.policy.chunking import Chunk, ChunkAssembler
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.policy import Action
 from hamnet.proto.trainer_pb2 import RolloutChunk
-from hamnet.trainer.chunks import encode_rollout
 
 
 class RolloutFeed:
@@ -53,13 +53,25 @@ class RolloutFeed:
         if self.trainer_heard and not self.learner_subscribed():
             self.unlearned += 1
         elif self.trainer_heard:
-            self._send(self.assembler.add_step(
-                step, episode_ids, inputs, action.action, action.log_prob, action.values, version))  # fmt: skip
+            self._send(
+                self.assembler.add_step(
+                    step,
+                    episode_ids,
+                    inputs,
+                    action.action,
+                    action.log_prob,
+                    action.values,
+                    version,
+                )
+            )
 
     def transition(self, t: TransitionIn) -> None:
         """Send the chunks completed by the sim's transition `t`."""
-        self._send(self.assembler.add_transition(
-            t.step, t.episode_ids, t.reward_terms, t.terminated, t.truncated, t.success))  # fmt: skip
+        self._send(
+            self.assembler.add_transition(
+                t.step, t.episode_ids, t.reward_terms, t.terminated, t.truncated, t.success
+            )
+        )
 
     def restart(self) -> None:
         """The sim restarted: drop the partial chunk."""

@@ -6,11 +6,14 @@ environments; produces the network inputs it acted on and the `Action`. What is 
 between steps (previous action, memory resets, EnvCode cache) is the one input builder's
 (`hamnet.policy.inputs`), so the service and an in-process trainer see the same inputs. A
 student's object pose gets the pose estimator's error model unless `pose_noise` is None.
+The service's options (`PolicyLoopConfig`: sampling, device, pairing, rollouts) are here too.
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -22,8 +25,35 @@ from hamnet.policy.messages import robot_observation
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import PoseNoiseConfig, RobotObservation
 from hamnet.policy.policy import Action, Policy
+from hamnet.runtime.cli import Flattened
+from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PolicyLoopConfig:
+    """Inference options of the shell."""
+
+    deterministic: bool = False
+    """Serve the distribution's mean (evaluation) instead of samples (rollouts)."""
+    compute: Annotated[ComputeConfig, Flattened] = field(default_factory=ComputeConfig)
+    pending: int = 8
+    """Steps that may wait for their other half (state or tokens) before the oldest is
+    dropped."""
+    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
+    student_pose_noise: bool = True
+    """Add the pose estimator's error model (`PoseNoiseConfig`) to a student's object pose:
+    on against the sim, off where the pose already comes from an estimator."""
+    rollout_horizon: int = 0
+    """T > 0: also publish RolloutChunks of T steps for `hamnet trainer` (what was served,
+    joined with the sim's transitions); 0: off."""
+
+    def __post_init__(self) -> None:
+        if self.pending < 1:
+            raise ValueError(f"pending must be >= 1, got {self.pending}")
+        if self.rollout_horizon < 0:
+            raise ValueError(f"rollout_horizon must be >= 0, got {self.rollout_horizon}")
 
 
 class Serving:
@@ -68,10 +98,12 @@ class Serving:
         """The network inputs of a pair, on the device (the builder zeroes the carry of
         environments whose episode started)."""
         observed = robot_observation(state, policy.config.privileged)
-        robot = RobotObservation(**{
-            name: None if value is None else value.to(self.device)
-            for name, value in vars(observed).items()
-        })  # fmt: skip
+        robot = RobotObservation(
+            **{
+                name: None if value is None else value.to(self.device)
+                for name, value in vars(observed).items()
+            }
+        )
         b, config = len(state.episode_ids), policy.config
         if self.carry is None or len(self.carry.episode_ids) != b:
             self.carry = builder.initial_carry(policy, b)
@@ -79,10 +111,18 @@ class Serving:
         steps = torch.from_numpy(state.episode_step).to(self.device)
         self.carry = builder.begin_step(self.carry, ids, steps)
         if config.scene_input == "env_code" and len(self.env_code) < b:
-            log.warning("no scene yet for environments %d..%d: their EnvCode is zero",
-                        len(self.env_code), b - 1)  # fmt: skip
+            log.warning(
+                "no scene yet for environments %d..%d: their EnvCode is zero",
+                len(self.env_code),
+                b - 1,
+            )
             self.scene(np.arange(b), np.zeros((b, self.env_code.shape[1]), np.float32))
         return builder.policy_inputs(
-            config, self.carry, robot, tuple(torch.from_numpy(t).to(self.device) for t in tokens.tokens),
-            self.env_code, self.pose_noise, self.generator,
-        )  # fmt: skip
+            config,
+            self.carry,
+            robot,
+            tuple(torch.from_numpy(t).to(self.device) for t in tokens.tokens),
+            self.env_code,
+            self.pose_noise,
+            self.generator,
+        )

@@ -21,65 +21,37 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import Any
 
 from hamnet.messages.action import encode as encode_action
-from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.policy import messages as m
 from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.pairing import Pairing
 from hamnet.policy.policy import Policy
 from hamnet.policy.reload import HotReload
 from hamnet.policy.rollouts import RolloutFeed
-from hamnet.policy.serving import Serving
-from hamnet.proto.perception_pb2 import PerceptionTokens
+from hamnet.policy.serving import PolicyLoopConfig, Serving
 from hamnet.proto.policy_pb2 import PolicyAction
-from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
-from hamnet.proto.trainer_pb2 import Schedule, WeightsAnnouncement
-from hamnet.runtime.cli import Flattened
-from hamnet.runtime.codec import parse
 from hamnet.runtime.compute import torch_device
-from hamnet.runtime.freshness import Verdict, Watermark
+from hamnet.runtime.freshness import Answered, Verdict
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
-from hamnet.runtime.shell_config import ComputeConfig, ReportConfig
 
 log = logging.getLogger(__name__)
 
 PORTS = Ports(
-    inputs={"state": "sim/<w>/state", "tokens": "perception/<w>/tokens", "scene": "sim/<w>/scene",
-            "weights": "trainer/weights", "schedule": "trainer/schedule",
-            "transition": "sim/<w>/transition"},
+    inputs={
+        "state": "sim/<w>/state",
+        "tokens": "perception/<w>/tokens",
+        "scene": "sim/<w>/scene",
+        "weights": "trainer/weights",
+        "schedule": "trainer/schedule",
+        "transition": "sim/<w>/transition",
+    },
     outputs={"action": "policy/<w>/action", "rollout": "trainer/<w>/rollout"},
-)  # fmt: skip
+)
 """What the policy reads and writes (`hamnet.runtime.ports`)."""
-
-
-@dataclass(frozen=True)
-class PolicyLoopConfig:
-    """Inference options of the shell."""
-
-    deterministic: bool = False
-    """Serve the distribution's mean (evaluation) instead of samples (rollouts)."""
-    compute: Annotated[ComputeConfig, Flattened] = field(default_factory=ComputeConfig)
-    pending: int = 8
-    """Steps that may wait for their other half (state or tokens) before the oldest is
-    dropped."""
-    report: Annotated[ReportConfig, Flattened] = field(default_factory=ReportConfig)
-    student_pose_noise: bool = True
-    """Add the pose estimator's error model (`PoseNoiseConfig`) to a student's object pose:
-    on against the sim, off where the pose already comes from an estimator."""
-    rollout_horizon: int = 0
-    """T > 0: also publish RolloutChunks of T steps for `hamnet trainer` (what was served,
-    joined with the sim's transitions); 0: off."""
-
-    def __post_init__(self) -> None:
-        if self.pending < 1:
-            raise ValueError(f"pending must be >= 1, got {self.pending}")
-        if self.rollout_horizon < 0:
-            raise ValueError(f"rollout_horizon must be >= 0, got {self.rollout_horizon}")
 
 
 class PolicyShell:
@@ -95,33 +67,22 @@ class PolicyShell:
         self.weights = HotReload(policy, version, self.device)
         model = policy.config
         self.port = port = service.ports(PORTS)
-        inbox = service.inbox
-        inbox.subscribe("state", port["state"], decoder=lambda k, p: m.decode_state(
-            parse(RobotState, p), model.privileged, model.observation.physics_params))  # fmt: skip
-        inbox.subscribe("tokens", port["tokens"], decoder=lambda k, p: m.decode_tokens(
-            parse(PerceptionTokens, p), model.num_tokens, model.token_dim))  # fmt: skip
-        inbox.subscribe("scene", port["scene"],
-                        decoder=lambda k, p: m.decode_scene(parse(Scene, p), model.env_code_dim))  # fmt: skip
-        inbox.subscribe("weights", port["weights"],
-                        decoder=lambda k, p: parse(WeightsAnnouncement, p))  # fmt: skip
-        inbox.subscribe("schedule", port["schedule"],
-                        decoder=lambda k, p: decode_schedule(parse(Schedule, p)))  # fmt: skip
+        for name, decoder in m.decoders(model, self.config.rollout_horizon > 0).items():
+            service.inbox.subscribe(name, port[name], decoder=decoder)
         self.action = service.publisher(port["action"])
         self.rollouts: RolloutFeed | None = None
         """Rollout chunks of what was served (None: `rollout_horizon` 0)."""
         if self.config.rollout_horizon:
-            inbox.subscribe("transition", port["transition"],
-                            decoder=lambda k, p: m.decode_transition(parse(Transition, p)))  # fmt: skip
             rollout = service.publisher(port["rollout"])
-            self.rollouts = RolloutFeed(self.config.rollout_horizon, rollout.put,
-                                        lambda: rollout.matching)  # fmt: skip
+            self.rollouts = RolloutFeed(
+                self.config.rollout_horizon, rollout.put, lambda: rollout.matching
+            )
         self.pairing: Pairing[m.StateIn, m.TokensIn] = Pairing(self.config.pending)
         pose_noise = PoseNoiseConfig() if self.config.student_pose_noise else None
         self.serving = Serving(model.env_code_dim, self.device, compute.seed, pose_noise)
-        self.watermark = Watermark()
-        """The sim's run followed and the last step answered in it."""
-        self.answered: PolicyAction | None = None
-        """The answer to the watermark's step, sent again when the sim repeats that state."""
+        self.answered: Answered[PolicyAction] = Answered()
+        """The sim's run followed, the last step answered in it and its action, sent again
+        when the sim repeats that state."""
         self.report = LoopReport(self.config.report.report_period_s, self._line, logger=log)
         self.counts = self.report.counts
         """What happened since the last rate line."""
@@ -143,8 +104,13 @@ class PolicyShell:
 
     def run(self) -> int:
         """Serve until stopped; returns the exit status."""
-        log.info("serving %s version %d on %s (%s)", self.policy.architecture, self.version,
-                 self.device, "deterministic" if self.config.deterministic else "sampling")  # fmt: skip
+        log.info(
+            "serving %s version %d on %s (%s)",
+            self.policy.architecture,
+            self.version,
+            self.device,
+            "deterministic" if self.config.deterministic else "sampling",
+        )
         while self.service.running:
             received = self.service.receive(timeout=0.1)
             if received is not None:
@@ -168,7 +134,7 @@ class PolicyShell:
             self._on_state(value)
         elif name == "transition":
             self.rollouts.transition(value)
-        elif self._acts_on(self.watermark.judge_step(value.step)):
+        elif self._acts_on(self.answered.watermark.judge_step(value.step)):
             self._serve(self.pairing.add_tokens(value.step, value))
 
     def _acts_on(self, verdict: Verdict) -> bool:
@@ -179,11 +145,11 @@ class PolicyShell:
         return verdict is Verdict.FRESH
 
     def _on_state(self, state: m.StateIn) -> None:
-        verdict = self.watermark.judge(state.run, state.step)
+        verdict = self.answered.follow(state.run, state.step)
         if verdict is Verdict.RESTART:
             self._restart(state)
-        elif verdict is Verdict.REPEAT and self.answered is not None:
-            self.action.put(self.answered)  # the sim sent it again: the same answer
+        elif verdict is Verdict.REPEAT:
+            self.action.put(self.answered.message)  # the sim sent it again: the same answer
             self.counts["resent"] += 1
             return
         elif not self._acts_on(verdict):
@@ -191,14 +157,12 @@ class PolicyShell:
         self._serve(self.pairing.add_state(state.step, state))
 
     def _restart(self, state: m.StateIn) -> None:
-        """Follow the run of `state`: drop what belongs to the sim's previous run."""
-        if not self.watermark.restart(state.run):
-            return  # the first state: tokens that came before it are this run's
+        """The sim restarted (the first state is no restart: tokens that came before it are
+        its run's): drop what belongs to the sim's previous run."""
         log.warning("the sim restarted (another run): following it from step %d", state.step)
         self.counts["restarts"] += 1
         self.pairing.clear("restart")
         self.serving.restart()
-        self.answered = None
         if self.rollouts is not None:
             self.rollouts.restart()
 
@@ -212,11 +176,11 @@ class PolicyShell:
             self.counts["mismatch"] += 1
             return
         inputs, action = acted
-        message = encode_action(state.step, self.version, state.episode_ids, action,
-                                self.config.deterministic)  # fmt: skip
+        message = encode_action(
+            state.step, self.version, state.episode_ids, action, self.config.deterministic
+        )
         self.action.put(message)
-        self.watermark.advance(state.step)
-        self.answered = message
+        self.answered.answer(state.step, message)
         self.counts["actions"] += 1
         self.report.sample("inference_s", time.monotonic() - started)
         if self.rollouts is not None:
@@ -224,15 +188,19 @@ class PolicyShell:
 
     def _line(self, w: Window) -> str:
         drops = self.pairing.dropped
-        line = (f"{w.rate('actions'):.1f} actions/s, inference median "
-                f"{w.median_ms('inference_s'):.1f} ms, version {self.version}, "
-                f"{w.count('resent')} resent, {w.count('stale')} stale, "
-                f"{w.count('implausible')} implausible, {w.count('restarts')} sim restarts, "
-                f"{w.count('mismatch')} mismatched, {w.count('rejected')} rejected weights, "
-                f"unpaired halves dropped: {drops['superseded']} superseded, "
-                f"{drops['overflow']} overflow")  # fmt: skip
+        line = (
+            f"{w.rate('actions'):.1f} actions/s, inference median "
+            f"{w.median_ms('inference_s'):.1f} ms, version {self.version}, "
+            f"{w.count('resent')} resent, {w.count('stale')} stale, "
+            f"{w.count('implausible')} implausible, {w.count('restarts')} sim restarts, "
+            f"{w.count('mismatch')} mismatched, {w.count('rejected')} rejected weights, "
+            f"unpaired halves dropped: {drops['superseded']} superseded, "
+            f"{drops['overflow']} overflow"
+        )
         if self.rollouts is not None:
-            line += (f"; {self.rollouts.sent} rollout chunks sent, {self.rollouts.unlearned} "
-                     f"steps served while no learner subscribed; partial chunks dropped: "
-                     f"{self.rollouts.assembler.dropped}")  # fmt: skip
+            line += (
+                f"; {self.rollouts.sent} rollout chunks sent, {self.rollouts.unlearned} "
+                f"steps served while no learner subscribed; partial chunks dropped: "
+                f"{self.rollouts.assembler.dropped}"
+            )
         return line

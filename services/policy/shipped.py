@@ -84,8 +84,10 @@ def read_shipped(name: str) -> Weights:
             f"shipped policy {name!r}: weights of {weights.architecture!r}, its card says {card.get('architecture')!r}"
         )
     if weights.config.clouds and card.get("encoder_sha256") != encoder_sha256():
-        raise WeightsError(f"shipped policy {name!r} learned on the tokens of another UniCORN encoder than "
-                           f"the package's ({SHIPPED_ENCODER.name}): retrain or ship it again")  # fmt: skip
+        raise WeightsError(
+            f"shipped policy {name!r} learned on the tokens of another UniCORN encoder than "
+            f"the package's ({SHIPPED_ENCODER.name}): retrain or ship it again"
+        )
     return weights
 
 
@@ -97,5 +99,7 @@ def read_weights(value: str | Path) -> Weights:
         return read_checkpoint(path)
     if str(value) in shipped_names():
         return read_shipped(str(value))
-    raise WeightsError(f"no checkpoint {value} (a file), nor a shipped policy of that name; "
-                       f"shipped: {', '.join(shipped_names()) or 'none'}")  # fmt: skip
+    raise WeightsError(
+        f"no checkpoint {value} (a file), nor a shipped policy of that name; "
+        f"shipped: {', '.join(shipped_names()) or 'none'}"
+    )

@@ -63,8 +63,10 @@ def to_bytes(policy: Policy, version: int, half: bool = False) -> bytes:
         "version": str(int(version)),
     }
     if half:
-        tensors = {k: v.half() if k.startswith(f"{HALF}.") and v.is_floating_point() else v
-                   for k, v in tensors.items()}  # fmt: skip
+        tensors = {
+            k: v.half() if k.startswith(f"{HALF}.") and v.is_floating_point() else v
+            for k, v in tensors.items()
+        }
         metadata["half"] = HALF
     return save_tensors(tensors, metadata=metadata)
 
@@ -85,8 +87,10 @@ def _metadata(data: bytes) -> dict[str, str]:
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise WeightsError(f"not safetensors: bad header ({error})") from None
     if not isinstance(header, dict) or not isinstance(header.get("__metadata__"), dict):
-        raise WeightsError("safetensors without metadata: architecture, config and version "
-                           "are needed to rebuild the network")  # fmt: skip
+        raise WeightsError(
+            "safetensors without metadata: architecture, config and version "
+            "are needed to rebuild the network"
+        )
     return header["__metadata__"]
 
 
@@ -112,8 +116,10 @@ def from_bytes(data: bytes) -> Weights:
     except SafetensorError as error:
         raise WeightsError(f"not safetensors: {error}") from None
     if meta.get("half") == HALF:  # float16 where the metadata says so, float32 to serve
-        tensors = {k: v.float() if k.startswith(f"{HALF}.") and v.dtype == torch.float16 else v
-                   for k, v in tensors.items()}  # fmt: skip
+        tensors = {
+            k: v.float() if k.startswith(f"{HALF}.") and v.dtype == torch.float16 else v
+            for k, v in tensors.items()
+        }
     return Weights(architecture, config, version, tensors)
 
 
@@ -124,8 +130,10 @@ def from_announcement(message: WeightsAnnouncement) -> Weights:
         raise WeightsError("sha256 does not match the safetensors bytes")
     weights = from_bytes(message.safetensors)
     if (weights.architecture, weights.version) != (message.architecture, message.version):
-        raise WeightsError(f"metadata says {weights.architecture!r} version {weights.version}, "
-                           f"the announcement {message.architecture!r} version {message.version}")  # fmt: skip
+        raise WeightsError(
+            f"metadata says {weights.architecture!r} version {weights.version}, "
+            f"the announcement {message.architecture!r} version {message.version}"
+        )
     return weights
 
 
@@ -145,8 +153,10 @@ def check_fits(policy: Policy, weights: Weights) -> None:
     for name, tensor in weights.tensors.items():
         want = expected[name]
         if tensor.shape != want.shape or tensor.dtype != want.dtype:
-            raise WeightsError(f"{name}: {tuple(tensor.shape)} {tensor.dtype}, "
-                               f"expected {tuple(want.shape)} {want.dtype}")  # fmt: skip
+            raise WeightsError(
+                f"{name}: {tuple(tensor.shape)} {tensor.dtype}, "
+                f"expected {tuple(want.shape)} {want.dtype}"
+            )
         if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
             raise WeightsError(f"{name}: NaN or Inf")
 
@@ -180,8 +190,9 @@ def _described(weights: Weights) -> Policy:
     expected = sum(t.numel() for t in described.state_dict().values())
     held = sum(t.numel() for t in weights.tensors.values())
     if expected != held:
-        raise WeightsError(f"the model config describes {expected:,} parameters, "
-                           f"the file holds {held:,}")  # fmt: skip
+        raise WeightsError(
+            f"the model config describes {expected:,} parameters, the file holds {held:,}"
+        )
     return described
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import torch
 
-from hamnet.perception.clouds import quaternion_matrix
+from hamnet.perception.cloud_ops import quaternion_matrix
 from hamnet.perception.config import EncoderConfig
 from hamnet.pretrain.config import AugmentConfig
 from hamnet.pretrain.encoders import patch_members

@@ -39,7 +39,7 @@ def _generate(argv: Sequence[str]) -> int:
 
 def _train(argv: Sequence[str]) -> int:
     from hamnet.pretrain.train import train
-    from hamnet.trainer.summary import commit
+    from hamnet.runtime.runs import commit
 
     config = parse(TrainConfig, argv, "hamnet pretrain train", __doc__)
     state = train(config, commit())

@@ -145,8 +145,10 @@ class OptimConfig:
 
     def __post_init__(self) -> None:
         _check(0 < self.min_lr <= self.lr, "need 0 < min_lr <= lr")
-        _check(self.weight_decay >= 0 and self.max_grad_norm > 0 and self.sam_rho >= 0,
-               "need weight_decay >= 0, max_grad_norm > 0, sam_rho >= 0")  # fmt: skip
+        _check(
+            self.weight_decay >= 0 and self.max_grad_norm > 0 and self.sam_rho >= 0,
+            "need weight_decay >= 0, max_grad_norm > 0, sam_rho >= 0",
+        )
 
 
 @dataclass(frozen=True)

@@ -42,8 +42,12 @@ class ConvexPart:
     def posed(self, rotation: np.ndarray, translation: np.ndarray) -> ConvexPart:
         """The part rotated by (3, 3) `rotation` about the origin, then moved by (3,) m."""
         normals = self.normals @ rotation.T  # (F, 3)
-        return ConvexPart(normals, self.offsets + normals @ translation,
-                          rotation @ self.centre + translation, self.radius)  # fmt: skip
+        return ConvexPart(
+            normals,
+            self.offsets + normals @ translation,
+            rotation @ self.centre + translation,
+            self.radius,
+        )
 
 
 def convex_part(mesh: Mesh) -> ConvexPart:
@@ -70,10 +74,12 @@ def _solve(cost: np.ndarray, a: ConvexPart, b: ConvexPart, direction: np.ndarray
     if direction is None:
         matrix = np.r_[a.normals, b.normals]
     else:
-        matrix = np.block([
-            [a.normals, np.zeros((len(a.normals), 1))],
-            [b.normals, -(b.normals @ direction)[:, None]],
-        ])  # fmt: skip
+        matrix = np.block(
+            [
+                [a.normals, np.zeros((len(a.normals), 1))],
+                [b.normals, -(b.normals @ direction)[:, None]],
+            ]
+        )
     bounds = [(None, None)] * matrix.shape[1]
     return linprog(
         cost, A_ub=matrix, b_ub=np.r_[a.offsets, b.offsets], bounds=bounds, method="highs"

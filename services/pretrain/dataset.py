@@ -105,8 +105,10 @@ def generate(config: GenerateConfig) -> dict:
     if manifest_path.is_file():
         previous = json.loads(manifest_path.read_text())
         if {k: previous.get(k) for k in identity} != identity:
-            raise ConfigError(f"{folder} holds a dataset drawn with another seed, chunk size or "
-                              "pair configuration: give another --out")  # fmt: skip
+            raise ConfigError(
+                f"{folder} holds a dataset drawn with another seed, chunk size or "
+                "pair configuration: give another --out"
+            )
     manifest_path.write_text(
         json.dumps({**identity, "pairs": config.pairs, "complete": False}, indent=1)
     )
@@ -140,8 +142,11 @@ def summarise(folder: Path) -> dict:
     chunks = [read_chunk(p) for p in sorted(folder.glob("chunk-*.npz"))]
     colliding = np.concatenate([c["colliding"] for c in chunks])
     labels = np.concatenate([np.concatenate([c["labels_a"], c["labels_b"]]) for c in chunks])
-    return {"chunks": len(chunks), "colliding_share": float(colliding.mean()),
-            "positive_point_share": float(labels.mean())}  # fmt: skip
+    return {
+        "chunks": len(chunks),
+        "colliding_share": float(colliding.mean()),
+        "positive_point_share": float(labels.mean()),
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,8 +180,10 @@ def load_pairs(folder: Path, max_pairs: int = 0) -> PairArrays:
         )
     manifest = json.loads(manifest_path.read_text())
     if manifest.get("format") != FORMAT or not manifest.get("complete"):
-        raise ConfigError(f"{folder} is unfinished or of another format: run `hamnet pretrain generate` "
-                          "with the same flags to finish it")  # fmt: skip
+        raise ConfigError(
+            f"{folder} is unfinished or of another format: run `hamnet pretrain generate` "
+            "with the same flags to finish it"
+        )
     wanted = manifest["pairs"] if max_pairs <= 0 else min(max_pairs, manifest["pairs"])
     chunks = [
         read_chunk(chunk_path(folder, i)) for i in range(-(-wanted // manifest["chunk_size"]))

@@ -16,7 +16,7 @@ from collections.abc import Callable
 import torch
 from torch import nn
 
-from hamnet.perception.clouds import farthest_point_sample, gather, knn
+from hamnet.perception.cloud_ops import farthest_point_sample, gather, knn
 from hamnet.perception.config import EncoderConfig
 from hamnet.perception.unicorn import UniCORN
 from hamnet.pretrain.config import EncoderKind

@@ -25,7 +25,7 @@ from hamnet.pretrain.metrics import classification, roc_curve
 from hamnet.pretrain.model import ContactModel
 from hamnet.pretrain.state import load_run
 from hamnet.pretrain.train import METRICS, PairTensors
-from hamnet.trainer.plot import read_metrics
+from hamnet.runtime.runs import read_metrics
 
 
 @torch.no_grad()
@@ -50,13 +50,23 @@ def evaluate(config: EvalConfig) -> dict:
     for run in config.runs:
         model, state = load_run(run)
         scores, labels = predict(model, data, config.batch_size)
-        results[str(run)] = {"encoder": state["encoder"], "step": state["step"],
-                             "train_s": state["train_s"], **classification(scores, labels, config.threshold)}  # fmt: skip
+        results[str(run)] = {
+            "encoder": state["encoder"],
+            "step": state["step"],
+            "train_s": state["train_s"],
+            **classification(scores, labels, config.threshold),
+        }
         rows = read_metrics(Path(run)) if (Path(run) / METRICS).is_file() else []
         curves[str(run)] = (rows, roc_curve(scores, labels))
     first = results[str(config.runs[0])]
-    summary = {"heldout_auroc": first["auroc"], "heldout_accuracy": first["accuracy"],
-               "data": str(config.data), "pairs": len(data), "threshold": config.threshold, "runs": results}  # fmt: skip
+    summary = {
+        "heldout_auroc": first["auroc"],
+        "heldout_accuracy": first["accuracy"],
+        "data": str(config.data),
+        "pairs": len(data),
+        "threshold": config.threshold,
+        "runs": results,
+    }
     out = Path(config.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(_finite(summary), indent=1))

@@ -33,8 +33,10 @@ class Progress:
         rate = (self.done - self.start_done) / elapsed
         left = format_duration((self.total - self.done) / rate) if rate > 0 else "?"
         share = 100.0 * self.done / max(self.total, 1)
-        return (f"{self.what}: {self.done}/{self.total} {self.unit} ({share:.1f}%), "
-                f"{rate:.1f} {self.unit}/s, {left} left{extra}")  # fmt: skip
+        return (
+            f"{self.what}: {self.done}/{self.total} {self.unit} ({share:.1f}%), "
+            f"{rate:.1f} {self.unit}/s, {left} left{extra}"
+        )
 
     def advance(self, count: int, extra: str = "") -> None:
         """Add `count` done; log a line when a period has passed or all is done."""

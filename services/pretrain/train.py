@@ -68,8 +68,13 @@ def train_step(
     loss, grad_norm = sam_step(
         params, optimizer, closure, config.optim.sam_rho, config.optim.max_grad_norm
     )
-    return {"loss": float(loss), "accuracy": first[0].accuracy, "positive_share": first[0].positive_share,
-            "lr": lr, "grad_norm": grad_norm}  # fmt: skip
+    return {
+        "loss": float(loss),
+        "accuracy": first[0].accuracy,
+        "positive_share": first[0].positive_share,
+        "lr": lr,
+        "grad_norm": grad_norm,
+    }
 
 
 def new_optimizer(model: ContactModel, config: TrainConfig) -> torch.optim.Optimizer:
@@ -113,8 +118,17 @@ def train(config: TrainConfig, commit: str = "") -> dict:
     torch.manual_seed(config.seed)
     model = ContactModel(config.encoder, config.architecture, config.decoder)
     optimizer = new_optimizer(model, config)
-    counters = {"step": 0, "version": 0, "train_s": 0.0, "seed": config.seed, "data": str(config.data),
-                "pairs": len(data), "steps": config.steps, "batch_size": config.batch_size, "commit": commit}  # fmt: skip
+    counters = {
+        "step": 0,
+        "version": 0,
+        "train_s": 0.0,
+        "seed": config.seed,
+        "data": str(config.data),
+        "pairs": len(data),
+        "steps": config.steps,
+        "batch_size": config.batch_size,
+        "commit": commit,
+    }
     if config.resume:
         _, state = load_run(folder, model, optimizer)
         counters.update({k: state[k] for k in ("step", "version", "train_s")})

@@ -54,6 +54,7 @@ class RecordServiceConfig:
 CONFIG = RecordServiceConfig
 """The config `hamnet record` parses (the launcher validates stack files against it)."""
 
+
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet record` (or `hamnet record info`) with arguments `argv`; returns the exit
     status."""
@@ -73,16 +74,25 @@ def main(argv: Sequence[str]) -> int:
     try:
         writer = RecordingWriter(config.recorder, metadata, start_ns)
     except OSError as error:
-        log.error("cannot record to %s: %s", error.filename or config.recorder.output,
-                  error.strerror or error)  # fmt: skip
+        log.error(
+            "cannot record to %s: %s",
+            error.filename or config.recorder.output,
+            error.strerror or error,
+        )
         return EXIT_NO_RESTART
     if writer.output != writer.requested:
-        log.warning("%s exists: recording to %s (a recording never replaces a file)",
-                    writer.requested, writer.output)  # fmt: skip
+        log.warning(
+            "%s exists: recording to %s (a recording never replaces a file)",
+            writer.requested,
+            writer.output,
+        )
     try:
-        with Service(identity, config.common.transport, inbox_capacity=config.queue_size) as service:
-            shell = RecordShell(service, writer, config.key_exprs, config.duration_s,
-                                config.report_period_s)  # fmt: skip
+        with Service(
+            identity, config.common.transport, inbox_capacity=config.queue_size
+        ) as service:
+            shell = RecordShell(
+                service, writer, config.key_exprs, config.duration_s, config.report_period_s
+            )
             return shell.run()
     finally:
         writer.abandon()  # only when the service failed to start: run() ends the file

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from hamnet.recorder.reading import FileContents, read_recording
+from hamnet.runtime.recordings import FileContents, read_recording
 
 
 @dataclass(frozen=True)
@@ -93,10 +93,16 @@ def summarise(paths: Sequence[Path]) -> RecordingInfo:
         entry[4] = max(entry[4], message.log_time_ns)
     topics = tuple(TopicInfo(key, *entry) for key, entry in sorted(tally.items()))
     files = tuple(
-        FileInfo(str(c.path), c.size_bytes, c.chunks,
-                 ",".join(sorted(x or "none" for x in c.compression)), c.complete, c.stopped)
+        FileInfo(
+            str(c.path),
+            c.size_bytes,
+            c.chunks,
+            ",".join(sorted(x or "none" for x in c.compression)),
+            c.complete,
+            c.stopped,
+        )
         for c in contents
-    )  # fmt: skip
+    )
     return RecordingInfo(topics, files)
 
 
@@ -119,7 +125,9 @@ def format_text(info: RecordingInfo) -> str:
     lines.append("")
     for f in info.files:
         state = "finished" if f.complete else f"UNFINISHED (read to its last chunk: {f.stopped})"
-        lines.append(f"{f.path}: {_bytes(f.size_bytes)}, {f.chunks} chunks ({f.compression}), {state}")
+        lines.append(
+            f"{f.path}: {_bytes(f.size_bytes)}, {f.chunks} chunks ({f.compression}), {state}"
+        )
     return "\n".join(lines)
 
 

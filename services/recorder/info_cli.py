@@ -15,9 +15,9 @@ from typing import Annotated
 import tyro
 
 from hamnet.recorder.info import format_text, summarise
-from hamnet.recorder.reading import unreadable
-from hamnet.runtime.numbered_files import recording_files
 from hamnet.runtime.cli import parse
+from hamnet.runtime.numbered_files import recording_files
+from hamnet.runtime.recordings import unreadable
 
 
 @dataclass(frozen=True)

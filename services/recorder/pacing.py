@@ -1,13 +1,13 @@
-"""When and where replayed messages go: recorded time to wall time, the namespace a key is
-republished in, and the grouping of messages into steps for stepped replay.
+"""Where replayed messages go and in which steps: the namespace a key is republished in, and
+the grouping of messages into steps for stepped replay (recorded time to wall time is
+`hamnet.runtime.recordings.ReplayClock`).
 
-Pure functions of recorded keys, times and step numbers; the replay shell does the I/O.
+Pure functions of recorded keys and step numbers; the replay shell does the I/O.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
 from typing import TypeVar
 
 from hamnet.runtime import keys
@@ -22,22 +22,6 @@ def remap_key(key: str, namespace: str) -> str:
     if len(parts) == 3 and parts[0] == keys.ROOT:
         return f"{keys.ROOT}/{keys.check_segment('namespace', namespace)}/{parts[2]}"
     return key
-
-
-@dataclass(frozen=True)
-class ReplayClock:
-    """Maps recorded log times onto a monotonic wall clock, scaled by a speed factor."""
-
-    first_log_ns: int
-    """Log time of the first message replayed, Unix ns."""
-    start_s: float
-    """time.monotonic() at which that first message is due, s."""
-    speed: float
-    """Recorded seconds per wall-clock second (2.0: twice as fast)."""
-
-    def due_s(self, log_time_ns: int) -> float:
-        """time.monotonic() at which the message logged at `log_time_ns` is due, s."""
-        return self.start_s + (log_time_ns - self.first_log_ns) / 1e9 / self.speed
 
 
 def group_steps(items: Iterable[T], step_of: Callable[[T], int | None]) -> Iterator[list[T]]:

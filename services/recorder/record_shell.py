@@ -62,8 +62,9 @@ class RecordShell:
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
         for index, key_expr in enumerate(self.key_exprs):
             # Remote only: the recorder's own health reports are not part of the stack.
-            service.inbox.subscribe(f"record{index}", key_expr, decoder=decode_payload,
-                                    remote_only=True)  # fmt: skip
+            service.inbox.subscribe(
+                f"record{index}", key_expr, decoder=decode_payload, remote_only=True
+            )
 
     def run(self) -> int:
         """Record until stopped (signal, or `duration_s`), then finish the file; returns the
@@ -75,11 +76,19 @@ class RecordShell:
             writer.close()
         except OSError as error:
             writer.abandon()
-            log.error("cannot write the recording (%s): stopped; %s reads up to its last "
-                      "complete chunk", error.strerror or error, ", ".join(map(str, writer.paths)))  # fmt: skip
+            log.error(
+                "cannot write the recording (%s): stopped; %s reads up to its last complete chunk",
+                error.strerror or error,
+                ", ".join(map(str, writer.paths)),
+            )
             return EXIT_NO_RESTART
-        log.info("recorded %d messages (%d payload bytes, %d dropped) in %s", writer.messages,
-                 writer.payload_bytes, self.service.drops.total, ", ".join(map(str, writer.paths)))  # fmt: skip
+        log.info(
+            "recorded %d messages (%d payload bytes, %d dropped) in %s",
+            writer.messages,
+            writer.payload_bytes,
+            self.service.drops.total,
+            ", ".join(map(str, writer.paths)),
+        )
         return 0
 
     def _record(self) -> None:
@@ -112,7 +121,10 @@ class RecordShell:
         now = (writer.messages, writer.payload_bytes)
         log.info(
             "%d messages (%.1f/s, %.2f MB/s), dropped %d, writing %s",
-            now[0], (now[0] - before[0]) / elapsed_s, (now[1] - before[1]) / elapsed_s / 1e6,
-            self.service.drops.total, writer.paths[-1],
-        )  # fmt: skip
+            now[0],
+            (now[0] - before[0]) / elapsed_s,
+            (now[1] - before[1]) / elapsed_s / 1e6,
+            self.service.drops.total,
+            writer.paths[-1],
+        )
         return now

@@ -24,10 +24,10 @@ from typing import Annotated
 import tyro
 
 from hamnet.recorder.config import ReplayConfig
-from hamnet.recorder.reading import read_recording, summary_counts, unreadable
 from hamnet.recorder.replay_shell import ReplayShell
-from hamnet.runtime.numbered_files import recording_files
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
+from hamnet.runtime.numbered_files import recording_files
+from hamnet.runtime.recordings import read_recording, summary_counts, unreadable
 from hamnet.runtime.service import Service
 
 log = logging.getLogger(__name__)

@@ -2,7 +2,7 @@
 keys moved into the replay's namespace, at the recorded timing (times `speed`), as fast as
 possible, or one step per line read on stdin.
 
-Consumes `RecordedMessage`s in log-time order (`hamnet.recorder.reading`); produces each
+Consumes `RecordedMessage`s in log-time order (`hamnet.runtime.recordings`); produces each
 payload unchanged on `remap_key(key, namespace)`, so a monitor or perception service cannot
 tell a replay from the live stack. In stepped replay a step starts at each robot state
 (`sim/<w>/state`) with a new header step (see `pacing.group_steps`). Like the live sim, a
@@ -17,17 +17,15 @@ import queue
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from typing import TextIO
-
-import zenoh
 
 from hamnet.recorder.config import ReplayConfig
 from hamnet.recorder.headers import header_of
-from hamnet.recorder.pacing import ReplayClock, group_steps, remap_key
-from hamnet.recorder.reading import RecordedMessage
+from hamnet.recorder.pacing import group_steps, remap_key
 from hamnet.recorder.scenes import LatestScenes
 from hamnet.runtime import contract
+from hamnet.runtime.recordings import RecordedMessage, ReplayClock, selected
 from hamnet.runtime.service import Service
 from hamnet.runtime.tensor import PayloadError
 
@@ -39,22 +37,6 @@ SCENE = contract.topic("sim/<w>/scene")
 
 QUIT = 0
 """Step request that ends a stepped replay (`q` or end of stdin)."""
-
-
-def selected(messages: Iterable[RecordedMessage], topics: tuple[str, ...]) -> Iterator[RecordedMessage]:
-    """The messages whose recorded key matches one of the key expressions `topics` (all of
-    them when `topics` is empty)."""
-    if not topics:
-        yield from messages
-        return
-    filters = [zenoh.KeyExpr(expr) for expr in topics]
-    verdicts: dict[str, bool] = {}
-    for message in messages:
-        if message.key not in verdicts:
-            key = zenoh.KeyExpr(message.key)
-            verdicts[message.key] = any(f.intersects(key) for f in filters)
-        if verdicts[message.key]:
-            yield message
 
 
 def step_of(message: RecordedMessage) -> int | None:

@@ -4,12 +4,13 @@
 matching the shape, and, for topics that require it, only finite floats), so that a
 malformed payload becomes one `PayloadError` with a reason instead of an exception deep in
 a service. Shells on hot paths `parse` instead and check each tensor they use as they turn
-it into an array (`from_tensor` with dtype, shape and finiteness).
+it into an array (`from_tensor` with dtype, shape and finiteness): `payload_decoder` makes
+the inbox decoder of such a shell from its message type and its decode function.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TypeVar
 
 from google.protobuf.descriptor import FieldDescriptor
@@ -19,6 +20,7 @@ from hamnet.proto.common_pb2 import Tensor
 from hamnet.runtime.tensor import PayloadError, from_tensor
 
 M = TypeVar("M", bound=Message)
+T = TypeVar("T")
 
 
 def encode(message: Message) -> bytes:
@@ -39,8 +41,28 @@ def parse(message_type: type[M], payload: bytes) -> M:
     try:
         message.ParseFromString(payload)
     except (DecodeError, ValueError, RuntimeError) as error:
-        raise PayloadError("decode", f"not a {message_type.DESCRIPTOR.full_name}: {error}") from None
+        raise PayloadError(
+            "decode", f"not a {message_type.DESCRIPTOR.full_name}: {error}"
+        ) from None
     return message
+
+
+def payload_decoder(
+    message_type: type[M], read: Callable[[M], T] | None = None
+) -> Callable[[str, bytes], T]:
+    """The inbox decoder (`Inbox.subscribe(decoder=...)`) of a shell's input: the payload
+    parsed as `message_type` (`parse`), then `read(message)`, the shell's decode function,
+    which checks the tensors it reads and raises PayloadError. None: the parsed message.
+
+    Arguments that change while the shell runs (a batch size the first state fixes) go in
+    `read` as a lambda, evaluated for each message.
+    """
+
+    def decode_payload(key: str, payload: bytes) -> T:
+        message = parse(message_type, payload)
+        return message if read is None else read(message)
+
+    return decode_payload
 
 
 def decode(message_type: type[M], payload: bytes, finite: bool = True) -> M:

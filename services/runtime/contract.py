@@ -65,8 +65,11 @@ class Topic:
     @property
     def publisher(self) -> str:
         """Who publishes it, in words (`hamnet topics`): `sim or bridge`."""
-        who = ("every service, under its own name" if "service" in self.placeholders
-               else " or ".join(self.publishers))  # fmt: skip
+        who = (
+            "every service, under its own name"
+            if "service" in self.placeholders
+            else " or ".join(self.publishers)
+        )
         return f"{who} ({self.note})" if self.note else who
 
     @property
@@ -125,9 +128,22 @@ OBSERVERS: tuple[str, ...] = ("echo", "record")
 """Identities that read every key of the stack (`hamnet/<ns>/**`): `hamnet echo` and the
 recorder. Every topic that carries messages names them among its readers."""
 
-SERVICES: tuple[str, ...] = ("sim", "bridge", "camera", "perception", "policy", "safety",
-                             "trainer", "rollout", "monitor", "record", "replay", "echo",
-                             "up", "router")  # fmt: skip
+SERVICES: tuple[str, ...] = (
+    "sim",
+    "bridge",
+    "camera",
+    "perception",
+    "policy",
+    "safety",
+    "trainer",
+    "rollout",
+    "monitor",
+    "record",
+    "replay",
+    "echo",
+    "up",
+    "router",
+)
 """Every command that runs a `hamnet.runtime.service.Service`: each reports its health and
 declares its liveliness token under its own name."""
 
@@ -138,43 +154,135 @@ def _read(*names: str) -> tuple[str, ...]:
 
 
 TOPICS: tuple[Topic, ...] = (
-    Topic("sim/<w>/state", sim_pb2.RobotState, ("sim", "bridge"),
-          _read("perception", "policy", "safety", "camera", "monitor"), "every policy step"),
-    Topic("sim/<w>/scene", sim_pb2.Scene, ("sim",), _read("perception", "policy", "monitor"),
-          "at resets", catch_up=True),
-    Topic("sim/<w>/transition", sim_pb2.Transition, ("sim",), _read("policy", "monitor"),
-          "every policy step"),
-    Topic("camera/<w>/frames", camera_pb2.DepthFrames, ("camera",), _read("perception"),
-          "every camera frame"),
-    Topic("perception/<w>/tokens", perception_pb2.PerceptionTokens, ("perception",),
-          _read("policy", "monitor"), "every policy step"),
-    Topic("perception/<w>/object_pose", perception_pb2.ObjectPoseEstimate, ("perception",),
-          _read("bridge"), "every policy step", note="--clouds-from cameras"),
-    Topic("policy/<w>/action", policy_pb2.PolicyAction, ("policy",), _read("safety", "monitor"),
-          "every policy step", finite=False),
-    Topic("safety/<w>/command", safety_pb2.SafeCommand, ("safety",), _read("sim", "bridge"),
-          "every policy step"),
-    Topic("safety/<w>/event", safety_pb2.SafetyEvent, ("safety",), _read("monitor"),
-          "when a stage clips, rejects or stops"),
-    Topic("safety/<w>/estop", None, ("safety",), (OPERATOR,), "queryable: stop, reset, status",
-          queryable=True),
-    Topic("bridge/<w>/event", safety_pb2.SafetyEvent, ("bridge",), _read(),
-          "when the robot raises an error or is reset"),
-    Topic("bridge/<w>/reset", None, ("bridge",), (OPERATOR,), "queryable: stop, reset, status",
-          queryable=True),
-    Topic("trainer/weights", trainer_pb2.WeightsAnnouncement, ("trainer",),
-          _read("policy", "rollout"), "after each update", lossless=True, catch_up=True),
-    Topic("trainer/schedule", trainer_pb2.Schedule, ("trainer",), _read("sim", "policy", "safety"),
-          "after each update"),
-    Topic("trainer/metrics", trainer_pb2.Metrics, ("trainer",), _read("monitor"),
-          "after each update"),
-    Topic("trainer/<w>/rollout", trainer_pb2.RolloutChunk, ("rollout", "policy"), _read("trainer"),
-          "every rollout", note="the policy in a service chain", lossless=True),
-    Topic("trainer/<w>/demonstrations", trainer_pb2.RolloutChunk, ("rollout",), _read("trainer"),
-          "every rollout", note="--algo dagger", lossless=True),
+    Topic(
+        "sim/<w>/state",
+        sim_pb2.RobotState,
+        ("sim", "bridge"),
+        _read("perception", "policy", "safety", "camera", "monitor"),
+        "every policy step",
+    ),
+    Topic(
+        "sim/<w>/scene",
+        sim_pb2.Scene,
+        ("sim",),
+        _read("perception", "policy", "monitor"),
+        "at resets",
+        catch_up=True,
+    ),
+    Topic(
+        "sim/<w>/transition",
+        sim_pb2.Transition,
+        ("sim",),
+        _read("policy", "monitor"),
+        "every policy step",
+    ),
+    Topic(
+        "camera/<w>/frames",
+        camera_pb2.DepthFrames,
+        ("camera",),
+        _read("perception"),
+        "every camera frame",
+    ),
+    Topic(
+        "perception/<w>/tokens",
+        perception_pb2.PerceptionTokens,
+        ("perception",),
+        _read("policy", "monitor"),
+        "every policy step",
+    ),
+    Topic(
+        "perception/<w>/object_pose",
+        perception_pb2.ObjectPoseEstimate,
+        ("perception",),
+        _read("bridge"),
+        "every policy step",
+        note="--clouds-from cameras",
+    ),
+    Topic(
+        "policy/<w>/action",
+        policy_pb2.PolicyAction,
+        ("policy",),
+        _read("safety", "monitor"),
+        "every policy step",
+        finite=False,
+    ),
+    Topic(
+        "safety/<w>/command",
+        safety_pb2.SafeCommand,
+        ("safety",),
+        _read("sim", "bridge"),
+        "every policy step",
+    ),
+    Topic(
+        "safety/<w>/event",
+        safety_pb2.SafetyEvent,
+        ("safety",),
+        _read("monitor"),
+        "when a stage clips, rejects or stops",
+    ),
+    Topic(
+        "safety/<w>/estop",
+        None,
+        ("safety",),
+        (OPERATOR,),
+        "queryable: stop, reset, status",
+        queryable=True,
+    ),
+    Topic(
+        "bridge/<w>/event",
+        safety_pb2.SafetyEvent,
+        ("bridge",),
+        _read(),
+        "when the robot raises an error or is reset",
+    ),
+    Topic(
+        "bridge/<w>/reset",
+        None,
+        ("bridge",),
+        (OPERATOR,),
+        "queryable: stop, reset, status",
+        queryable=True,
+    ),
+    Topic(
+        "trainer/weights",
+        trainer_pb2.WeightsAnnouncement,
+        ("trainer",),
+        _read("policy", "rollout"),
+        "after each update",
+        lossless=True,
+        catch_up=True,
+    ),
+    Topic(
+        "trainer/schedule",
+        trainer_pb2.Schedule,
+        ("trainer",),
+        _read("sim", "policy", "safety"),
+        "after each update",
+    ),
+    Topic(
+        "trainer/metrics", trainer_pb2.Metrics, ("trainer",), _read("monitor"), "after each update"
+    ),
+    Topic(
+        "trainer/<w>/rollout",
+        trainer_pb2.RolloutChunk,
+        ("rollout", "policy"),
+        _read("trainer"),
+        "every rollout",
+        note="the policy in a service chain",
+        lossless=True,
+    ),
+    Topic(
+        "trainer/<w>/demonstrations",
+        trainer_pb2.RolloutChunk,
+        ("rollout",),
+        _read("trainer"),
+        "every rollout",
+        note="--algo dagger",
+        lossless=True,
+    ),
     Topic("health/<service>/<w>", health_pb2.Health, SERVICES, _read("up"), "every second"),
     Topic("alive/<service>/<w>", None, SERVICES, ("up", "trainer"), "while running"),
-)  # fmt: skip
+)
 """Every topic of the stack.
 
 The real-robot bridge publishes the robot's state under the same `sim/<w>/state` key (it

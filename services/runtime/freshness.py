@@ -8,13 +8,18 @@ its producer (`Header.run`, drawn anew at each start, `hamnet.runtime.pubsub.PRO
 a message of another run than the watermark's starts afresh, whatever its step. A step
 further ahead of the watermark than any real producer can get between two messages of one
 run (`max_jump`) is refused rather than adopted: adopting a forged or corrupt step 10^12
-would make every real step after it look stale for good. Pure bookkeeping, no Zenoh.
+would make every real step after it look stale for good. A consumer that answers each step
+once (the policy, perception) keeps its last answer with the watermark (`Answered`), and
+sends it again when the producer repeats that step. Pure bookkeeping, no Zenoh.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
+from typing import Generic, TypeVar
+
+A = TypeVar("A")
 
 MAX_STEP_JUMP = 10_000
 """Default of `Watermark.max_jump`: how far ahead of the watermark a step of the same run
@@ -84,3 +89,30 @@ class Watermark:
         """Record that `step` of the current run was acted on (the watermark keeps the
         newest step)."""
         self.step = step if self.step is None else max(self.step, step)
+
+
+@dataclass
+class Answered(Generic[A]):
+    """The answer a consumer sent to the newest step it acted on, with that step's watermark:
+    a repeated step gets the same answer again, another run of the producer is followed."""
+
+    watermark: Watermark = field(default_factory=Watermark)
+    """The producer's run followed and the newest step answered in it."""
+    message: A | None = None
+    """The answer to the watermark's step; None before the first answer of a run."""
+
+    def follow(self, run: int, step: int) -> Verdict:
+        """The verdict on `step` of `run`; a message of another run is followed at once (the
+        old run's answer is dropped). RESTART only when it replaces a run followed before:
+        the very first message is FRESH. REPEAT only when there is an answer to send again."""
+        verdict = self.watermark.judge(run, step)
+        if verdict is Verdict.RESTART:
+            self.message = None
+            if not self.watermark.restart(run):
+                return Verdict.FRESH
+        return verdict
+
+    def answer(self, step: int, message: A) -> None:
+        """Record `message` as the answer to `step` of the run followed."""
+        self.watermark.advance(step)
+        self.message = message

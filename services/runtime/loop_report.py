@@ -128,8 +128,11 @@ class LoopReport:
         now = self.clock()
         if now <= self.started:
             return None
-        window = Window(now - self.started, dict(self.counts), {
-            name: list(values) for name, values in self.samples.items()})  # fmt: skip
+        window = Window(
+            now - self.started,
+            dict(self.counts),
+            {name: list(values) for name, values in self.samples.items()},
+        )
         self.logger.info("%s", self.line(window))
         if self.figures is not None:
             for name, value in self.figures(window).items():

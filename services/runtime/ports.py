@@ -60,8 +60,10 @@ class Ports:
             topic = self.topic(port)
             whole = key if key.startswith(f"{keys.ROOT}/") else f"{keys.ROOT}/{namespace}/{key}"
             if not topic.matches(whole):
-                raise ConfigError(f"--remap {entry}: port {port!r} carries {topic.template}, "
-                                  f"and {whole} is not one of its keys")  # fmt: skip
+                raise ConfigError(
+                    f"--remap {entry}: port {port!r} carries {topic.template}, "
+                    f"and {whole} is not one of its keys"
+                )
             out[port] = whole
         return out
 

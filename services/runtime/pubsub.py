@@ -176,8 +176,9 @@ class Inbox:
 
         # Every reply counts: a replay answers with several scenes on one key, which Zenoh's
         # default consolidation would reduce to one.
-        self._session.get(key_expr, on_reply, timeout=timeout_s,
-                          consolidation=zenoh.ConsolidationMode.NONE)  # fmt: skip
+        self._session.get(
+            key_expr, on_reply, timeout=timeout_s, consolidation=zenoh.ConsolidationMode.NONE
+        )
 
     def _push(self, subscription: _Subscription, sample: zenoh.Sample | zenoh.Query) -> None:
         if subscription.queries:

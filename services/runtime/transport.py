@@ -25,7 +25,7 @@ import zenoh
 
 from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.keys import check_segment
-from hamnet.security.files import Identity, ca_files, identity_files
+from hamnet.runtime.tls_files import Identity, ca_files, identity_files
 
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7448"
 """Loopback endpoint where local peers meet (7447 is left to Zenoh routers)."""
@@ -79,13 +79,18 @@ class TransportConfig:
             check_segment("namespace", self.namespace)
         except ValueError as error:
             raise ConfigError(str(error)) from None
-        endpoints = {"rendezvous": (self.rendezvous,) if self.rendezvous else (),
-                     "connect": self.connect, "listen": self.listen}  # fmt: skip
+        endpoints = {
+            "rendezvous": (self.rendezvous,) if self.rendezvous else (),
+            "connect": self.connect,
+            "listen": self.listen,
+        }
         for name, values in endpoints.items():
             for endpoint in values:
                 if not LOCATOR.fullmatch(endpoint):
-                    raise ConfigError(f"{name} endpoint {endpoint!r} is not a Zenoh locator "
-                                      "<protocol>/<address>, e.g. tcp/127.0.0.1:7447")  # fmt: skip
+                    raise ConfigError(
+                        f"{name} endpoint {endpoint!r} is not a Zenoh locator "
+                        "<protocol>/<address>, e.g. tcp/127.0.0.1:7447"
+                    )
         if self.zenoh_config is not None and not self.zenoh_config.is_file():
             raise ConfigError(f"Zenoh config file not found: {self.zenoh_config}")
         if self.shm_pool_mb <= 0 or self.shm_threshold < 0:
@@ -94,8 +99,9 @@ class TransportConfig:
             for name in ("connect", "listen"):
                 for endpoint in getattr(self, name):
                     if endpoint.split("/", 1)[0] not in SECURE_PROTOCOLS:
-                        raise ConfigError(f"with --tls-dir, {name} endpoint {endpoint!r} must "
-                                          "be tls/ or quic/")  # fmt: skip
+                        raise ConfigError(
+                            f"with --tls-dir, {name} endpoint {endpoint!r} must be tls/ or quic/"
+                        )
             if self.identity:
                 tls_files(self.tls_dir, self.identity)
 
@@ -109,8 +115,9 @@ def tls_files(directory: Path, identity: str) -> tuple[Path, Identity]:
     ca, own = ca_files(directory).certificate, identity_files(directory, identity)
     for path in (ca, own.certificate, own.key):
         if not path.is_file():
-            raise ConfigError(f"TLS file not found: {path} (`hamnet certs` makes it; "
-                              "docs/security.md)")  # fmt: skip
+            raise ConfigError(
+                f"TLS file not found: {path} (`hamnet certs` makes it; docs/security.md)"
+            )
     return ca, own
 
 

@@ -18,9 +18,9 @@ from typing import Annotated
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.safety.config import Profile, SafetyConfig, with_profile
+from hamnet.safety.references import TrajectoryConfig
 from hamnet.safety.shell import PORTS, SafetyShell
 from hamnet.safety.supervisor import SafetyLoopConfig
-from hamnet.safety.trajectory import TrajectoryConfig
 
 
 @dataclass(frozen=True)

@@ -2,10 +2,10 @@
 executes for one policy period.
 
 Stages 1-5 and 7 (`pipeline.SafetyCore`) give a safe joint target and gains; stage 6
-(`trajectory.TrajectoryGenerator`) turns the target into jerk-limited references sampled at
-the executor's rate, continuous across periods; stage 7 runs again against those samples
-(gains only go down). With `SafetyConfig.references == "target"` (the "training" and
-"finetune" profiles, `config.with_profile`) stage 6 is `trajectory.TargetReferences`: the
+(`ruckig_references.TrajectoryGenerator`) turns the target into jerk-limited references
+sampled at the executor's rate, continuous across periods; stage 7 runs again against those
+samples (gains only go down). With `SafetyConfig.references == "target"` (the "training" and
+"finetune" profiles, `config.with_profile`) stage 6 is `references.TargetReferences`: the
 target on every sample. `brake` is the watchdog's and the e-stop's path: the references stop
 smoothly and hold, with the last safe gains, whatever the policy does.
 """
@@ -18,13 +18,9 @@ import numpy as np
 
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.pipeline import FilterResult, SafetyCore, tau_limit
+from hamnet.safety.references import References, TargetReferences, TrajectoryConfig
+from hamnet.safety.ruckig_references import TrajectoryGenerator
 from hamnet.safety.stages import torque_preclip
-from hamnet.safety.trajectory import (
-    References,
-    TargetReferences,
-    TrajectoryConfig,
-    TrajectoryGenerator,
-)
 
 BRAKE_MIN_DAMPING_RATIO = 1.0
 """Damping ratio the braking path uses at least."""
@@ -123,9 +119,15 @@ class SafetyFilter:
         filtered = self.core.recheck_torque(filtered, references.q_ref, q, dq)
         self.core.record(filtered)
         return SafeOutput(
-            references.q_ref, references.dq_ref, filtered.kp, filtered.kd, filtered.tau_limit,
-            self.trajectory.stopping.copy(), references, filtered,
-        )  # fmt: skip
+            references.q_ref,
+            references.dq_ref,
+            filtered.kp,
+            filtered.kd,
+            filtered.tau_limit,
+            self.trajectory.stopping.copy(),
+            references,
+            filtered,
+        )
 
     def stop(self, env_ids: np.ndarray) -> None:
         """Brake `env_ids` from the next period on and hold until `resume` (watchdog, e-stop)."""
@@ -153,6 +155,11 @@ class SafetyFilter:
         rho = np.maximum(state.rho, BRAKE_MIN_DAMPING_RATIO)
         kp, kd, _ = torque_preclip(references.q_ref, q_now, dq_now, state.kp, rho, self.tau_limit)
         return SafeOutput(
-            references.q_ref, references.dq_ref, kp, kd, self.tau_limit.copy(),
-            self.trajectory.stopping.copy(), references,
-        )  # fmt: skip
+            references.q_ref,
+            references.dq_ref,
+            kp,
+            kd,
+            self.tau_limit.copy(),
+            self.trajectory.stopping.copy(),
+            references,
+        )

@@ -71,8 +71,9 @@ def encode_command(
 def encode_notice(notice: Notice) -> SafetyEvent:
     """The supervisor's notice as its SafetyEvent."""
     kind = SafetyEventKind.Value(notice.kind)
-    return encode_event(kind, notice.step, notice.env_ids, notice.stage, notice.reason,
-                        notice.stats)  # fmt: skip
+    return encode_event(
+        kind, notice.step, notice.env_ids, notice.stage, notice.reason, notice.stats
+    )
 
 
 def rejection_events(filtered: FilterResult, step: int) -> list[SafetyEvent]:

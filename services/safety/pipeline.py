@@ -212,14 +212,24 @@ def filter_action(
     reports.append(report)
 
     result = FilterResult(
-        q_target=q_target, kp=kp_safe, kd=kd_safe, rho=rho, tau_limit=limit,
-        dq=np.where(column, dq_bar, 0.0), rejected=~accepted, reason=reason,
-        reports=tuple(reports), schedule=values,
-    )  # fmt: skip
+        q_target=q_target,
+        kp=kp_safe,
+        kd=kd_safe,
+        rho=rho,
+        tau_limit=limit,
+        dq=np.where(column, dq_bar, 0.0),
+        rejected=~accepted,
+        reason=reason,
+        reports=tuple(reports),
+        schedule=values,
+    )
     next_state = dataclasses.replace(
-        state, q_target=q_target, kp=kp, rho=rho,
+        state,
+        q_target=q_target,
+        kp=kp,
+        rho=rho,
         dq_smoothed=np.where(column, dq_bar, state.dq_smoothed),
-    )  # fmt: skip
+    )
     return result, next_state
 
 

@@ -42,9 +42,11 @@ REJECTIONS = {
     Rejection.NONFINITE: ("REJECTED_NONFINITE", "the action holds NaN or Inf"),
     Rejection.SHAPE: ("REJECTED_SHAPE", f"the action is not (B, {ACTION_DIM})"),
     Rejection.STATE: ("REJECTED_NONFINITE", "the robot state holds NaN or Inf"),
-    Rejection.EPISODE: ("REJECTED_EPISODE", ("the action was computed for an episode that "
-                                             "has ended (the environment was reset)")),
-}  # fmt: skip
+    Rejection.EPISODE: (
+        "REJECTED_EPISODE",
+        ("the action was computed for an episode that has ended (the environment was reset)"),
+    ),
+}
 """Event kind and reason of each rejection code of stage 1."""
 
 STATISTICS = "SAFETY_EVENT_KIND_UNSPECIFIED"
@@ -127,8 +129,10 @@ class Reports:
         last = self.last_clip_event.get(stage, -np.inf)
         if not stats.clipped or now - last < self.clip_event_period_s:
             return
-        reason = (f"clipped {stats.clipped} of {stats.commands} commands, "
-                  f"largest excess {stats.max_excess:.4g}")  # fmt: skip
+        reason = (
+            f"clipped {stats.clipped} of {stats.commands} commands, "
+            f"largest excess {stats.max_excess:.4g}"
+        )
         self.emit(Notice(CLIP_KINDS[stage], step, np.flatnonzero(envs), stage, reason, (stats,)))
         self.last_clip_event[stage] = now
         del self.clips[stage]
@@ -150,9 +154,11 @@ class Reports:
 
     def _line(self, w: Window) -> str:
         c = w.count
-        return (f"{w.rate('tracked', 'braked'):.1f} commands/s ({c('tracked')} tracking, "
-                f"{c('braked')} braking), state->command median {w.median_ms('latency_s'):.1f} "
-                f"ms, {c('rejected')} rejected, {c('stale')} stale and {c('ignored')} ignored "
-                f"actions, {c('superseded')} superseded states, {c('watchdog')} watchdog stops, "
-                f"{c('restarts')} sim restarts, {c('implausible')} implausible states, stopped "
-                f"by {self.stopped_by or 'nothing'}, {self.env_transitions} env transitions")  # fmt: skip
+        return (
+            f"{w.rate('tracked', 'braked'):.1f} commands/s ({c('tracked')} tracking, "
+            f"{c('braked')} braking), state->command median {w.median_ms('latency_s'):.1f} "
+            f"ms, {c('rejected')} rejected, {c('stale')} stale and {c('ignored')} ignored "
+            f"actions, {c('superseded')} superseded states, {c('watchdog')} watchdog stops, "
+            f"{c('restarts')} sim restarts, {c('implausible')} implausible states, stopped "
+            f"by {self.stopped_by or 'nothing'}, {self.env_transitions} env transitions"
+        )

@@ -24,7 +24,7 @@ from hamnet.messages.schedule import decode as decode_schedule
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.service import Service
 from hamnet.safety.config import SafetyConfig
@@ -35,9 +35,9 @@ from hamnet.safety.messages import (
     encode_command,
     encode_notice,
 )
+from hamnet.safety.references import TrajectoryConfig
 from hamnet.safety.reports import Notice
-from hamnet.safety.supervisor import ActionIn, SafeAnswer, SafetyLoopConfig, StateIn, Supervisor
-from hamnet.safety.trajectory import TrajectoryConfig
+from hamnet.safety.supervisor import SafeAnswer, SafetyLoopConfig, Supervisor
 
 log = logging.getLogger(__name__)
 
@@ -68,9 +68,14 @@ class SafetyShell:
         self.core = Supervisor(self._put, config, safety, trajectory, self.estop)
         port = service.ports(PORTS)
         inbox = service.inbox
-        inbox.subscribe("state", port["state"], decoder=self._decode_state_payload)
-        inbox.subscribe("action", port["action"], decoder=_decode_action_payload)
-        inbox.subscribe("schedule", port["schedule"], decoder=_decode_schedule_payload)
+        state = payload_decoder(RobotState, lambda m: decode_state(m, self.core.num_envs))
+        inbox.subscribe("state", port["state"], decoder=state)
+        inbox.subscribe(
+            "action", port["action"], decoder=payload_decoder(PolicyAction, decode_action)
+        )
+        inbox.subscribe(
+            "schedule", port["schedule"], decoder=payload_decoder(Schedule, decode_schedule)
+        )
         self.command = service.publisher(port["command"])
         self.event = service.publisher(port["event"])
         self.estop_key = port["estop"]
@@ -91,9 +96,13 @@ class SafetyShell:
         queryable = self.service.session.declare_queryable(
             self.estop_key, lambda query: on_query(self.estop, query)
         )
-        log.info("watchdog %.2f s, %d samples of %.4f s per policy period, e-stop on %s",
-                 core.config.watchdog_s, core.trajectory.samples_per_period, self.control_dt,
-                 self.estop_key)  # fmt: skip
+        log.info(
+            "watchdog %.2f s, %d samples of %.4f s per policy period, e-stop on %s",
+            core.config.watchdog_s,
+            core.trajectory.samples_per_period,
+            self.control_dt,
+            self.estop_key,
+        )
         try:
             while self.service.running:
                 core.apply_estop()
@@ -121,14 +130,3 @@ class SafetyShell:
             self.command.put(message)
         else:
             self.event.put(encode_notice(item))
-
-    def _decode_state_payload(self, key: str, payload: bytes) -> StateIn:
-        return decode_state(parse(RobotState, payload), self.core.num_envs)
-
-
-def _decode_action_payload(key: str, payload: bytes) -> ActionIn:
-    return decode_action(parse(PolicyAction, payload))
-
-
-def _decode_schedule_payload(key: str, payload: bytes) -> int:
-    return decode_schedule(parse(Schedule, payload))

@@ -41,8 +41,8 @@ from hamnet.runtime.shell_config import Flattened, ReportConfig
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.estop import EStop
 from hamnet.safety.filter import SafeOutput, SafetyFilter
+from hamnet.safety.references import TrajectoryConfig
 from hamnet.safety.reports import Notice, Reports
-from hamnet.safety.trajectory import TrajectoryConfig
 
 log = logging.getLogger(__name__)
 
@@ -132,8 +132,13 @@ class Supervisor:
         """None (following the policy), "watchdog" or "estop"."""
         self.answered: SafeAnswer | None = None
         """The last command sent, sent again when the sim sends its state again."""
-        self.reports = Reports(emit, clock, self.config.clip_event_period_s,
-                               self.config.stats_period_s, self.config.report.report_period_s)  # fmt: skip
+        self.reports = Reports(
+            emit,
+            clock,
+            self.config.clip_event_period_s,
+            self.config.stats_period_s,
+            self.config.report.report_period_s,
+        )
         self.watermark = Watermark()
         """The sim's run and its newest state: a restart is followed, a step implausibly
         far ahead is dropped."""
@@ -219,14 +224,17 @@ class Supervisor:
             elif request == "reset" and self.stopped_by == "estop":
                 self._resume("e-stop reset")
                 self._notice("ESTOP_RESET", step, "e-stop", "reset requested")
-        self.estop.status = {"step": self.latest.step if self.latest is not None else None,
-                             "stopped_by": self.stopped_by}  # fmt: skip
+        self.estop.status = {
+            "step": self.latest.step if self.latest is not None else None,
+            "stopped_by": self.stopped_by,
+        }
         self._answer()
 
     def _follow_new_run(self, state: StateIn) -> None:
         """The sim restarted: nothing of its old run applies to the new one."""
-        log.warning("the sim restarted (another run) at step %d: every episode starts afresh",
-                    state.step)  # fmt: skip
+        log.warning(
+            "the sim restarted (another run) at step %d: every episode starts afresh", state.step
+        )
         self.reports.counts["restarts"] += 1
         self.answered, self.pending, self.action = None, None, None
         if self.filter is not None and len(state.q) == self.num_envs:
@@ -245,8 +253,11 @@ class Supervisor:
 
     def _resume(self, why: str) -> None:
         """Follow the policy again, from rest at the latest measured joint positions."""
-        log.info("%s at step %d: resuming from the measured joint positions", why,
-                 self.latest.step if self.latest is not None else 0)  # fmt: skip
+        log.info(
+            "%s at step %d: resuming from the measured joint positions",
+            why,
+            self.latest.step if self.latest is not None else 0,
+        )
         self.stopped_by = None
         if self.filter is not None:
             self.filter.resume(np.arange(self.num_envs), self.latest.q)
@@ -280,11 +291,17 @@ class Supervisor:
             return
         step = self.pending.step
         if self.policy_heard:
-            log.warning("no action for state %d within %.2f s: braking every environment", step,
-                        self.config.watchdog_s)  # fmt: skip
+            log.warning(
+                "no action for state %d within %.2f s: braking every environment",
+                step,
+                self.config.watchdog_s,
+            )
         else:
-            log.info("no action from the policy yet (state %d): holding every environment until "
-                     "its first action", step)  # fmt: skip
+            log.info(
+                "no action from the policy yet (state %d): holding every environment until "
+                "its first action",
+                step,
+            )
         self.stopped_by = "watchdog"
         self.reports.counts["watchdog"] += 1
         self.filter.stop(np.arange(self.num_envs))

@@ -21,7 +21,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from hamnet.runtime.errors import ConfigError
-from hamnet.security.files import Identity, ca_files, identity_files
+from hamnet.runtime.tls_files import Identity, ca_files, identity_files
 
 DEFAULT_HOSTS = ("localhost", "127.0.0.1")
 """Subject alternative names every certificate gets, so loopback endpoints verify."""
@@ -47,8 +47,9 @@ def init_ca(directory: Path, days: int, force: bool = False) -> Identity:
     return files
 
 
-def issue(directory: Path, name: str, days: int, hosts: tuple[str, ...] = (),
-          force: bool = False) -> Identity:  # fmt: skip
+def issue(
+    directory: Path, name: str, days: int, hosts: tuple[str, ...] = (), force: bool = False
+) -> Identity:
     """Issue a key and certificate for identity `name`, signed by the CA in `directory`.
 
     Args:
@@ -95,16 +96,29 @@ def _builder(
         raise ConfigError(f"days must be >= 1, got {days}")
     # Back-dated a little so a peer whose clock lags does not see "not yet valid".
     now = datetime.datetime.now(datetime.timezone.utc) - datetime.timedelta(minutes=5)
-    return (x509.CertificateBuilder().subject_name(subject).issuer_name(issuer)
-            .public_key(public_key).serial_number(x509.random_serial_number())
-            .not_valid_before(now).not_valid_after(now + datetime.timedelta(days=days)))  # fmt: skip
+    return (
+        x509.CertificateBuilder()
+        .subject_name(subject)
+        .issuer_name(issuer)
+        .public_key(public_key)
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now)
+        .not_valid_after(now + datetime.timedelta(days=days))
+    )
 
 
 def _key_usage(ca: bool) -> x509.KeyUsage:
-    return x509.KeyUsage(digital_signature=not ca, content_commitment=False,
-                         key_encipherment=False, data_encipherment=False, key_agreement=False,
-                         key_cert_sign=ca, crl_sign=ca, encipher_only=False,
-                         decipher_only=False)  # fmt: skip
+    return x509.KeyUsage(
+        digital_signature=not ca,
+        content_commitment=False,
+        key_encipherment=False,
+        data_encipherment=False,
+        key_agreement=False,
+        key_cert_sign=ca,
+        crl_sign=ca,
+        encipher_only=False,
+        decipher_only=False,
+    )
 
 
 def _alternative_names(hosts: tuple[str, ...]) -> x509.SubjectAlternativeName:
@@ -129,8 +143,9 @@ def _check_free(files: Identity, force: bool, command: str) -> None:
 
 def _write(files: Identity, certificate: x509.Certificate, key: ec.EllipticCurvePrivateKey) -> None:
     files.key.parent.mkdir(parents=True, exist_ok=True)
-    pem = key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                            serialization.NoEncryption())  # fmt: skip
+    pem = key.private_bytes(
+        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+    )
     # Created 0600 from the start: the key is never readable by others, not even briefly.
     files.key.unlink(missing_ok=True)
     descriptor = os.open(files.key, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)

@@ -27,15 +27,23 @@ from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
-from hamnet.sim.rewards import REWARD_NAMES, Potentials, potentials, reward_terms
+from hamnet.sim.rewards import Potentials, potentials, reward_terms
 from hamnet.sim.robot_init import ArmKinematics
-from hamnet.sim.scene import NUM_CUBOIDS, TABLE
 from hamnet.sim.termination import termination, workspace_bounds
 from hamnet.sim.world import build_world
+from hamnet.task.cuboids import NUM_CUBOIDS, TABLE
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
+from hamnet.task.rewards import REWARD_NAMES
 
 _EPISODE_ARRAYS = (
-    "episode_ids", "episode_step", "object_index", "goal_pos", "goal_quat", "physics_params", "start_pose",
-)  # fmt: skip
+    "episode_ids",
+    "episode_step",
+    "object_index",
+    "goal_pos",
+    "goal_quat",
+    "physics_params",
+    "start_pose",
+)
 """Per-environment arrays of `VectorEnv` a snapshot holds as they are."""
 
 OBJECT_POINTS = 512
@@ -94,14 +102,16 @@ class VectorEnv:
         self.object_index = np.zeros(b, dtype=np.int64)
         self.goal_pos = np.zeros((b, 3))
         self.goal_quat = np.tile([1.0, 0.0, 0.0, 0.0], (b, 1))
-        self.physics_params = np.zeros((b, len(draw.PHYSICS_PARAM_NAMES)), dtype=np.float32)
+        self.physics_params = np.zeros((b, len(PHYSICS_PARAM_NAMES)), dtype=np.float32)
         self.start_pose = np.zeros((b, 7), dtype=np.float32)
         self.workspace = (np.full((b, 3), -np.inf), np.full((b, 3), np.inf))
         self.scene_arrays: dict[str, np.ndarray] = {
-            "centre": np.zeros((b, NUM_CUBOIDS, 3)), "quat": np.zeros((b, NUM_CUBOIDS, 4)),
-            "half_extent": np.zeros((b, NUM_CUBOIDS, 3)), "active": np.zeros((b, NUM_CUBOIDS), bool),
+            "centre": np.zeros((b, NUM_CUBOIDS, 3)),
+            "quat": np.zeros((b, NUM_CUBOIDS, 4)),
+            "half_extent": np.zeros((b, NUM_CUBOIDS, 3)),
+            "active": np.zeros((b, NUM_CUBOIDS), bool),
             "env_code": np.zeros((b, 25), np.float32),
-        }  # fmt: skip
+        }
         self.potentials = Potentials(np.zeros(b), np.zeros(b))
         self.reset_seconds = 0.0
         """Wall time spent drawing episodes so far, s."""
@@ -205,9 +215,11 @@ class VectorEnv:
         arrays["potentials.goal"] = self.potentials.goal.copy()
         arrays["potentials.contact"] = self.potentials.contact.copy()
         meta = {
-            "rng": self.rng.bit_generator.state, "next_episode": self._next_episode,
-            "schedule": self.schedule.as_dict(), "reset_seconds": self.reset_seconds,
-        }  # fmt: skip
+            "rng": self.rng.bit_generator.state,
+            "next_episode": self._next_episode,
+            "schedule": self.schedule.as_dict(),
+            "reset_seconds": self.reset_seconds,
+        }
         return arrays, meta
 
     def restore(self, arrays: dict[str, np.ndarray], meta: dict[str, object]) -> None:
@@ -249,9 +261,15 @@ class VectorEnv:
         started = time.perf_counter()
         scene_config = scene_config_at(self.schedule, self.config.scene)
         drawn = draw.draw_episodes(
-            self.rng, self.physics, self.kinematics, self.library, env_ids, self.config, scene_config,
+            self.rng,
+            self.physics,
+            self.kinematics,
+            self.library,
+            env_ids,
+            self.config,
+            scene_config,
             self.schedule.p_near_init,
-        )  # fmt: skip
+        )
         self.object_index[env_ids] = drawn.object_index
         self.goal_pos[env_ids] = drawn.goal_pos
         self.goal_quat[env_ids] = drawn.goal_quat

@@ -52,7 +52,9 @@ def sized_library(
         else:
             factors = np.linspace(*sizes.scale, bins)  # (bins,)
         for factor in factors:
-            entries.append(dataclasses.replace(asset.scaled(factor), name=f"{asset.name}@x{factor:.3f}"))
+            entries.append(
+                dataclasses.replace(asset.scaled(factor), name=f"{asset.name}@x{factor:.3f}")
+            )
             scales.append(factor)
     return ObjectSet(tuple(entries)), np.array(scales)
 
@@ -80,10 +82,12 @@ class Library:
     @classmethod
     def of(cls, objects: ObjectSet, scale: np.ndarray) -> Library:
         table = objects.stable_table()
-        top = np.stack([
-            [(_rotate(asset.mesh.vertices, q)[:, 2]).max() for q in orientations]
-            for asset, orientations in zip(objects, table.orientations, strict=True)
-        ])  # (N, K), centre to top
+        top = np.stack(
+            [
+                [(_rotate(asset.mesh.vertices, q)[:, 2]).max() for q in orientations]
+                for asset, orientations in zip(objects, table.orientations, strict=True)
+            ]
+        )  # (N, K), centre to top
         return cls(
             objects=objects,
             stable_quat=table.orientations,
@@ -100,16 +104,6 @@ def _rotate(points: np.ndarray, quat: np.ndarray) -> np.ndarray:
     return points @ quaternion.to_matrix(quat).T
 
 
-PHYSICS_PARAM_NAMES = (
-    "object_mass", "object_friction", "object_restitution", "robot_friction", "scene_friction",
-    "object_scale", *robot.JOINT_DYNAMICS_NAMES,
-)  # fmt: skip
-"""Columns of `Episodes.physics_params` (RobotState.privileged.physics_params); the policy
-sizes its input from this tuple, so a new column lands here only. The paper's nu (R^6, Table
-tab:state_components) plus the object's scale and the arm's joint-dynamics factors
-(`robot.py`), which the teacher needs once those vary per episode."""
-
-
 @dataclass(frozen=True, eq=False)
 class Episodes:
     """What was drawn for K environments."""
@@ -123,7 +117,7 @@ class Episodes:
     goal_quat: np.ndarray
     """(K, 4) wxyz."""
     physics_params: np.ndarray
-    """(K, len(PHYSICS_PARAM_NAMES)): the columns PHYSICS_PARAM_NAMES names."""
+    """(K, P): the columns `hamnet.task.physics.PHYSICS_PARAM_NAMES` names."""
     near_start: np.ndarray
     """(K,) bool: the arm started near the object."""
     start_fallback: np.ndarray
@@ -158,14 +152,31 @@ def draw_episodes(
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
     q, fallback = _arm_starts(
-        rng, physics, kinematics, env_ids, near, placement.start_pos, placement.start_quat,
-        radius, cuboids, placement.goal_pos, config,
-    )  # fmt: skip
+        rng,
+        physics,
+        kinematics,
+        env_ids,
+        near,
+        placement.start_pos,
+        placement.start_quat,
+        radius,
+        cuboids,
+        placement.goal_pos,
+        config,
+    )
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
-    params = np.stack([
-        draws["mass"], draws["friction"], draws["restitution"], draws["hand_friction"],
-        scenes.friction, library.scale[entry], *joint_dynamics.T,
-    ], axis=1).astype(np.float32)  # fmt: skip
+    params = np.stack(
+        [
+            draws["mass"],
+            draws["friction"],
+            draws["restitution"],
+            draws["hand_friction"],
+            scenes.friction,
+            library.scale[entry],
+            *joint_dynamics.T,
+        ],
+        axis=1,
+    ).astype(np.float32)
     return Episodes(
         env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near, fallback
     )
@@ -198,10 +209,15 @@ def _scenes_and_placements(
         drawn = entry[tries]
         new_scenes = sample_scenes(rng, height[tries], scene_config)
         new_placement = sample_placements(
-            rng, new_scenes, library.stable_quat[drawn], library.planar_radius[drawn],
-            library.rest_height[drawn], library.top_height[drawn], config.start_goal_placement,
+            rng,
+            new_scenes,
+            library.stable_quat[drawn],
+            library.planar_radius[drawn],
+            library.rest_height[drawn],
+            library.top_height[drawn],
+            config.start_goal_placement,
             pose_weight=library.probability[drawn],
-        )  # fmt: skip
+        )
         valid = new_placement.valid.reshape(len(rows), per_round)  # (R, per_round)
         pick = np.arange(len(rows)) * per_round + valid.argmax(axis=1)  # first valid, else 0
         new_scenes, new_placement = _take(new_scenes, pick), _take(new_placement, pick)
@@ -279,14 +295,24 @@ def _arm_starts(
                 chosen = rows[is_near]
                 scene = robot_init.Cuboids(*(field[chosen] for field in vars(cuboids).values()))
                 targets = robot_init.near_targets(
-                    rng, object_pos[chosen], object_radius[chosen], scene, init, round_index,
+                    rng,
+                    object_pos[chosen],
+                    object_radius[chosen],
+                    scene,
+                    init,
+                    round_index,
                     goal_pos[chosen],
                 )
                 start, found = robot_init.near_seeds(
-                    rng, robot_init.posture_buffer(init.posture_count, init.range_fraction),
-                    targets, object_pos[chosen], object_radius[chosen], scene,
-                    init.posture_candidates, nearest=round_index == 0,
-                )  # fmt: skip
+                    rng,
+                    robot_init.posture_buffer(init.posture_count, init.range_fraction),
+                    targets,
+                    object_pos[chosen],
+                    object_radius[chosen],
+                    scene,
+                    init.posture_candidates,
+                    nearest=round_index == 0,
+                )
                 start[~found] = robot_init.ik_seeds(
                     rng, int((~found).sum()), init.ik_seed_spread, init.range_fraction
                 )

@@ -32,12 +32,27 @@ class BatchPhysics:
         self.batch = Batch(world.model, num_envs, nthread=nthread, persistent=True)
         self.fields = _expand(
             self.batch,
-            "geom_pos", "geom_quat", "geom_size", "geom_rbound", "geom_aabb", "geom_dataid",
-            "geom_contype", "geom_conaffinity", "geom_friction", "geom_solref",
-            "body_mass", "body_inertia", "body_ipos", "body_iquat",
-            "actuator_gainprm", "actuator_biasprm", "actuator_forcerange",
-            "dof_armature", "dof_damping", "dof_frictionloss",
-        )  # fmt: skip
+            "geom_pos",
+            "geom_quat",
+            "geom_size",
+            "geom_rbound",
+            "geom_aabb",
+            "geom_dataid",
+            "geom_contype",
+            "geom_conaffinity",
+            "geom_friction",
+            "geom_solref",
+            "body_mass",
+            "body_inertia",
+            "body_ipos",
+            "body_iquat",
+            "actuator_gainprm",
+            "actuator_biasprm",
+            "actuator_forcerange",
+            "dof_armature",
+            "dof_damping",
+            "dof_frictionloss",
+        )
         self.robot_geoms = np.flatnonzero(np.isin(world.model.geom_bodyid, world.robot_bodies))
         """Geoms of the arm's moving bodies (their friction is set per environment)."""
         self.qpos = self.batch.bind("qpos")  # (B, nq), live

@@ -25,9 +25,6 @@ import numpy as np
 from hamnet.sim import quaternion
 from hamnet.sim.task_config import TaskConfig
 
-REWARD_NAMES = ("success", "goal", "contact")
-"""Columns of `reward_terms`: r_s, lambda_r r_r, lambda_c r_c (the proto's reward_names)."""
-
 _CORNER_SIGNS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
 """(8, 3) which of min (0) or max (1) each corner takes per axis."""
 

@@ -53,12 +53,6 @@ TIMESTEP = 0.0025
 INTEGRATOR = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 """MuJoCo integrator (the model file's `<option integrator>`)."""
 
-JOINT_DYNAMICS_NAMES = ("joint_armature_scale", "joint_damping_scale", "joint_friction_scale")
-"""The per-episode scale factors on the model file's armature, damping and frictionloss, in
-the order of `draw_joint_dynamics`'s columns (also columns of the physics parameters). The
-friction column is the friction the arm has, as a fraction of the identified one, whatever
-the friction mode."""
-
 FrictionMode = Literal["compensated", "identified"]
 """Which joint friction the impedance law meets (`JOINT_FRICTION`)."""
 
@@ -147,7 +141,8 @@ def draw_joint_dynamics(
     rng: np.random.Generator, ranges: JointDynamicsRandomization, count: int
 ) -> np.ndarray:
     """(count, 3) factors on the model file's armature, damping and friction
-    (`JOINT_DYNAMICS_NAMES`); the friction's includes the mode's nominal."""
+    (`hamnet.task.physics.JOINT_DYNAMICS_NAMES`); the friction's includes the mode's
+    nominal."""
     bounds = np.array([ranges.armature, ranges.damping, ranges.friction_scale])  # (3, 2)
     return rng.uniform(bounds[:, 0], bounds[:, 1], size=(count, 3))
 

@@ -134,7 +134,9 @@ def near_targets(
     if config.near_behind < np.pi and goal_pos is not None:
         away = object_pos[:, :2] - goal_pos[:, :2]  # (K, 2)
         behind = np.arctan2(away[:, 1], away[:, 0])  # (K,)
-        angle = behind[:, None] + rng.uniform(-config.near_behind, config.near_behind, size=(count, tries))
+        angle = behind[:, None] + rng.uniform(
+            -config.near_behind, config.near_behind, size=(count, tries)
+        )
     else:
         angle = rng.uniform(0.0, 2.0 * np.pi, size=(count, tries))  # (K, T)
     gap = rng.uniform(*config.near_gap, size=(count, tries)) + draw * config.near_gap_growth
@@ -301,18 +303,23 @@ def near_seeds(
     """
     _, index = buffer.paddle_tree.query(targets, k=candidates)  # (K, M), nearest first
     index = index.reshape(len(targets), candidates)
-    clear = np.concatenate([
-        arm_clear(buffer, index[rows], object_pos[rows], object_radius[rows], _rows(cuboids, rows))
-        for rows in np.array_split(np.arange(len(targets)), max(1, len(targets) // 8))
-    ])  # fmt: skip  # (K, M), 8 environments at a time bound the (k, M, P, C, 3) arrays
+    clear = np.concatenate(
+        [
+            arm_clear(
+                buffer, index[rows], object_pos[rows], object_radius[rows], _rows(cuboids, rows)
+            )
+            for rows in np.array_split(np.arange(len(targets)), max(1, len(targets) // 8))
+        ]
+    )  # (K, M), 8 environments at a time bound the (k, M, P, C, 3) arrays
     score = clear * (np.linspace(1.0, 0.5, candidates) if nearest else rng.random(clear.shape))
     pick = np.argmax(score, axis=1)  # (K,), the first posture when none is clear
     return buffer.q[index[np.arange(len(targets)), pick]], clear.any(axis=1)
 
 
 def _rows(cuboids: Cuboids, rows: np.ndarray) -> Cuboids:
-    return Cuboids(cuboids.centre[rows], cuboids.quat[rows], cuboids.half_extent[rows],
-                   cuboids.active[rows])  # fmt: skip
+    return Cuboids(
+        cuboids.centre[rows], cuboids.quat[rows], cuboids.half_extent[rows], cuboids.active[rows]
+    )
 
 
 def arm_clear(

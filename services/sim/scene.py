@@ -14,29 +14,23 @@ Axis 0 is longitudinal (x, away from the robot), axis 1 lateral (y). Along each 
 planar plates (top or bottom) and two interim plates (ramps) tile the table: a plate strip
 spans the whole table across the other axis, so the surface elevation is
 max(profile_x(x), profile_y(y)). Shapes: B environments, N = 16 cuboids, R = 25 regions.
+
+This module owns the slot layout and assembles a batch: the parameters are drawn in
+`scene_parameters`, the standing regions computed in `scene_regions`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
 from hamnet.sim import quaternion
 from hamnet.sim.scene_config import FLOOR_Z, SceneConfig
+from hamnet.sim.scene_parameters import Case, Interior, sample_case, sample_interior
+from hamnet.sim.scene_regions import profile, regions
+from hamnet.task.cuboids import NUM_CUBOIDS, TABLE
 
-CUBOID_NAMES = (
-    "table",
-    "plate_x0", "plate_x1", "plate_x2", "ramp_x0", "ramp_x1",
-    "plate_y0", "plate_y1", "plate_y2", "ramp_y0", "ramp_y1",
-    "wall_front", "wall_back", "wall_right", "wall_left",
-    "ceiling",
-)  # fmt: skip
-"""Slot names: planar plates run near to far (x) and right to left (y); the front wall faces
-the robot (-x), the right wall is at -y."""
-NUM_CUBOIDS = len(CUBOID_NAMES)
-TABLE = 0
 PLATES = ((1, 2, 3), (6, 7, 8))
 """Planar plate slots per axis (x, y)."""
 RAMPS = ((4, 5), (9, 10))
@@ -46,22 +40,37 @@ NUM_BASE = 11
 FRONT_WALL, BACK_WALL, RIGHT_WALL, LEFT_WALL, CEILING = 11, 12, 13, 14, 15
 
 ENV_CODE_COLUMNS = (
-    "table_dim_x", "table_dim_y", "table_dim_z",
-    "table_pos_x", "table_pos_y", "table_pos_z",
-    "ramp_angle_x0", "ramp_angle_x1", "ramp_angle_y0", "ramp_angle_y1",
-    "plate_height_x0", "plate_height_x1", "plate_height_x2",
-    "plate_height_y0", "plate_height_y1", "plate_height_y2",
-    "ramp_pos_x0", "ramp_pos_x1", "ramp_pos_y0", "ramp_pos_y1",
-    "wall_height_front", "wall_height_back", "wall_height_right", "wall_height_left",
+    "table_dim_x",
+    "table_dim_y",
+    "table_dim_z",
+    "table_pos_x",
+    "table_pos_y",
+    "table_pos_z",
+    "ramp_angle_x0",
+    "ramp_angle_x1",
+    "ramp_angle_y0",
+    "ramp_angle_y1",
+    "plate_height_x0",
+    "plate_height_x1",
+    "plate_height_x2",
+    "plate_height_y0",
+    "plate_height_y1",
+    "plate_height_y2",
+    "ramp_pos_x0",
+    "ramp_pos_x1",
+    "ramp_pos_y0",
+    "ramp_pos_y1",
+    "wall_height_front",
+    "wall_height_back",
+    "wall_height_right",
+    "wall_height_left",
     "ceiling_height",
-)  # fmt: skip
+)
 """EnvCode columns. Metres and radians; ramp_pos is the centre of an interim plate along its
 axis from the table centre; wall and ceiling heights are above the table top (the ceiling's
 underside, platform rise included) and 0 when that cuboid is absent. table_dim_z and
 table_pos_z are the sampled parameters whose sum sets the top (FLOOR_Z + pos + dim); the
 table's box reaches from the floor to that top."""
-NUM_REGIONS = 25
-"""Regions: the 5 x 5 grid of segments (plate, ramp, plate, ramp, plate) of the two axes."""
 
 
 @dataclass(frozen=True)
@@ -109,20 +118,6 @@ class SceneBatch:
         return len(self.friction)
 
 
-class _Interior(NamedTuple):
-    height: np.ndarray  # (B, 2, 3) planar plate elevation above the table top, m
-    angle: np.ndarray  # (B, 2, 2) ramp tilt from the vertical, rad
-    edges: np.ndarray  # (B, 2, 6) segment boundaries from the table centre, m
-
-
-class _Case(NamedTuple):
-    height: np.ndarray  # (B,) ceiling clearance above the table top (walls reach it), m
-    wall_height: np.ndarray  # (B,) wall top above the table top, m: `height` under a ceiling
-    wall: np.ndarray  # (B, 4) bool, order front, back, right, left
-    ceiling: np.ndarray  # (B,) bool
-    tight: np.ndarray  # (B,) bool
-
-
 def sample_scenes(
     rng: np.random.Generator, object_height: np.ndarray, config: SceneConfig | None = None
 ) -> SceneBatch:
@@ -146,17 +141,17 @@ def sample_scenes(
     ranges = (config.table_pos_x, config.table_pos_y, config.table_pos_z)
     table_pos = rng.uniform(*np.transpose(ranges), size=(num_envs, 3))  # (B, 3), m
     friction = rng.uniform(*config.table_friction, size=num_envs)  # (B,)
-    interior = _sample_interior(rng, table_dim[:, :2], config)
-    case = _sample_case(rng, object_height, interior.height.max(axis=(1, 2)), config)
+    interior = sample_interior(rng, table_dim[:, :2], config)
+    case = sample_case(rng, object_height, interior.height.max(axis=(1, 2)), config)
 
     table_centre = np.asarray(config.table_origin) + table_pos[:, :2]  # (B, 2), m
     table_top = FLOOR_Z + table_pos[:, 2] + table_dim[:, 2]  # (B,), m
     centre, quat, half_extent, active = _cuboids(
         interior, case, table_centre, table_dim, table_top, config
     )
-    profile_low, profile_high = _profile(interior.height)
+    profile_low, profile_high = profile(interior.height)
     profile_edges = interior.edges + table_centre[:, :, None]  # (B, 2, 6), m
-    region_lo, region_hi, region_z, region_flat = _regions(
+    region_lo, region_hi, region_z, region_flat = regions(
         profile_edges, profile_low, profile_high, table_top
     )
     return SceneBatch(
@@ -180,63 +175,9 @@ def sample_scenes(
     )
 
 
-def _sample_interior(
-    rng: np.random.Generator, extent: np.ndarray, config: SceneConfig
-) -> _Interior:
-    """Plate elevations, ramp tilts and the plate sizes that fit them on the table.
-
-    Each planar plate is a top plate with probability p_top_plate, raised by U(plate_height),
-    one draw per scene (`shared_plate_height`) or per plate; bottom plates lie at the table
-    top. A ramp's horizontal run is
-    |rise| * tan(tilt), and the three plates share what the two runs leave of the axis, so
-    plates and ramps tile the table exactly.
-    """
-    num_envs = len(extent)  # extent: (B, 2) table size along x, y
-    is_top = rng.random((num_envs, 2, 3)) < config.p_top_plate
-    draws = (num_envs, 1, 1) if config.shared_plate_height else (num_envs, 2, 3)
-    height = is_top * rng.uniform(*config.plate_height, size=draws)  # (B, 2, 3), m
-    angle = rng.uniform(*config.ramp_angle, size=(num_envs, 2, 2))  # (B, 2, 2), rad
-    share = rng.dirichlet(np.ones(3), size=(num_envs, 2))  # (B, 2, 3), sums to 1
-    share = config.plate_share_min + (1.0 - 3.0 * config.plate_share_min) * share
-    run = np.abs(np.diff(height, axis=-1)) * np.tan(angle)  # (B, 2, 2), m
-    plate = share * (extent - run.sum(axis=-1))[..., None]  # (B, 2, 3), m
-    lengths = _interleave(plate, run)  # (B, 2, 5): plate, ramp, plate, ramp, plate
-    edges = np.concatenate(
-        [np.zeros((num_envs, 2, 1)), np.cumsum(lengths, axis=-1)], axis=-1
-    ) - extent[..., None] / 2  # (B, 2, 6), from the table centre
-    edges[..., -1] = extent / 2  # exact far edge despite rounding in the sum
-    return _Interior(height=height, angle=angle, edges=edges)
-
-
-def _sample_case(
-    rng: np.random.Generator, object_height: np.ndarray, rise: np.ndarray, config: SceneConfig
-) -> _Case:
-    """Walls and ceiling: masks, the nominal/tight choice and the height they reach.
-
-    A ceiling opens the front wall (the robot's way in) and keeps at least one of the other
-    three walls to carry it; its walls reach it. Without a ceiling the walls are
-    U(wall_height) high, whatever the tight/nominal draw. `rise` (B,) is the highest
-    platform, which lifts the ceiling so objects stay under it.
-    """
-    num_envs = len(object_height)
-    ceiling = rng.random(num_envs) < config.p_ceiling
-    tight = rng.random(num_envs) < config.p_tight
-    nominal = rng.uniform(*config.ceiling_height, size=num_envs)  # (B,), m
-    gap = rng.uniform(*config.gap_height, size=num_envs)  # (B,), m
-    wall = rng.random((num_envs, 4)) < config.p_wall  # (B, 4)
-    support = rng.integers(1, 4, size=num_envs)  # (B,) wall raised if a ceiling has none
-    wall[:, 0] &= ~ceiling
-    unsupported = ceiling & ~wall[:, 1:].any(axis=-1)
-    wall[unsupported, support[unsupported]] = True
-    open_walls = rng.uniform(*config.wall_height, size=num_envs)  # (B,), m
-    height = np.where(tight, object_height + gap, nominal) + rise
-    wall_height = np.where(ceiling, height, open_walls)
-    return _Case(height=height, wall_height=wall_height, wall=wall, ceiling=ceiling, tight=tight)
-
-
 def _cuboids(
-    interior: _Interior,
-    case: _Case,
+    interior: Interior,
+    case: Case,
     table_centre: np.ndarray,
     table_dim: np.ndarray,
     table_top: np.ndarray,
@@ -268,7 +209,7 @@ def _cuboids(
 
 def _place_interior(
     boxes: tuple[np.ndarray, ...],
-    interior: _Interior,
+    interior: Interior,
     table_centre: np.ndarray,
     table_dim: np.ndarray,
     table_top: np.ndarray,
@@ -315,7 +256,7 @@ def _place_interior(
 
 def _place_case(
     boxes: tuple[np.ndarray, ...],
-    case: _Case,
+    case: Case,
     table_centre: np.ndarray,
     table_dim: np.ndarray,
     table_top: np.ndarray,
@@ -345,47 +286,8 @@ def _place_case(
     active[:, CEILING] = case.ceiling
 
 
-def _profile(height: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest and highest elevation (B, 2, 5) of each segment, from plate heights (B, 2, 3)."""
-    ramp_low = np.minimum(height[..., :-1], height[..., 1:])  # (B, 2, 2)
-    ramp_high = np.maximum(height[..., :-1], height[..., 1:])
-    return _interleave(height, ramp_low), _interleave(height, ramp_high)
-
-
-def _interleave(plate: np.ndarray, ramp: np.ndarray) -> np.ndarray:
-    """Segment values (..., 5) in axis order from plate (..., 3) and ramp (..., 2) values."""
-    return np.stack(
-        [plate[..., 0], ramp[..., 0], plate[..., 1], ramp[..., 1], plate[..., 2]], axis=-1
-    )
-
-
-def _regions(
-    edges: np.ndarray, low: np.ndarray, high: np.ndarray, table_top: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The 5 x 5 grid cells of the two axes' segments and which of them are flat.
-
-    A cell's surface is max(profile_x, profile_y), so it spans
-    [max(low_x, low_y), max(high_x, high_y)]: it is flat where the two ends agree, e.g. a
-    plate crossing a plate, or a plate standing above a crossing ramp.
-    """
-    num_envs = len(table_top)
-    lo = np.stack(np.broadcast_arrays(edges[:, 0, :-1, None], edges[:, 1, None, :-1]), axis=-1)
-    hi = np.stack(np.broadcast_arrays(edges[:, 0, 1:, None], edges[:, 1, None, 1:]), axis=-1)
-    cell_low = np.maximum(low[:, 0, :, None], low[:, 1, None, :])  # (B, 5, 5)
-    cell_high = np.maximum(high[:, 0, :, None], high[:, 1, None, :])  # (B, 5, 5)
-    area = np.prod(hi - lo, axis=-1)  # (B, 5, 5), m^2
-    flat = (cell_low == cell_high) & (area > 0)
-    z = table_top[:, None, None] + cell_high
-    return (
-        lo.reshape(num_envs, NUM_REGIONS, 2),
-        hi.reshape(num_envs, NUM_REGIONS, 2),
-        z.reshape(num_envs, NUM_REGIONS),
-        flat.reshape(num_envs, NUM_REGIONS),
-    )
-
-
 def _env_code(
-    table_dim: np.ndarray, table_pos: np.ndarray, interior: _Interior, case: _Case
+    table_dim: np.ndarray, table_pos: np.ndarray, interior: Interior, case: Case
 ) -> np.ndarray:
     """The (B, 25) EnvCode in the order of ENV_CODE_COLUMNS."""
     num_envs = len(table_dim)

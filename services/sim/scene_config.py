@@ -1,11 +1,11 @@
 """Ranges of the procedural cuboid scenes (paper, Table tab:env-param) and their geometry.
 
-`SceneConfig` holds every distribution the scene sampler in `scene.py` draws from. Field
-names follow the table (`table_dim_x` is `table_dim.x`); lengths are metres, angles radians.
-Where the paper's table is ambiguous or differs, the defaults are the authors' training
-configuration (ham/src/ham/data/cfg/rss_train.yaml and the scene code it selects; file and
-line in each field's docstring); `SCENE_PRESETS["paper"]` keeps the paper's text. The
-curriculum over ceiling types changes `p_tight` with `dataclasses.replace`.
+`SceneConfig` holds every distribution the scene sampler (`scene.py`, `scene_parameters.py`)
+draws from. Field names follow the table (`table_dim_x` is `table_dim.x`); lengths are
+metres, angles radians. Where the paper's table is ambiguous or differs, the defaults are
+the authors' training configuration (ham/src/ham/data/cfg/rss_train.yaml and the scene code
+it selects; file and line in each field's docstring); `SCENE_PRESETS["paper"]` keeps the
+paper's text. The curriculum over ceiling types changes `p_tight` with `dataclasses.replace`.
 """
 
 from __future__ import annotations

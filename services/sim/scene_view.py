@@ -22,17 +22,15 @@ from hamnet.sim import quaternion
 from hamnet.sim.placement import Placement, sample_placements
 from hamnet.sim.scene import (
     CEILING,
-    CUBOID_NAMES,
     NUM_BASE,
-    NUM_CUBOIDS,
     PLATES,
     RAMPS,
-    TABLE,
     SceneBatch,
     sample_scenes,
 )
 from hamnet.sim.scene_config import FLOOR_Z, SceneConfig
 from hamnet.sim.world import PEDESTAL_HALF_EXTENT
+from hamnet.task.cuboids import CUBOID_NAMES, NUM_CUBOIDS, TABLE
 
 
 def _slot_colours() -> np.ndarray:
@@ -75,9 +73,13 @@ PEDESTAL_CENTRE_X = -0.05
 def log_pedestal(recording: rr.RecordingStream | None = None) -> None:
     """The box the robot's base stands on, from the floor up to the base (static): without
     it the robot seems to hover above the floor the table stands on."""
-    box = rr.Boxes3D(centers=[(PEDESTAL_CENTRE_X, 0.0, FLOOR_Z / 2)],
-                     half_sizes=[(*PEDESTAL_HALF_EXTENT, -FLOOR_Z / 2)], colors=[(90, 90, 100)],
-                     labels=["pedestal"], fill_mode=rr.components.FillMode.Solid)  # fmt: skip
+    box = rr.Boxes3D(
+        centers=[(PEDESTAL_CENTRE_X, 0.0, FLOOR_Z / 2)],
+        half_sizes=[(*PEDESTAL_HALF_EXTENT, -FLOOR_Z / 2)],
+        colors=[(90, 90, 100)],
+        labels=["pedestal"],
+        fill_mode=rr.components.FillMode.Solid,
+    )
     rr.log("scene/pedestal", box, static=True, recording=recording)
 
 
@@ -88,17 +90,22 @@ def spatial_view(name: str, contents: list[str]) -> rrb.Spatial3DView:
         contents=contents,
         name=name,
         eye_controls=EYE,
-        line_grid=rrb.LineGrid3D(visible=True, spacing=0.1, plane=rr.components.Plane3D((0, 0, 1), FLOOR_Z)),
+        line_grid=rrb.LineGrid3D(
+            visible=True, spacing=0.1, plane=rr.components.Plane3D((0, 0, 1), FLOOR_Z)
+        ),
     )
 
 
 def scene_blueprint() -> rrb.Blueprint:
     """The layout of a `save_scene` file: the 3D view above the legend."""
     return rrb.Blueprint(
-        rrb.Vertical(spatial_view("procedural scene", ["+ /scene/**"]),
-                     rrb.TextDocumentView(origin="/legend", name="legend"), row_shares=[6, 1]),
+        rrb.Vertical(
+            spatial_view("procedural scene", ["+ /scene/**"]),
+            rrb.TextDocumentView(origin="/legend", name="legend"),
+            row_shares=[6, 1],
+        ),
         collapse_panels=True,
-    )  # fmt: skip
+    )
 
 
 def log_scene(

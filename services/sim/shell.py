@@ -22,7 +22,9 @@ import time
 
 import numpy as np
 
+from hamnet.messages.robot_state import Observation
 from hamnet.messages.robot_state import encode_observation as encode_state
+from hamnet.messages.safe_command import Command, hold_command
 from hamnet.messages.safe_command import decode as decode_command
 from hamnet.messages.scene import encode as encode_scene
 from hamnet.messages.schedule import decode as decode_schedule
@@ -30,15 +32,14 @@ from hamnet.messages.transition import encode as encode_transition
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.sim_pb2 import Scene
 from hamnet.proto.trainer_pb2 import Schedule
-from hamnet.runtime.codec import parse
+from hamnet.runtime.codec import payload_decoder
 from hamnet.runtime.events import EPISODES_ENDED, EPISODES_SUCCEEDED
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.ports import Ports
 from hamnet.runtime.pubsub import Received
 from hamnet.runtime.service import Service
-from hamnet.sim.commands import hold_command
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, StepResult, VectorEnv
+from hamnet.sim.env import StepResult, VectorEnv
 from hamnet.sim.loop import SimLoopConfig, free_running, lock_step
 from hamnet.sim.stall import StallWatch
 
@@ -66,14 +67,17 @@ class SimShell:
         port = service.ports(PORTS)
         config = env.config
         control_dt = config.policy_period_s / config.control_samples
-        decoder = functools.partial(
-            _decode_command_payload,
+        command = functools.partial(
+            decode_command,
             num_envs=env.num_envs,
             control_samples=config.control_samples,
             control_dt=control_dt,
         )
-        service.inbox.subscribe("command", port["command"], decoder=decoder)
-        service.inbox.subscribe("schedule", port["schedule"], decoder=_decode_schedule_payload)
+        inbox = service.inbox
+        inbox.subscribe("command", port["command"], decoder=payload_decoder(SafeCommand, command))
+        inbox.subscribe(
+            "schedule", port["schedule"], decoder=payload_decoder(Schedule, decode_schedule)
+        )
         self.state = service.publisher(port["state"])
         self.scene = service.publisher(port["scene"])
         service.inbox.serve("scene_query", port["scene"])
@@ -93,8 +97,12 @@ class SimShell:
         self.report.restart()  # rates of the steps, not of the first reset
         self.publish_all()
         mode = "free-running" if self.loop.realtime else "lock-step"
-        log.info("%d environments, %s, %.0f ms policy period", self.env.num_envs, mode,
-                 1e3 * self.env.config.policy_period_s)  # fmt: skip
+        log.info(
+            "%d environments, %s, %.0f ms policy period",
+            self.env.num_envs,
+            mode,
+            1e3 * self.env.config.policy_period_s,
+        )
         (free_running if self.loop.realtime else lock_step)(self)
         env_steps = self.step * self.env.num_envs
         log.info("stopped after %d steps (%d environment steps)", self.step, env_steps)
@@ -104,14 +112,6 @@ class SimShell:
     def finished(self) -> bool:
         """Stopped, or `max_steps` done."""
         return not self.service.running or 0 < self.loop.max_steps <= self.step
-
-    def turn(self) -> None:
-        """Once per turn of the loop: the rate line and the stall watch, when due."""
-        self.report.tick()
-        if self.stall.check(time.monotonic()):
-            log.warning("no command for %.1f s at step %d: the closed loop is stalled",
-                        self.loop.stall_s, self.step)  # fmt: skip
-            self.service.count_event("loop_stalls")
 
     def handle(self, received: Received) -> tuple[int, Command] | None:
         """A command to consider, or None after applying a schedule or answering a query."""
@@ -134,8 +134,12 @@ class SimShell:
         """Step every environment; publish transition k, new scenes and state k+1."""
         started, resetting = time.perf_counter(), self.env.reset_seconds
         result = self.env.step(command)
-        self.report.tick(steps=1, step_s=time.perf_counter() - started, resets=len(result.reset_ids),
-                         reset_s=self.env.reset_seconds - resetting)  # fmt: skip
+        self.report.tick(
+            steps=1,
+            step_s=time.perf_counter() - started,
+            resets=len(result.reset_ids),
+            reset_s=self.env.reset_seconds - resetting,
+        )
         self.transition.put(encode_transition(result, self.env.reward_names, self.step))
         self.count_episodes(result)
         self.step += 1
@@ -164,35 +168,14 @@ class SimShell:
         """The Scene message of the current episodes of `env_ids` (K,)."""
         return encode_scene(self.env.scenes(env_ids), self.step)
 
-    def commanded(self) -> None:
-        """A command was used: a stall, if any, is over."""
-        ended = self.stall.commanded(time.monotonic())
-        if ended is not None:
-            log.info("commands arrive again at step %d after a %.1f s stall", self.step, ended)
-
-    def ignore(self, step: int) -> None:
-        """Count a command that answered another step than the current one."""
-        self.stale += 1
-        if self.stale == 1:
-            log.info("ignoring a command for step %d at step %d (further ones are counted in "
-                     "the rate line)", step, self.step)  # fmt: skip
-
     def _line(self, w: Window) -> str:
         """The rate line: steps, resets and the shares of the time inside `VectorEnv.step`
         (resets included) and inside its resets."""
         b = self.env.num_envs
         schedule = ", ".join(f"{k} {v:.2f}" for k, v in self.env.schedule.as_dict().items())
-        return (f"{w.rate('steps') * b:.0f} env steps/s ({w.rate('steps'):.1f} steps/s of {b} "
-                f"envs), {w.rate('resets'):.1f} resets/s, stepping {100 * w.rate('step_s'):.0f}% "
-                f"of the time (resets {100 * w.rate('reset_s'):.0f}%), stale commands "
-                f"{self.stale}, late ticks {self.late}; {schedule}")  # fmt: skip
-
-
-def _decode_command_payload(
-    key: str, payload: bytes, num_envs: int, control_samples: int, control_dt: float
-) -> tuple[int, Command]:
-    return decode_command(parse(SafeCommand, payload), num_envs, control_samples, control_dt)
-
-
-def _decode_schedule_payload(key: str, payload: bytes) -> int:
-    return decode_schedule(parse(Schedule, payload))
+        return (
+            f"{w.rate('steps') * b:.0f} env steps/s ({w.rate('steps'):.1f} steps/s of {b} "
+            f"envs), {w.rate('resets'):.1f} resets/s, stepping {100 * w.rate('step_s'):.0f}% "
+            f"of the time (resets {100 * w.rate('reset_s'):.0f}%), stale commands "
+            f"{self.stale}, late ticks {self.late}; {schedule}"
+        )

@@ -13,7 +13,7 @@
   The angle allows the turning a push causes (3x the authors': in a calibration run 52% of
   timeouts had the object turned past 0.1 rad). Starting behind the object leaves the push
   to learn, not the walk around it (with every direction, no state-based PPO run of 0.3-0.8 M
-  transitions learned at all, docs/trainer.md); 100 policy steps (the authors' 300 are for
+  transitions learned at all, docs/trainer-history.md); 100 policy steps (the authors' 300 are for
   the full domain's detours) give a 25 cm push four times the time it needs.
 - "easy-5cm": the easy stage before issue 28, kept for comparison: random tables (flat),
   goals 0.08-0.2 m from the start, success within 0.05 m (the authors') and 0.3 rad.

@@ -8,7 +8,7 @@ of its own and stepping stays one call for the whole batch:
   `tau = kp*(q_ref - q) - kd*qdot` evaluated by MuJoCo at every physics step, `q_ref` the
   control input, `kp`, `kd` and the torque clip per environment (gravity compensation is
   added on top, as the FR3 does itself);
-- 16 box geoms in the world body, one per scene cuboid slot (`scene.CUBOID_NAMES`), moved
+- 16 box geoms in the world body, one per scene cuboid slot (`hamnet.task.cuboids`), moved
   and resized per environment;
 - one free object body with `MAX_PARTS` convex-part geoms, each of which can take any
   library object's part mesh per environment;
@@ -28,8 +28,9 @@ from hamnet.fr3 import limits as fr3_limits
 from hamnet.fr3 import model as fr3_model
 from hamnet.sim.objects.asset import ObjectAsset
 from hamnet.sim.objects.library import ObjectSet
-from hamnet.sim.scene import CUBOID_NAMES
+from hamnet.sim.objects.spec import full_inertia
 from hamnet.sim.scene_config import FLOOR_Z
+from hamnet.task.cuboids import CUBOID_NAMES
 
 MAX_PARTS = 8
 """Convex parts of the live object; library objects with more are rejected."""
@@ -113,7 +114,11 @@ def _impedance_actuators(spec: mujoco.MjSpec) -> None:
     """
     kp = 100.0  # placeholder gains until the first command sets them
     for actuator, q_min, q_max, tau_max in zip(
-        spec.actuators, fr3_limits.FR3.q_min, fr3_limits.FR3.q_max, fr3_limits.FR3.tau_max, strict=True
+        spec.actuators,
+        fr3_limits.FR3.q_min,
+        fr3_limits.FR3.q_max,
+        fr3_limits.FR3.tau_max,
+        strict=True,
     ):
         actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         actuator.gainprm[0] = kp
@@ -197,10 +202,7 @@ def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
         parked.explicitinertial = True
         parked.ipos = [0.0, 0.0, 0.0]
         parked.mass = 1.0
-        inertia = asset.unit_inertia
-        parked.fullinertia = [
-            inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]
-        ]  # fmt: skip
+        parked.fullinertia = full_inertia(asset.unit_inertia)
         _add_parts(parked, f"catalogue/{i}", _padded(names), collide=False)
     return spec
 
@@ -208,7 +210,10 @@ def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
 def _catalogue(model: mujoco.MjModel, objects: ObjectSet) -> ObjectCatalogue:
     bodies = [model.body(f"catalogue/{i}").id for i in range(len(objects))]
     geoms = np.array(
-        [[model.geom(f"catalogue/{i}/part{j}").id for j in range(MAX_PARTS)] for i in range(len(objects))]
+        [
+            [model.geom(f"catalogue/{i}/part{j}").id for j in range(MAX_PARTS)]
+            for i in range(len(objects))
+        ]
     )  # (N, P)
     used = np.array([[j < len(a.parts) for j in range(MAX_PARTS)] for a in objects])  # (N, P)
     return ObjectCatalogue(

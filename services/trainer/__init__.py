@@ -1,3 +1,6 @@
-"""The trainer: PPO (and later DAgger) on rollouts, with pure batched cores for advantages,
-losses, learning-rate adaptation and normalization (paper Table tab:PPO; the authors'
-`rss_train.yaml` where they differ)."""
+"""The trainer, laid out by role as rsl_rl lays out its own: `algorithms` (PPO and DAgger's
+pure cores), `storage` (decoding the rollout chunks workers stream), `collection` (rollout
+workers and the sources a run collects through), `runners` (the training loop, its config,
+snapshots and ranks) and `results` (evaluation, summary, curves); the command lines
+(`cli`, `dagger_cli`, `rollout_cli`) and what the trainer publishes (`publisher`) at the
+top. The whole in-process loop, top to bottom in one file: `examples/train_loop.py`."""

@@ -51,18 +51,20 @@ import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.errors import ConfigError
+from hamnet.runtime.runs import commit
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.stages import stage_in
-from hamnet.trainer.dagger import AlgoConfig
-from hamnet.trainer.evaluate import evaluate
-from hamnet.trainer.launch_ranks import start_other_ranks, wait_for
-from hamnet.trainer.ranks import ONE, Ranks, from_environment
-from hamnet.trainer.resume import ResumeError
-from hamnet.trainer.runner import RunConfig, Runner, stage_sim
-from hamnet.trainer.shell import TrainerPublisher
-from hamnet.trainer.stopping import until_signalled
-from hamnet.trainer.stream import Streamed
-from hamnet.trainer.summary import commit, write_summary
+from hamnet.trainer.collection.streamed import Streamed
+from hamnet.trainer.config import AlgoConfig
+from hamnet.trainer.publisher import TrainerPublisher
+from hamnet.trainer.results.evaluate import evaluate
+from hamnet.trainer.results.summary import write_summary
+from hamnet.trainer.runners.launch_ranks import start_other_ranks, wait_for
+from hamnet.trainer.runners.ranks import ONE, Ranks, from_environment
+from hamnet.trainer.runners.run_config import RunConfig, stage_sim
+from hamnet.trainer.runners.runner import Runner
+from hamnet.trainer.runners.snapshots import ResumeError
+from hamnet.trainer.runners.stopping import until_signalled
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +78,7 @@ class TrainerConfig:
     """The run (`--stage`, `--architecture`, ...; the environments under `--sim.*`, PPO under
     `--ppo.*`)."""
     inprocess: bool = False
-    """Collect in this process (`hamnet.trainer.rollout`) instead of from rollout workers."""
+    """Collect in this process (`hamnet.trainer.collection.rollout_worker`) instead of from rollout workers."""
     max_policy_lag: int = 0
     """Learn from chunks acted up to this many versions ago (rollout workers must say the
     same); 0: synchronous, on-policy."""
@@ -141,7 +143,7 @@ def stage_default(argv: Sequence[str]) -> RunConfig:
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet trainer` (or `hamnet trainer plot`) with arguments `argv`; returns the exit status."""
     if argv and argv[0] == "plot":
-        from hamnet.trainer.plot import main as plot_main  # matplotlib only when plotting
+        from hamnet.trainer.results.plot import main as plot_main  # matplotlib only when plotting
 
         return plot_main(argv[1:])
     default = TrainerConfig(run=stage_default(argv))
@@ -164,8 +166,11 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
     """Train as this learner rank; the main one then evaluates and writes the summary."""
     run = config.resumed_run
     if config.run.workers % ranks.size or (ranks.size > 1 and config.inprocess):
-        print(f"hamnet trainer: {ranks.size} learner ranks need --workers a multiple of them "
-              "and no --inprocess", file=sys.stderr)  # fmt: skip
+        print(
+            f"hamnet trainer: {ranks.size} learner ranks need --workers a multiple of them "
+            "and no --inprocess",
+            file=sys.stderr,
+        )
         return 2
     if not ranks.main:  # its own identity on the network
         identity = ServiceIdentity(identity.service, f"{identity.worker}-rank{ranks.rank}")
@@ -186,13 +191,20 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
         return 0
     held_out = None
     if stopped:  # the launcher's grace period leaves no time for the evaluation
-        log.info("stopped: checkpoint, metrics and summary written without the held-out "
-                 "evaluation; `hamnet trainer --resume %s --max-wall-clock-s 0` (the run's other "
-                 "flags unchanged) evaluates it", run.run_dir)  # fmt: skip
+        log.info(
+            "stopped: checkpoint, metrics and summary written without the held-out "
+            "evaluation; `hamnet trainer --resume %s --max-wall-clock-s 0` (the run's other "
+            "flags unchanged) evaluates it",
+            run.run_dir,
+        )
     elif run.eval_episodes:
         held_out = evaluate(runner.policy, run, run.eval_episodes, runner.env_transitions)
-        log.info("on %d held-out episodes: success rate %.3f, goal return %.4f", run.eval_episodes,
-                 held_out.success_rate, held_out.goal_return)  # fmt: skip
+        log.info(
+            "on %d held-out episodes: success rate %.3f, goal return %.4f",
+            run.eval_episodes,
+            held_out.success_rate,
+            held_out.goal_return,
+        )
     print(write_summary(run, held_out, code, {"stopped_by_signal": stopped}))
     return 0
 
@@ -203,9 +215,20 @@ def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> R
     run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
         return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
-    runner = Runner(run, lambda policy: Streamed(service, policy, config.run.workers, run.num_envs,
-                    config.max_policy_lag, ranks=ranks, worker_timeout_s=config.worker_timeout_s),
-                    resume, ranks)  # fmt: skip
+    runner = Runner(
+        run,
+        lambda policy: Streamed(
+            service,
+            policy,
+            config.run.workers,
+            run.num_envs,
+            config.max_policy_lag,
+            ranks=ranks,
+            worker_timeout_s=config.worker_timeout_s,
+        ),
+        resume,
+        ranks,
+    )
     if not ranks.main:
         runner.run(running=lambda: service.running)
         return runner

@@ -1,4 +1,5 @@
-"""PPO's hyperparameters, each with its source.
+"""The trainer's hyperparameters, each with its source: PPO's, DAgger's, and which of the
+two a run learns by (`AlgoConfig`).
 
 Rule (docs/mdp.md): where the paper's Table tab:PPO and the authors' training configuration
 disagree, the configuration wins (it produced the reported numbers) and the paper's value is
@@ -10,7 +11,8 @@ at 36f8267): `rss_train.yaml` is `ham/src/ham/data/cfg/rss_train.yaml`, `ppo_con
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Literal
 
 KLStop = Literal["rollback", "before-step", "off"]
@@ -131,3 +133,57 @@ PPO_PRESETS: dict[str, PPOConfig] = {
 }
 """Ours at a few CPU environments (default), the authors' configuration, and the paper's
 Table tab:PPO where it differs from that."""
+
+
+@dataclass(frozen=True)
+class DaggerConfig:
+    """Beta's schedule and the student's update. Neither the paper nor the authors give
+    DAgger settings; these are ours."""
+
+    beta_initial: float = 1.0
+    """Probability that the teacher acts an episode at the start: 1, DAgger's first
+    iteration (the teacher alone), so the student first learns on the teacher's states."""
+    beta_final: float = 0.0
+    """... and once the decay is over: 0, the student alone, the deployed situation, so the
+    late data are the states the student itself drifts into."""
+    beta_decay_transitions: int = 200_000
+    """env_transitions over which beta falls linearly from `beta_initial` to `beta_final`:
+    about a third of an hour's run on this machine (roughly 150 env steps/s with two
+    perceptions), so most of the run trains on the student's own states."""
+    epochs: int = 4
+    """Gradient steps per rollout, each on the whole (T, B) window (as PPO's one minibatch
+    per epoch): a few, since the window is small and the next one comes from similar states."""
+    lr: float = 3e-4
+    """Adam's learning rate: PPO's base rate (paper Table tab:PPO), constant."""
+    max_grad_norm: float = 1.0
+    """Gradient clipping by global norm: PPO's (authors' `ppo.py:98`)."""
+    value_coef: float = 0.0
+    """Weight of the value loss (0.5 x squared error to the teacher's values per reward
+    term); 0: off. The deployed student needs no critic; on, it gives the student a critic
+    for fine-tuning by PPO later."""
+
+    def __post_init__(self) -> None:
+        for name in ("beta_initial", "beta_final"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if self.beta_decay_transitions < 0 or self.epochs < 1:
+            raise ValueError("beta_decay_transitions must be >= 0 and epochs >= 1")
+        if not (self.lr > 0 and self.max_grad_norm > 0 and self.value_coef >= 0):
+            raise ValueError("lr and max_grad_norm must be > 0, value_coef >= 0")
+
+
+@dataclass(frozen=True)
+class AlgoConfig:
+    """What a run learns by: the flags `hamnet trainer` and its `hamnet rollout` workers
+    share (`--algo`, `--teacher`, `--dagger.*`; workers must be given the trainer's)."""
+
+    algo: Literal["ppo", "dagger"] = "ppo"
+    """ppo: learn by PPO. dagger: distil `--teacher` into the run's `--architecture` (default
+    `student` then) by DAgger; rollout workers host the teacher beside the student."""
+    teacher: Path | None = None
+    """With --algo dagger: the teacher, a policy checkpoint `hamnet trainer` wrote (its
+    `checkpoints/latest.safetensors`), the same file for the trainer and its workers. Give
+    the run the teacher's --stage and encoder flags."""
+    dagger: DaggerConfig = field(default_factory=DaggerConfig)
+    """DAgger's beta schedule and student update (`--dagger.*`), with --algo dagger: workers
+    draw who acts from the same schedule."""

@@ -19,13 +19,13 @@ from hamnet.perception.config import student_clouds
 from hamnet.policy.policy import Policy
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.trainer.cli import TrainerConfig, publish_while
-from hamnet.trainer.dagger_chunks import DEMONSTRATIONS, demonstrations_decoder
-from hamnet.trainer.dagger_runner import DaggerError, DaggerRunner, Teacher, load_teacher
-from hamnet.trainer.evaluate import evaluate
-from hamnet.trainer.resume import ResumeError
-from hamnet.trainer.stopping import until_signalled
-from hamnet.trainer.stream import Streamed
-from hamnet.trainer.summary import repository_path, write_summary
+from hamnet.trainer.collection.streamed import Streamed
+from hamnet.trainer.results.evaluate import evaluate
+from hamnet.trainer.results.summary import repository_path, write_summary
+from hamnet.trainer.runners.dagger_runner import DaggerError, DaggerRunner, Teacher, load_teacher
+from hamnet.trainer.runners.snapshots import ResumeError
+from hamnet.trainer.runners.stopping import until_signalled
+from hamnet.trainer.storage.demonstration_chunks import DEMONSTRATIONS, demonstrations_decoder
 
 log = logging.getLogger(__name__)
 
@@ -35,8 +35,10 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
     run, algorithm, resume = config.resumed_run, config.algorithm, config.resume is not None
     try:
         if algorithm.teacher is None:
-            raise DaggerError("--algo dagger needs --teacher CKPT, a policy checkpoint of "
-                              "hamnet trainer (RUN_DIR/checkpoints/latest.safetensors)")  # fmt: skip
+            raise DaggerError(
+                "--algo dagger needs --teacher CKPT, a policy checkpoint of "
+                "hamnet trainer (RUN_DIR/checkpoints/latest.safetensors)"
+            )
         teacher = load_teacher(algorithm.teacher)
         if config.inprocess and not config.publish:
             with until_signalled() as running:
@@ -50,20 +52,30 @@ def distil(config: TrainerConfig, identity: ServiceIdentity, code: str) -> int:
     except (DaggerError, ResumeError) as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
-    extra: dict[str, object] = {"algo": "dagger", "teacher": repository_path(teacher.path),
-                                "teacher_sha256": teacher.sha256,
-                                "stopped_by_signal": stopped}  # fmt: skip
+    extra: dict[str, object] = {
+        "algo": "dagger",
+        "teacher": repository_path(teacher.path),
+        "teacher_sha256": teacher.sha256,
+        "stopped_by_signal": stopped,
+    }
     student = None
     if run.eval_episodes and not stopped:  # a stopped run saves within the grace period
         counter = runner.env_transitions
         student = evaluate(runner.policy, run, run.eval_episodes, counter, student_clouds())
         held = evaluate(teacher.policy, run, run.eval_episodes, counter)
         ratio = student.success_rate / held.success_rate if held.success_rate else None
-        extra |= {"student_success_rate": student.success_rate,
-                  "teacher_success_rate": held.success_rate,
-                  "teacher_goal_return": held.goal_return, "student_vs_teacher": ratio}  # fmt: skip
-        log.info("on %d held-out episodes: student %.3f, teacher %.3f", run.eval_episodes,
-                 student.success_rate, held.success_rate)  # fmt: skip
+        extra |= {
+            "student_success_rate": student.success_rate,
+            "teacher_success_rate": held.success_rate,
+            "teacher_goal_return": held.goal_return,
+            "student_vs_teacher": ratio,
+        }
+        log.info(
+            "on %d held-out episodes: student %.3f, teacher %.3f",
+            run.eval_episodes,
+            student.success_rate,
+            held.success_rate,
+        )
     print(write_summary(runner.config, student, code, extra))
     return 0
 
@@ -78,9 +90,16 @@ def distil_with(service: Service, config: TrainerConfig, teacher: Teacher) -> Da
         return publish_while(service, runner, config.weights_period_s)
 
     def streamed(student: Policy) -> Streamed:
-        return Streamed(service, student, config.run.workers, run.num_envs, config.max_policy_lag,
-                        worker_timeout_s=config.worker_timeout_s,
-                        decoder=demonstrations_decoder(teacher.sha256), topic=DEMONSTRATIONS)  # fmt: skip
+        return Streamed(
+            service,
+            student,
+            config.run.workers,
+            run.num_envs,
+            config.max_policy_lag,
+            worker_timeout_s=config.worker_timeout_s,
+            decoder=demonstrations_decoder(teacher.sha256),
+            topic=DEMONSTRATIONS,
+        )
 
     runner = DaggerRunner(run, dagger, teacher, resume, streamed)
     return publish_while(service, runner, math.inf)  # the source announces every version

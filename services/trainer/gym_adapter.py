@@ -27,10 +27,10 @@ import torch
 from torch import Tensor, nn
 
 from hamnet.policy.init import initialize
+from hamnet.trainer.algorithms.gae import gae
+from hamnet.trainer.algorithms.normalization import ReturnScaler, RunningMeanStd
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
 from hamnet.trainer.config import PPOConfig
-from hamnet.trainer.gae import gae
-from hamnet.trainer.normalization import ReturnScaler, RunningMeanStd
-from hamnet.trainer.ppo import Batch, UpdateStats, optimizer_for, update
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 OBS_CLIP = 5.0

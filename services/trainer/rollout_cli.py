@@ -1,7 +1,7 @@
 """`hamnet rollout`: a rollout worker. It hosts the in-process cores (sim, perception, the
 policy's input builder, the safety filter's training profile) for `--sim.num-envs`
 environments, acts with the newest weights `hamnet trainer` announces and streams every
-rollout back as a RolloutChunk (`hamnet.trainer.rollout_service`).
+rollout back as a RolloutChunk (`hamnet.trainer.collection.worker_service`).
 
     hamnet trainer --workers 2 & hamnet rollout --worker 0 & hamnet rollout --worker 1
     hamnet up compose/train-easy.yaml                  # trainer and workers from a stack file
@@ -32,10 +32,10 @@ import tyro
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
 from hamnet.trainer.cli import stage_default
-from hamnet.trainer.dagger import AlgoConfig
-from hamnet.trainer.dagger_runner import DaggerError, Teacher, check_student, load_teacher
-from hamnet.trainer.rollout_service import RolloutService
-from hamnet.trainer.runner import RunConfig
+from hamnet.trainer.collection.worker_service import RolloutService
+from hamnet.trainer.config import AlgoConfig
+from hamnet.trainer.runners.dagger_runner import DaggerError, Teacher, check_student, load_teacher
+from hamnet.trainer.runners.run_config import RunConfig
 
 
 @dataclass(frozen=True)
@@ -71,8 +71,9 @@ def main(argv: Sequence[str]) -> int:
             print(f"hamnet rollout: {error}", file=sys.stderr)
             return 2
     with Service(identity, config.common.transport) as service:
-        RolloutService(service, config.run, config.max_policy_lag, teacher=teacher,
-                       dagger=algorithm.dagger).run()  # fmt: skip
+        RolloutService(
+            service, config.run, config.max_policy_lag, teacher=teacher, dagger=algorithm.dagger
+        ).run()
     return 0
 
 

@@ -10,9 +10,9 @@ import numpy as np
 
 from hamnet.bridge.core import BridgeCommand, BridgeCore
 from hamnet.bridge.driver import RobotError
+from hamnet.messages.safe_command import hold_command
 from hamnet.safety.filter import SafetyFilter
-from hamnet.safety.trajectory import TrajectoryConfig
-from hamnet.sim.commands import hold_command
+from hamnet.safety.references import TrajectoryConfig
 
 
 def drive(

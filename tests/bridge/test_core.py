@@ -14,8 +14,8 @@ from hamnet.bridge.core import BridgeCommand, BridgeCore, encode_state
 from hamnet.bridge.driver import COMMAND_REJECTED, CONNECTION_LOST, DEADLINE_MISSED
 from hamnet.bridge.fake import FakeDriver, FakeDriverConfig
 from hamnet.fr3.limits import FR3, Q_HOME
+from hamnet.messages.safe_command import hold_command
 from hamnet.runtime.tensor import from_tensor
-from hamnet.sim.commands import hold_command
 from tests.bridge.driving import drive
 from tests.clock import Clock
 

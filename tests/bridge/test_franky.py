@@ -22,7 +22,7 @@ from hamnet.bridge.franky_driver import (
     torque_bounded,
 )
 from hamnet.cli import main
-from hamnet.sim.commands import hold_command
+from hamnet.messages.safe_command import hold_command
 from tests.bridge.driving import drive
 from tests.franky_sim import franky_sim
 

@@ -15,15 +15,16 @@ import pytest
 
 from hamnet.bridge.core import BridgeCore
 from hamnet.bridge.fake import FakeDriver
-from hamnet.bridge.shell import BridgeLoopConfig, BridgeShell, paced
+from hamnet.bridge.loop import BridgeLoopConfig, paced
+from hamnet.bridge.shell import BridgeShell
 from hamnet.messages import robot_state, safe_command
+from hamnet.messages.safe_command import hold_command
 from hamnet.proto.safety_pb2 import CommandMode
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.sim.commands import hold_command
 from tests.estop import ask_estop
 
 PERIOD = 0.05
@@ -76,12 +77,12 @@ def test_a_reset_the_robot_cannot_answer_leaves_the_bridge_up_and_says_why(bridg
     ask("reset")
     failed = until(lambda: ask("status")["last_reset"], "the reset's outcome")
     assert failed["ok"] is False and "cannot reach" in failed["reason"]
-    assert ask("status")["streaming"] is False and shell.resetting is None
+    assert ask("status")["streaming"] is False and shell.resets.resetting is None
     driver.reachable = True
     ask("reset")
     until(lambda: (ask("status")["last_reset"] or {}).get("ok"), "a reset that streams")
     assert ask("status")["streaming"] is True
-    episode = lambda: int(robot_state.decode(next_state(inbox)).episode_ids[0])  # noqa: E731
+    episode = lambda: int(robot_state.decode(next_state(inbox)).episode_ids[0])
     until(lambda: episode() == 1, "states of the new episode")
 
 

@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from hamnet.camera.frames import decode_frames
-from hamnet.perception.cameras import DepthView
+from hamnet.camera.views import DepthView
 from hamnet.proto.camera_pb2 import DepthFrames
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox

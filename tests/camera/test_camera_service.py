@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 from hamnet.camera.frames import decode_frames, encode_frames
-from hamnet.perception.cameras import OBJECT, SCENE
+from hamnet.camera.views import OBJECT, SCENE
 from hamnet.proto.sim_pb2 import RobotState
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import Publisher

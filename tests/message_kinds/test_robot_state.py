@@ -87,3 +87,18 @@ def test_a_privileged_block_needs_all_three_fields() -> None:
     assert reason(lambda: robot_state.decode(message)) == "missing"
     to_tensor(np.zeros((B, 6), np.float32), message.privileged.object_pose)
     assert reason(lambda: robot_state.decode(message)) == "shape"
+
+
+def test_a_consumer_that_needs_the_privileged_block_says_why_and_may_fix_its_width() -> None:
+    """The teacher policy and the sim path of perception both need the privileged block (a
+    real robot sends none): the one decoder refuses a state without it, with their reason,
+    and checks the physics parameters' width P that a teacher reads."""
+    message = robot_state.encode_observation(observation(), step=0)
+    state = robot_state.decode(message, privileged_for="a teacher reads it", physics_params=P)
+    assert state.privileged.physics_params.shape == (B, P)
+    assert reason(lambda: robot_state.decode(message, physics_params=P + 1)) == "shape"
+    message.ClearField("privileged")
+    assert robot_state.decode(message, physics_params=P).privileged is None  # not needed
+    with pytest.raises(PayloadError, match="a teacher reads it") as error:
+        robot_state.decode(message, privileged_for="a teacher reads it")
+    assert error.value.reason == "missing"

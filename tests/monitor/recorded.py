@@ -11,6 +11,7 @@ import numpy as np
 import pyarrow as pa
 import rerun
 
+from hamnet.messages.safe_command import hold_command
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -20,13 +21,12 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import from_tensor, to_tensor
 from hamnet.sim import quaternion
-from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.shell import SimLoopConfig, SimShell
-from hamnet.trainer.ppo import UpdateStats
-from hamnet.trainer.shell import encode_metrics
+from hamnet.task.rewards import REWARD_NAMES
+from hamnet.trainer.algorithms.ppo import UpdateStats
+from hamnet.trainer.publisher import encode_metrics
 from tests.scripted import ScriptedService
 from tests.sim.test_shell import safe_command
 

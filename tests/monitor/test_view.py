@@ -25,9 +25,9 @@ from hamnet.monitor.palette import REWARD_COLOURS
 from hamnet.monitor.robot import RobotView
 from hamnet.monitor.view import MonitorView
 from hamnet.runtime.tensor import from_tensor
-from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.scene import NUM_BASE
 from hamnet.sim.scene_view import save_scene
+from hamnet.task.rewards import REWARD_NAMES
 from tests.monitor.recorded import (
     TRANSITIONS_PER_ITERATION,
     B,

@@ -13,8 +13,8 @@ import torch
 
 from hamnet.camera.sim_source import sim_world
 from hamnet.camera.sources import SimSourceConfig
-from hamnet.perception.cameras import DepthView
-from hamnet.perception.clouds import pose_points
+from hamnet.camera.views import DepthView
+from hamnet.perception.cloud_ops import pose_points
 from hamnet.perception.config import CameraConfig, PlaneConfig
 from hamnet.perception.segmenters import PlaneSegmenter
 from hamnet.proto.perception_pb2 import PerceptionTokens

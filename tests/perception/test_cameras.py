@@ -11,15 +11,18 @@ import numpy as np
 import pytest
 import torch
 
-from hamnet.perception.cameras import SCENE, CameraConfig, DepthView, camera_clouds, fuse
-from hamnet.perception.clouds import Cuboids, pose_points, sample_surface
+from hamnet.camera.views import SCENE, DepthView
+from hamnet.perception.cameras import camera_clouds, fuse
+from hamnet.perception.cloud_ops import pose_points
+from hamnet.perception.config import CameraConfig
+from hamnet.perception.scene_cloud import Cuboids, sample_surface
 
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory) -> dict[str, np.ndarray]:
     out = tmp_path_factory.mktemp("render") / "views.npz"
     env = {**os.environ, "MUJOCO_GL": "egl"}
-    subprocess.run([sys.executable, "-m", "hamnet.perception.render", str(out)], check=True, env=env, timeout=120)
+    subprocess.run([sys.executable, "-m", "hamnet.camera.render", str(out)], check=True, env=env, timeout=120)
     return dict(np.load(out))
 
 

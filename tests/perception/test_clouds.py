@@ -9,17 +9,16 @@ import numpy as np
 import pytest
 import torch
 
-from hamnet.perception import clouds
-from hamnet.perception.clouds import (
-    Cuboids,
+from hamnet.perception import cloud_ops
+from hamnet.perception.cloud_ops import (
     corrupt,
     farthest_point_sample,
     knn,
     local_cloud,
     pose_points,
     quaternion_matrix,
-    sample_surface,
 )
+from hamnet.perception.scene_cloud import Cuboids, sample_surface
 from hamnet.sim import quaternion
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
@@ -121,7 +120,7 @@ def test_pose_points_rotates_then_translates() -> None:
 @pytest.mark.parametrize("chunk", [8, 2])
 def test_local_cloud_matches_brute_force(chunk: int, monkeypatch) -> None:
     """Also with environments taken 2 at a time (3 environments: a full and a partial chunk)."""
-    monkeypatch.setattr(clouds, "ENV_CHUNK", chunk)
+    monkeypatch.setattr(cloud_ops, "ENV_CHUNK", chunk)
     g = torch.Generator().manual_seed(3)
     scene, keypoints = torch.rand(3, 300, 3, generator=g), torch.rand(3, 7, 3, generator=g)
     local = local_cloud(scene, keypoints, 40)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from hamnet.perception.clouds import Cuboids, sample_surface, workspace_box
 from hamnet.perception.config import CloudConfig
+from hamnet.perception.scene_cloud import Cuboids, sample_surface, workspace_box
 from hamnet.sim.scene import sample_scenes
 
 BELOW, HEIGHT = 0.01, 0.65

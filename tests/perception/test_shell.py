@@ -7,15 +7,11 @@ import numpy as np
 import pytest
 import torch
 
+from hamnet.messages.tokens import encode as encode_tokens
 from hamnet.perception.config import CloudConfig, EncoderConfig
 from hamnet.perception.core import Percepts
-from hamnet.perception.shell import (
-    PerceptionLoopConfig,
-    PerceptionShell,
-    decode_scene,
-    decode_state,
-    encode_tokens,
-)
+from hamnet.perception.messages import decode_scene, decode_state
+from hamnet.perception.shell import PerceptionLoopConfig, PerceptionShell
 from hamnet.perception.unicorn import UniCORN
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.runtime.codec import encode
@@ -118,3 +114,29 @@ def test_loop_answers_each_state_once_its_scenes_are_in(env: VectorEnv) -> None:
     assert reasons == {"decode", "missing"}
     assert shell.counts["waiting_for_scene"] == 1
     assert service.caught_up == [("scene", "hamnet/t/sim/0/scene")]  # asked the sim once
+
+
+def test_a_stale_state_is_dropped_and_a_restarted_sim_is_followed(env: VectorEnv) -> None:
+    """Perception answers the sim's states as the policy does (`Answered`): before, it
+    answered any state that was not the last answered one, so a late copy of an older step
+    cost a whole encoder pass for tokens the policy drops as stale. Now that state is
+    counted as stale and left unanswered, while state 0 of a restarted sim (another run) is
+    answered at once."""
+    obs = env.observe()
+    restarted = encode_state(obs, 0)
+    restarted.header.run = 7
+    script = [
+        ("scene", encode(scene_message(env, range(B), 0))),
+        ("state", encode(encode_state(obs, 0))),
+        ("state", encode(encode_state(obs, 1))),
+        ("state", encode(encode_state(obs, 0))),  # a late copy: stale
+        ("state", encode(restarted)),
+        ("state", encode(restarted)),  # sent again: the same answer
+    ]
+    service = ScriptedService(lambda published: script.pop(0) if script else None)
+    config = PerceptionLoopConfig(report=ReportConfig(report_period_s=1e9))
+    shell = PerceptionShell(service, UniCORN(ENCODER), 3, config, CLOUDS)
+    assert shell.run() == 0
+    tokens: list[PerceptionTokens] = [m for t, m in service.published if t == "tokens"]
+    assert [m.header.step for m in tokens] == [0, 1, 0, 0] and tokens[2] == tokens[3]
+    assert shell.counts["stale"] == 1 and shell.counts["repeated"] == 1

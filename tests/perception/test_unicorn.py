@@ -13,9 +13,10 @@ from hamnet.perception.checkpoint import (
     save_checkpoint,
     write_random_checkpoint,
 )
-from hamnet.perception.clouds import Cuboids, pose_points
+from hamnet.perception.cloud_ops import pose_points
 from hamnet.perception.config import CloudConfig, EncoderConfig
 from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.scene_cloud import Cuboids
 from hamnet.perception.unicorn import PatchTokenizer, UniCORN, patchify
 
 SMALL = EncoderConfig(num_points=128, num_patches=8, patch_size=16, width=32, depth=2, heads=4)

@@ -9,9 +9,9 @@ import open3d as o3d
 import pytest
 import torch
 
-from hamnet.perception.clouds import Cuboids
 from hamnet.perception.config import CloudConfig, EncoderConfig, student_clouds
 from hamnet.perception.core import EpisodeScenes, Perception
+from hamnet.perception.scene_cloud import Cuboids
 from hamnet.perception.unicorn import UniCORN
 from hamnet.perception.visibility import (
     RIG_HEIGHT,

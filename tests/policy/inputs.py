@@ -8,7 +8,7 @@ from hamnet.fr3.limits import NUM_JOINTS as J
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import RobotObservation, assemble
 from hamnet.policy.policy import Policy
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 
 
 def random_robot(batch: int, seed: int = 0) -> RobotObservation:

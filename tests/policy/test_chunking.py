@@ -21,9 +21,9 @@ from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.shell_config import ComputeConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor
 from hamnet.sim.env import StepResult
-from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.shell import encode_transition
-from hamnet.trainer.chunks import decode_rollout
+from hamnet.task.rewards import REWARD_NAMES
+from hamnet.trainer.storage.rollout_chunks import decode_rollout
 from tests.policy.wire import state_message, tokens_message
 from tests.scripted import ScriptedService, wire
 

@@ -36,6 +36,14 @@ def test_missing_or_bad_checkpoint_stops_at_start(tmp_path, capfd) -> None:
     assert "needs --checkpoint" in logged.out + logged.err
 
 
-def test_unknown_random_init_architecture_is_refused() -> None:
-    with pytest.raises(SystemExit):
+def test_unknown_random_init_architecture_is_refused(capfd) -> None:
+    """`raises(SystemExit)` alone passed on any parse error, a renamed flag included: the
+    refusal must be the usage error (2) that names the unknown architecture and lists the
+    known ones, and a known architecture must get through the same parse."""
+    with pytest.raises(SystemExit) as exited:
         main(["--random-init", "resnet"])
+    assert exited.value.code == 2
+    err = capfd.readouterr().err
+    assert "unknown architecture 'resnet'" in err
+    assert all(name in err for name in ARCHITECTURES)
+    assert main(["--random-init", "mlp", "--print-params"]) == 0

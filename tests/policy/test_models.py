@@ -17,7 +17,7 @@ from hamnet.policy.layers import MLP, CrossAttention, ModularLinear, hidden_acti
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import ARCHITECTURES, build, with_changes
-from hamnet.sim.rewards import REWARD_NAMES
+from hamnet.task.rewards import REWARD_NAMES
 from tests.policy.inputs import informed, random_action, random_inputs
 
 B = 4

@@ -12,12 +12,13 @@ from hamnet.policy.messages import decode_state, decode_tokens, robot_observatio
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import assemble
 from hamnet.policy.registry import build
-from hamnet.policy.shell import PolicyLoopConfig, PolicyShell
+from hamnet.policy.serving import PolicyLoopConfig
+from hamnet.policy.shell import PolicyShell
 from hamnet.policy.weights import to_bytes
 from hamnet.runtime.codec import encode
 from hamnet.runtime.service import ServiceIdentity
 from hamnet.runtime.tensor import PayloadError, to_tensor
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 from tests.policy.inputs import informed, random_robot
 from tests.policy.wire import announcement, scene_message, state_message, tokens_message
 from tests.scripted import ScriptedService, wire

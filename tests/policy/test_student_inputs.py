@@ -20,7 +20,7 @@ from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
-from hamnet.trainer.rollout import RolloutWorker
+from hamnet.trainer.collection.rollout_worker import RolloutWorker
 from tests.policy.inputs import random_robot
 
 B = 2

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from hamnet.recorder.pacing import ReplayClock, group_steps, remap_key
-from hamnet.recorder.reading import RecordedMessage
-from hamnet.recorder.replay_shell import QUIT, parse_step_request, selected, step_of
+from hamnet.recorder.pacing import group_steps, remap_key
+from hamnet.recorder.replay_shell import QUIT, parse_step_request, step_of
+from hamnet.runtime.recordings import RecordedMessage, ReplayClock, selected
 from tests.recorder.recordings import RAW, STATE, T0, TRANSITION, lock_step
 
 

@@ -12,8 +12,8 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from hamnet.recorder.config import RecorderConfig
-from hamnet.recorder.reading import FileContents, read_file, read_recording
 from hamnet.runtime.numbered_files import file_path, recording_files
+from hamnet.runtime.recordings import FileContents, read_file, read_recording
 from tests.recorder.recordings import RAW, STATE, lock_step, write
 
 STEPS = 20

@@ -72,3 +72,17 @@ def test_parse_leaves_tensor_checks_to_the_shell() -> None:
     with pytest.raises(PayloadError) as error:
         parse(sim_pb2.RobotState, b"\xff\xff")
     assert error.value.reason == "decode"
+
+
+def test_payload_decoder_parses_then_reads_and_refuses_bytes_that_are_no_message() -> None:
+    """The one inbox decoder every shell builds from its message type and decode function."""
+    from hamnet.runtime.codec import payload_decoder
+
+    state = sim_pb2.RobotState()
+    state.header.step = 7
+    read = payload_decoder(sim_pb2.RobotState, lambda message: message.header.step)
+    assert read("key", encode(state)) == 7
+    assert payload_decoder(sim_pb2.RobotState)("key", encode(state)) == state
+    with pytest.raises(PayloadError) as error:
+        read("key", b"\xff\xff")
+    assert error.value.reason == "decode"

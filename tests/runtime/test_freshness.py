@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hamnet.runtime.freshness import Verdict, Watermark
+from hamnet.runtime.freshness import Answered, Verdict, Watermark
 
 
 def test_steps_of_one_run_are_fresh_repeated_or_stale() -> None:
@@ -46,3 +46,17 @@ def test_a_far_future_step_leaves_the_watermark_where_it_was() -> None:
 def test_max_jump_must_be_positive() -> None:
     with pytest.raises(ValueError, match="max_jump"):
         Watermark(max_jump=0)
+
+
+def test_an_answer_is_sent_again_for_its_step_and_dropped_when_the_producer_restarts() -> None:
+    """The policy and perception answer the sim's states the same way (`Answered`): the first
+    message is fresh, its repeat gets the same answer, an older step is stale, and another run
+    is a restart that forgets the old run's answer."""
+    answered: Answered[str] = Answered(Watermark(max_jump=10))
+    assert answered.follow(5, 40) is Verdict.FRESH  # the very first message: no restart
+    answered.answer(40, "a40")
+    assert answered.follow(5, 40) is Verdict.REPEAT and answered.message == "a40"
+    assert answered.follow(5, 39) is Verdict.STALE
+    assert answered.follow(5, 10**12) is Verdict.IMPLAUSIBLE
+    assert answered.follow(6, 40) is Verdict.RESTART and answered.message is None
+    assert answered.follow(6, 40) is Verdict.FRESH

@@ -18,15 +18,15 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hamnet.bridge.fake_fr3 import FakeFR3, FakeFR3Config
 from hamnet.fr3 import model as fr3_model
 from hamnet.fr3.limits import FR3, Q_HOME, FR3Limits
 from hamnet.safety import stages
 from hamnet.safety.config import ResidualSmoothingConfig, SafetyConfig
-from hamnet.safety.fake_fr3 import FakeFR3, FakeFR3Config
 from hamnet.safety.filter import SafeOutput, SafetyFilter
 from hamnet.safety.pipeline import target_bounds
+from hamnet.safety.references import TrajectoryConfig
 from hamnet.safety.schedule import per_joint
-from hamnet.safety.trajectory import TrajectoryConfig
 
 B, J = 4, 7
 KHZ = TrajectoryConfig(control_rate_hz=1000.0)

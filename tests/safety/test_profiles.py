@@ -21,8 +21,9 @@ from hamnet.fr3 import model as fr3_model
 from hamnet.fr3.limits import FR3, Q_HOME
 from hamnet.safety.config import PROFILES, SafetyConfig, with_profile
 from hamnet.safety.filter import SafetyFilter
+from hamnet.safety.references import TargetReferences, TrajectoryConfig
+from hamnet.safety.ruckig_references import TrajectoryGenerator
 from hamnet.safety.schedule import xi_at
-from hamnet.safety.trajectory import TargetReferences, TrajectoryConfig, TrajectoryGenerator
 
 B, J = 6, 7
 SIM = TrajectoryConfig()

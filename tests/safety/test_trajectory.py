@@ -1,4 +1,4 @@
-"""Stage 6 (hamnet.safety.trajectory): jerk-limited references within the scaled FR3 limits.
+"""Stage 6 (hamnet.safety.ruckig_references): jerk-limited references within the scaled FR3 limits.
 
 Limits are checked on the sampled reference by backward finite differences, never by trusting
 Ruckig's numbers. Tolerance: a reference whose position, velocity and acceleration are
@@ -21,13 +21,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hamnet.fr3.limits import FR3, Q_HOME
-from hamnet.safety.trajectory import (
-    Plan,
-    References,
-    TrajectoryConfig,
-    TrajectoryGenerator,
-    position_extrema,
-)
+from hamnet.safety.references import Plan, References, TrajectoryConfig
+from hamnet.safety.ruckig_references import TrajectoryGenerator, position_extrema
 
 FD_RTOL = 1e-6
 """Allowed excess of a finite difference over its limit, as a fraction (module docstring)."""

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from cryptography import x509
 
+from hamnet.launcher.certs_cli import main
 from hamnet.security.certs import common_name
-from hamnet.security.certs_cli import main
 
 
 def certs(*argv: str) -> int:

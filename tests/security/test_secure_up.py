@@ -26,6 +26,7 @@ import yaml
 import zenoh
 
 from hamnet.fr3.limits import FR3
+from hamnet.launcher.certs_cli import main as certs
 from hamnet.policy.registry import build
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.policy_pb2 import PolicyAction
@@ -35,7 +36,6 @@ from hamnet.runtime.codec import decode, encode
 from hamnet.runtime.tensor import from_tensor, to_tensor
 from hamnet.runtime.transport import TransportConfig, free_port
 from hamnet.security.certs import issue
-from hamnet.security.certs_cli import main as certs
 from hamnet.sim.config import SimConfig
 from tests.policy.wire import announcement
 from tests.security.clients import Running

@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 
 from hamnet.fr3 import limits as fr3_limits
+from hamnet.messages.safe_command import Command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues
-from hamnet.sim.env import OBJECT_POINTS, Command, VectorEnv
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
+from hamnet.sim.env import OBJECT_POINTS, VectorEnv
 from hamnet.sim.placement import PlacementConfig
-from hamnet.sim.rewards import REWARD_NAMES
 from hamnet.sim.robot_init import RETRACTED
 from hamnet.sim.task_config import TaskConfig
 from hamnet.sim.termination import Reason
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
+from hamnet.task.rewards import REWARD_NAMES
 
 B = 4
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hamnet.sim.commands import hold_command
+from hamnet.messages.safe_command import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from hamnet.sim.robot import JointDynamicsRandomization
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 
 B = 4
 RESIDUAL = 0.02

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from hamnet.fr3.limits import FR3
+from hamnet.messages.safe_command import Command
 from hamnet.sim.config import SimConfig
-from hamnet.sim.env import Command, VectorEnv
+from hamnet.sim.env import VectorEnv
 from hamnet.sim.robot import TIMESTEP
 from hamnet.sim.scene_config import SceneConfig
 

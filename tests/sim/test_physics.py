@@ -10,12 +10,12 @@ from hamnet.fr3 import limits as fr3_limits
 from hamnet.sim import robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.scene import sample_scenes
 from hamnet.sim.scene_config import SceneConfig
 from hamnet.sim.world import build_world
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 

@@ -4,13 +4,14 @@ telescopes, the (B, 3) float32 layout, against hand-computed values."""
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hamnet.sim import quaternion
 from hamnet.sim.rewards import (
-    REWARD_NAMES,
     Potentials,
     bbox_corners,
     bbox_from_half_extent,
@@ -24,7 +25,10 @@ from hamnet.sim.rewards import (
     shaping_reward,
 )
 from hamnet.sim.task_config import TASK_PRESETS, TaskConfig
+from hamnet.task.rewards import REWARD_NAMES
 
+SIM_PROTO = Path(__file__).resolve().parents[2] / "proto" / "sim.proto"
+"""Where the Transition message documents the reward terms' column order."""
 PAPER = TASK_PRESETS["paper"]
 CODE = TASK_PRESETS["code"]
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
@@ -41,7 +45,21 @@ def batch(*rows: np.ndarray) -> np.ndarray:
 
 
 def test_reward_names_match_the_proto_order() -> None:
+    """The Transition message carries `reward_terms` in the column order sim.proto documents
+    (success, goal-reaching, contact-inducing) with `reward_names` beside it. Comparing the
+    constant with a literal only checked itself: now the proto's list must give the same
+    order, and each term fired alone (B = 3: success; goal potential rises; contact
+    potential rises) must land in the column its name gives, so reordering the names, the
+    columns of `reward_terms` or the proto's list fails here."""
     assert REWARD_NAMES == ("success", "goal", "contact")
+    listed = re.search(r"float32 reward terms \(([^)]*)\)", SIM_PROTO.read_text()).group(1)
+    assert tuple(term.strip().split("-")[0] for term in listed.split(",")[:3]) == REWARD_NAMES
+    success = np.array([True, False, False])
+    prev = Potentials(goal=np.array([0.0, -0.5, 0.0]), contact=np.array([0.0, 0.0, -0.5]))
+    curr = Potentials(goal=np.zeros(3), contact=np.zeros(3))
+    terms = reward_terms(success, prev, curr, CODE)  # gamma = 1: unchanged potentials pay 0
+    fired = [[REWARD_NAMES[column] for column in np.flatnonzero(row)] for row in terms]
+    assert fired == [["success"], ["goal"], ["contact"]]
 
 
 def test_bbox_corners_are_the_eight_min_max_combinations() -> None:

@@ -17,15 +17,14 @@ from hamnet.sim.scene import (
     ENV_CODE_COLUMNS,
     FRONT_WALL,
     NUM_BASE,
-    NUM_CUBOIDS,
     PLATES,
     RAMPS,
-    TABLE,
     SceneBatch,
     sample_scenes,
 )
 from hamnet.sim.scene_config import FLOOR_Z, SCENE_PRESETS, SceneConfig
 from hamnet.sim.scene_view import save_scene
+from hamnet.task.cuboids import NUM_CUBOIDS, TABLE
 
 B = 256
 SEEDS = range(8)

@@ -12,6 +12,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from hamnet.messages.robot_state import Observation
+from hamnet.messages.safe_command import Command, hold_command
+from hamnet.messages.scene import SceneDescription
 from hamnet.proto.common_pb2 import Header
 from hamnet.proto.safety_pb2 import SafeCommand
 from hamnet.proto.trainer_pb2 import Schedule
@@ -19,12 +22,9 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.events import EPISODES_ENDED, EPISODES_SUCCEEDED
 from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import PayloadError, from_tensor, to_tensor
-from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import curriculum_values
-from hamnet.sim.env import Command, Observation, SceneDescription, StepResult, VectorEnv
-from hamnet.sim.rewards import REWARD_NAMES
-from hamnet.sim.scene import NUM_CUBOIDS
+from hamnet.sim.env import StepResult, VectorEnv
 from hamnet.sim.shell import (
     SimLoopConfig,
     SimShell,
@@ -34,6 +34,8 @@ from hamnet.sim.shell import (
     encode_state,
     encode_transition,
 )
+from hamnet.task.cuboids import NUM_CUBOIDS
+from hamnet.task.rewards import REWARD_NAMES
 from tests.scripted import ScriptedService, wire
 
 HALFWAY = 1_024_000_000

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.scene import CUBOID_NAMES
 from hamnet.sim.stages import STAGES, StageName, stage_config, stage_in
+from hamnet.task.cuboids import CUBOID_NAMES
 
 
 @pytest.mark.parametrize("name", sorted(STAGES))

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from hamnet.fr3.limits import NUM_JOINTS as J
+from hamnet.messages.safe_command import hold_command
 from hamnet.runtime.codec import encode
 from hamnet.runtime.shell_config import ReportConfig
 from hamnet.runtime.tensor import from_tensor
-from hamnet.sim.commands import hold_command
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.shell import SimLoopConfig, SimShell
@@ -43,7 +43,7 @@ def test_the_limit_must_be_positive() -> None:
 def test_the_sim_counts_a_stall_when_commands_stop_and_logs_its_end(caplog) -> None:
     """Commands 0 and 1 come at once, command 2 only after more than `stall_s`: one
     `loop_stalls` event (what the health reports carry), and the log says when it ended."""
-    caplog.set_level(logging.INFO, logger="hamnet.sim.shell")
+    caplog.set_level(logging.INFO, logger="hamnet.sim")
     env = VectorEnv(SimConfig(num_envs=2, num_objects=2, nthread=1))
     state_seen: dict[int, float] = {}
 

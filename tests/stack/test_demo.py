@@ -21,9 +21,9 @@ from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.proto.health_pb2 import Health, ServiceState
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.recorder.headers import header_of
-from hamnet.recorder.reading import read_recording
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox
+from hamnet.runtime.recordings import read_recording
 from hamnet.runtime.tensor import from_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
 from tests.conftest import free_port, transport_args

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.recorder.reading import read_file
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.recordings import read_file
 from hamnet.runtime.service import EXIT_NO_RESTART
 from hamnet.runtime.transport import TransportConfig, open_session
 from tests.conftest import transport_args

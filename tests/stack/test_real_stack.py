@@ -19,6 +19,7 @@ import pytest
 import yaml
 
 from hamnet.fr3.limits import FR3
+from hamnet.launcher.certs_cli import main as certs
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import save_checkpoint
 from hamnet.proto.common_pb2 import Header
@@ -29,7 +30,6 @@ from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import from_tensor, to_tensor
 from hamnet.runtime.transport import TransportConfig, free_port
 from hamnet.security.certs import issue
-from hamnet.security.certs_cli import main as certs
 from tests.franky_sim import franky_sim
 from tests.security.clients import Running
 from tests.stack.up import up

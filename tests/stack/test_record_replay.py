@@ -25,9 +25,9 @@ from mcap.reader import NonSeekingReader, make_reader
 
 from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState
-from hamnet.recorder.reading import read_file
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
+from hamnet.runtime.recordings import read_file
 from hamnet.runtime.tensor import to_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
 from tests.conftest import transport_args

@@ -11,15 +11,15 @@ import time
 
 import numpy as np
 
+from hamnet.messages.safe_command import hold_command
 from hamnet.proto.perception_pb2 import PerceptionTokens
 from hamnet.proto.sim_pb2 import RobotState, Scene
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.sim.commands import hold_command
 from hamnet.sim.quaternion import to_matrix
-from hamnet.sim.scene import TABLE
+from hamnet.task.cuboids import TABLE
 from tests.conftest import transport_args
 from tests.sim.test_shell import safe_command
 

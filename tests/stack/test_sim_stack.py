@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import rerun
 
+from hamnet.messages.safe_command import hold_command
 from hamnet.proto.health_pb2 import Health
 from hamnet.proto.sim_pb2 import RobotState, Scene, Transition
 from hamnet.runtime import contract
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.tensor import from_tensor
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.sim.commands import hold_command
 from tests.conftest import transport_args
 from tests.sim.test_shell import safe_command
 

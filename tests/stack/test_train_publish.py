@@ -10,7 +10,7 @@ from hamnet.policy.weights import from_bytes, sha256
 from hamnet.proto.trainer_pb2 import Metrics, Schedule, WeightsAnnouncement
 from hamnet.runtime.pubsub import DropCounter, Inbox
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.trainer.shell import METRICS, SCHEDULE, WEIGHTS
+from hamnet.trainer.publisher import METRICS, SCHEDULE, WEIGHTS
 from tests.conftest import transport_args
 
 ITERATIONS = 6

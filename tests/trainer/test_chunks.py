@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 import torch
 
+from hamnet.policy.chunk_codec import INDEX, encode_rollout
 from hamnet.policy.registry import build
+from hamnet.policy.rollout_record import Rollout
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError, to_tensor
-from hamnet.trainer.chunks import INDEX, chunk_decoder, decode_rollout, encode_rollout
-from hamnet.trainer.trajectory import Rollout
-from hamnet.trainer.trees import zip_trees
+from hamnet.runtime.trees import zip_trees
+from hamnet.trainer.storage.rollout_chunks import chunk_decoder, decode_rollout
 from tests.trainer.test_runner import worker
 
 T = 3

@@ -34,7 +34,7 @@ def test_plot_of_a_folder_without_metrics_says_so(tmp_path: Path, capsys) -> Non
 def test_result_files_name_the_shipped_encoder_relative_to_the_repository(tmp_path: Path) -> None:
     """A summary (and the results written from it) must not name one machine's folders."""
     from hamnet.perception.checkpoint import SHIPPED_ENCODER
-    from hamnet.trainer.summary import repository_path
+    from hamnet.trainer.results.summary import repository_path
 
     assert repository_path(SHIPPED_ENCODER) == "services/perception/weights/unicorn.safetensors"
     assert repository_path(tmp_path / "other.safetensors") == str(tmp_path / "other.safetensors")

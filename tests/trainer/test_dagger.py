@@ -15,14 +15,16 @@ import torch
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import policy_from, read_checkpoint, save_checkpoint
 from hamnet.sim.stages import stage_config
+from hamnet.trainer.algorithms.dagger import beta_at, imitation_loss, update_student
+from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from hamnet.trainer.cli import main
-from hamnet.trainer.dagger import DaggerConfig, beta_at, imitation_loss, update_student
-from hamnet.trainer.dagger_runner import DaggerRunner, load_teacher
-from hamnet.trainer.dagger_worker import build_dagger_worker
-from hamnet.trainer.resume import ResumeError
+from hamnet.trainer.collection.dagger_worker import build_dagger_worker
+from hamnet.trainer.collection.sources import build_workers
+from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.rollout_cli import main as rollout_main
-from hamnet.trainer.runner import RunConfig, build_workers
-from hamnet.trainer.sequence import episode_starts, evaluate_sequence
+from hamnet.trainer.runners.dagger_runner import DaggerRunner, load_teacher
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.snapshots import ResumeError
 
 B = 4
 STEPS = 4

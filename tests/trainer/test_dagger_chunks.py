@@ -13,15 +13,16 @@ from hamnet.policy.registry import build
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.codec import encode
 from hamnet.runtime.tensor import PayloadError
-from hamnet.trainer.chunks import chunk_decoder
-from hamnet.trainer.dagger import DaggerConfig, Demonstrations
-from hamnet.trainer.dagger_chunks import (
+from hamnet.runtime.trees import zip_trees
+from hamnet.trainer.algorithms.dagger import Demonstrations
+from hamnet.trainer.collection.dagger_worker import build_dagger_worker
+from hamnet.trainer.config import DaggerConfig
+from hamnet.trainer.storage.demonstration_chunks import (
     decode_demonstrations,
     demonstrations_decoder,
     encode_demonstrations,
 )
-from hamnet.trainer.dagger_worker import build_dagger_worker
-from hamnet.trainer.trees import zip_trees
+from hamnet.trainer.storage.rollout_chunks import chunk_decoder
 from tests.trainer.test_dagger import STEPS, tiny_run
 
 TEACHER = "ab" * 32

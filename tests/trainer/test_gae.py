@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from hamnet.trainer.gae import gae
+from hamnet.trainer.algorithms.gae import gae
 
 
 def test_per_term_gae_equals_the_hand_computed_example() -> None:

@@ -12,10 +12,10 @@ import pytest
 import torch
 from torch import nn
 
+from hamnet.trainer.algorithms.gae import gae
+from hamnet.trainer.algorithms.normalization import ReturnScaler
 from hamnet.trainer.config import PPOConfig
-from hamnet.trainer.gae import gae
 from hamnet.trainer.gym_adapter import GymPPO, GymPPOConfig
-from hamnet.trainer.normalization import ReturnScaler
 
 
 class BoxSpace:

@@ -10,9 +10,9 @@ import torch
 from hamnet.policy.observation import RobotObservation, assemble
 from hamnet.policy.registry import build
 from hamnet.safety.config import with_profile
-from hamnet.trainer.adaptive_lr import adapt_learning_rate
-from hamnet.trainer.config import PPO_PRESETS, PPOConfig
-from hamnet.trainer.losses import (
+from hamnet.trainer.algorithms.adaptive_lr import adapt_learning_rate
+from hamnet.trainer.algorithms.normalization import ReturnScaler, RunningMeanStd
+from hamnet.trainer.algorithms.ppo_losses import (
     approx_kl,
     bound_loss,
     clip_fraction,
@@ -21,7 +21,7 @@ from hamnet.trainer.losses import (
     policy_loss,
     value_loss,
 )
-from hamnet.trainer.normalization import ReturnScaler, RunningMeanStd
+from hamnet.trainer.config import PPO_PRESETS, PPOConfig
 
 
 def test_policy_loss_stops_pushing_a_ratio_beyond_the_clip() -> None:

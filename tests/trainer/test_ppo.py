@@ -9,11 +9,11 @@ import pytest
 import torch
 from torch import Tensor, nn
 
+from hamnet.runtime.trees import take_rows
+from hamnet.trainer.algorithms.gae import gae
+from hamnet.trainer.algorithms.ppo import Batch, optimizer_for, update
+from hamnet.trainer.algorithms.ppo_losses import approx_kl
 from hamnet.trainer.config import AUTHORS, PPOConfig
-from hamnet.trainer.gae import gae
-from hamnet.trainer.losses import approx_kl
-from hamnet.trainer.ppo import Batch, optimizer_for, update
-from hamnet.trainer.trees import take_rows
 
 B, T, LOG_STD = 64, 4, math.log(0.3)
 

@@ -14,11 +14,11 @@ import torch.multiprocessing as mp
 
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import NetworkInputs
+from hamnet.policy.rollout_record import Rollout, merge_environments
 from hamnet.trainer import cli
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, update
 from hamnet.trainer.config import AUTHORS
-from hamnet.trainer.ppo import Batch, UpdateStats, update
-from hamnet.trainer.ranks import ONE, Ranks
-from hamnet.trainer.trajectory import Rollout, merge_environments
+from hamnet.trainer.runners.ranks import ONE, Ranks
 from tests.trainer.test_ppo import TinyActorCritic
 
 N, SIZE = 256, 2

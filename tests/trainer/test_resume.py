@@ -17,8 +17,9 @@ import torch
 from hamnet.policy.weights import read_checkpoint
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.cli import main
-from hamnet.trainer.resume import ResumeError
-from hamnet.trainer.runner import RunConfig, Runner
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
+from hamnet.trainer.runners.snapshots import ResumeError
 
 B = 2
 STEPS = 2

@@ -15,17 +15,18 @@ from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.registry import build
+from hamnet.policy.rollout_record import merge_environments
 from hamnet.policy.weights import read_checkpoint
 from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
-from hamnet.trainer import runner as runner_module
-from hamnet.trainer.evaluate import evaluate, success_rate
-from hamnet.trainer.rollout import RolloutWorker, collect_overlapped
-from hamnet.trainer.runner import RunConfig, Runner
-from hamnet.trainer.trajectory import merge_environments
+from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
+from hamnet.trainer.results.evaluate import evaluate, success_rate
+from hamnet.trainer.runners import runner as runner_module
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
 
 B = 2
 

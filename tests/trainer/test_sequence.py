@@ -9,8 +9,8 @@ import torch
 
 from hamnet.policy import inputs as builder
 from hamnet.policy.registry import build
-from hamnet.trainer.sequence import episode_starts, evaluate_sequence
-from hamnet.trainer.trajectory import cat_rows
+from hamnet.policy.rollout_record import cat_rows
+from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from tests.policy.inputs import random_robot
 
 T, B = 5, 3

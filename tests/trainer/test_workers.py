@@ -9,9 +9,10 @@ from types import SimpleNamespace
 import pytest
 import torch
 
-from hamnet.trainer.normalization import ReturnScaler
-from hamnet.trainer.runner import EpisodeTracker
-from hamnet.trainer.workers import Roster, progress
+from hamnet.trainer.algorithms.normalization import ReturnScaler
+from hamnet.trainer.collection.worker_roster import Roster
+from hamnet.trainer.runners.episodes import EpisodeTracker
+from hamnet.trainer.runners.progress import workers_part
 
 E = 2
 """Environments per worker."""
@@ -122,8 +123,8 @@ def test_metrics_and_progress_name_each_worker() -> None:
     row = roster.metrics()
     assert row["workers/0/env_steps_per_s"] == 250.0 and row["workers/0/policy_lag"] == 1
     assert "workers/1/env_steps_per_s" not in row and row["workers/0/chunks"] == 1
-    assert progress(row) == " | workers 1/2 up (0:250 1:x steps/s), 1 partial dropped"
-    assert progress({"iteration": 1}) == ""
+    assert workers_part(row) == " | workers 1/2 up (0:250 1:x steps/s), 1 partial dropped"
+    assert workers_part({"iteration": 1}) == ""
 
 
 def test_the_scaler_on_some_environments_leaves_the_others_alone() -> None:

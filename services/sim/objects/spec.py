@@ -44,6 +44,11 @@ def restitution_solref(restitution: np.ndarray, timeconst: float = 0.02) -> np.n
     return np.stack([np.full_like(zeta, timeconst), zeta], axis=-1)
 
 
+def full_inertia(inertia: np.ndarray) -> list[float]:
+    """A (3, 3) inertia tensor as MuJoCo's `fullinertia` (ixx, iyy, izz, ixy, ixz, iyz)."""
+    return [float(inertia[i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))]
+
+
 def _mesh_asset(spec: mujoco.MjSpec, name: str, mesh: Mesh) -> str:
     if spec.mesh(name) is None:
         spec.add_mesh(name=name, uservert=mesh.vertices.ravel(), userface=mesh.faces.ravel())
@@ -89,14 +94,7 @@ def add_convex_body(
     body.explicitinertial = True
     body.mass = mass
     body.ipos = [0.0, 0.0, 0.0]
-    body.fullinertia = [
-        inertia[0, 0],
-        inertia[1, 1],
-        inertia[2, 2],
-        inertia[0, 1],
-        inertia[0, 2],
-        inertia[1, 2],
-    ]
+    body.fullinertia = full_inertia(inertia)
     for j, part in enumerate(parts):
         body.add_geom(
             name=f"{name}/part{j}",

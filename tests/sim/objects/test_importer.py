@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from hamnet.sim.objects import ObjectCache, ObjectLibraryConfig, ObjectSet, ShapeConfig
-from hamnet.sim.objects import importer
+from hamnet.sim.objects import ObjectCache, ObjectLibraryConfig, ObjectSet, ShapeConfig, importer
 from hamnet.sim.objects.mesh import convex_hull, union
 from hamnet.sim.objects.shapes import generate
 

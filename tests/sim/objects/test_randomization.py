@@ -7,9 +7,9 @@ import pytest
 
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
-from hamnet.sim.episodes import PHYSICS_PARAM_NAMES
 from hamnet.sim.objects import ObjectRandomization, sample_physics
 from hamnet.sim.objects.randomization import max_rule_frictions
+from hamnet.task.physics import PHYSICS_PARAM_NAMES
 
 
 def test_samples_lie_in_the_configured_ranges() -> None:

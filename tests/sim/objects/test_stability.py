@@ -6,11 +6,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from hamnet.sim import quaternion
 from hamnet.sim.objects import ObjectAsset, ObjectSet, StabilityConfig, add_object
 from hamnet.sim.objects.build import finish
 from hamnet.sim.objects.config import ObjectLibraryConfig
 from hamnet.sim.objects.mesh import box_mesh, unit_inertia
-from hamnet.sim import quaternion
 from hamnet.sim.objects.stability import (
     angle_between,
     down_directions,

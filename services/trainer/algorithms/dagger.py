@@ -1,0 +1,106 @@
+"""DAgger's pure core (issue 15): the schedule of beta, the probability that the teacher
+acts, and the student's imitation update over sequences.
+
+DAgger (Ross, Gordon and Bagnell 2011) trains on the states the mixture of teacher and
+student visits, labelled by the teacher. HAMnet's paper distils its student this way but
+gives no schedule, loss weights or epochs for it, and the authors released no DAgger code:
+every default below is ours, and each says why. Shapes: T steps, B environments, A action
+components, R reward terms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.policy import Policy
+from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
+from hamnet.trainer.config import DaggerConfig
+
+
+def beta_at(env_transitions: int, config: DaggerConfig) -> float:
+    """Probability that the teacher acts an episode that starts at the counter
+    `env_transitions` (linear from `beta_initial` to `beta_final`, then constant)."""
+    if config.beta_decay_transitions == 0:
+        return config.beta_final
+    done = min(1.0, max(0, env_transitions) / config.beta_decay_transitions)
+    return config.beta_initial + (config.beta_final - config.beta_initial) * done
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """T steps of B environments: what the student saw and what the teacher would have done."""
+
+    inputs: PolicyInputs
+    """The student's inputs, every tensor (T * B, ...), time-major (`trajectory.cat_rows`)."""
+    labels: Tensor
+    """(T, B, A) the teacher's action mean in every visited state."""
+    label_values: Tensor
+    """(T, B, R) the teacher's values there (the optional value loss's targets)."""
+    teacher_acted: Tensor
+    """(T, B) bool: the teacher's action was executed (else the student's)."""
+    first: Tensor
+    """(B,) bool: step 0 begins an episode."""
+    rewards: Tensor
+    """(T, B, R) reward terms as the sim gave them (for the episode statistics)."""
+    dones: Tensor
+    """(T, B) bool: the episode ended at this step."""
+    success: Tensor
+    """(T, B) bool: the episode ended in success at this step."""
+
+
+@dataclass(frozen=True)
+class ImitationStats:
+    """What one student update did."""
+
+    imitation_loss: float
+    """Mean squared error of the student's action mean before the update's first step: on
+    data it has not yet fitted, the honest figure."""
+    imitation_loss_after: float
+    """... at the last step."""
+    value_loss: float
+    """The value loss at the last step (computed even when its weight is 0)."""
+    gradient_norm: float
+    """Global gradient norm before clipping, at the last step."""
+
+
+def imitation_loss(mean: Tensor, labels: Tensor) -> Tensor:
+    """Mean squared error between the student's action means and the teacher's, averaged
+    over steps, environments and action components. The teacher's mean is a point label and
+    the student is deployed with its mean, so the squared error on means is what matters;
+    a Gaussian likelihood with the student's scheduled std would only rescale it."""
+    return (mean - labels).square().mean()
+
+
+def value_loss(values: Tensor, targets: Tensor) -> Tensor:
+    """0.5 x squared error to the teacher's values, summed over reward terms, mean over steps."""
+    return 0.5 * (values - targets).square().sum(-1).mean()
+
+
+def update_student(
+    student: Policy,
+    optimizer: torch.optim.Optimizer,
+    batch: Demonstrations,
+    config: DaggerConfig,
+) -> ImitationStats:
+    """`config.epochs` Adam steps on the whole window, each unrolling the student's GRUs over
+    the T steps with their memory reset where an episode starts (`evaluate_sequence`)."""
+    starts = episode_starts(batch.dones, batch.first)
+    parameters = list(student.parameters())
+    for group in optimizer.param_groups:
+        group["lr"] = config.lr
+    student.train()
+    first = None
+    for _ in range(config.epochs):
+        out = evaluate_sequence(student, batch.inputs, batch.labels, starts)
+        actions = imitation_loss(out.mean, batch.labels)
+        values = value_loss(out.values, batch.label_values)
+        first = actions.item() if first is None else first
+        optimizer.zero_grad(set_to_none=True)
+        (actions + config.value_coef * values).backward()
+        norm = torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
+        optimizer.step()
+    return ImitationStats(first, actions.item(), values.item(), float(norm))

@@ -1,0 +1,293 @@
+"""The rollout worker's core: the in-process cores of sim, perception, policy and the safety
+filter's training profile in one loop, collecting T steps of B environments for PPO.
+
+A policy without clouds (the state-only baseline) runs without perception. This is the
+fast path of training (the pattern of Sample Factory's or IMPALA's actors): no
+messages between the cores, the same code as the services (`VectorEnv`, `Perception`,
+the policy's one input builder `hamnet.policy.inputs`, `SafetyFilter`). Per step it keeps
+what the learner needs: the policy inputs, action, log-probability, value per reward term,
+reward terms and episode ends, and for a truncated episode V(its final state), which the
+learner adds, discounted, to that step's (scaled) reward as the authors bootstrap timeouts
+(`ham/src/ham/models/rl/v6/ppo.py:826-833`), so GAE can treat every end alike. The discount
+is the learner's alone: a worker needs no PPO setting. A student (a policy without
+privileged inputs) reads the sim's true object pose only through the pose estimator's
+error model (`PoseNoiseConfig`), as the policy service does: the sim is no estimator.
+Shapes: T steps, B environments, A action, R reward terms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from hamnet.messages.robot_state import Observation
+from hamnet.messages.safe_command import Command
+from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.policy import inputs as builder
+from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import PoseNoiseConfig
+from hamnet.policy.policy import Action, Policy
+from hamnet.policy.rollout_record import Rollout, cat_rows, merge_environments
+from hamnet.runtime.trees import take_rows
+from hamnet.safety.filter import SafetyFilter
+from hamnet.sim.env import StepResult, VectorEnv
+from hamnet.trainer.runners.snapshots import (
+    Arrays,
+    Snapshot,
+    array_dataclass,
+    fields_of,
+    generator_state,
+    nest,
+    part,
+    set_generator_state,
+    tensor_dataclass,
+)
+from hamnet.trainer.runners.stopping import always, check
+
+
+@dataclass(frozen=True)
+class Pending:
+    """A step between its two halves: what the policy saw and did, and the command."""
+
+    inputs: PolicyInputs
+    acted: Action
+    command: Command
+
+
+def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
+    """Perception's input for the current episodes of `env_ids` (K,)."""
+    s = env.scenes(env_ids)
+    return EpisodeScenes.from_arrays(
+        s.env_ids,
+        s.episode_ids,
+        s.cuboid_centre,
+        s.cuboid_quat,
+        s.cuboid_half_extent,
+        s.cuboid_active,
+        s.object_points,
+    )
+
+
+def tokens_of(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
+    """Object, local and global tokens; None for a policy without clouds."""
+    if percepts is None:
+        return None, None, None
+    return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
+
+
+@torch.no_grad()
+def collect_overlapped(
+    workers: tuple[RolloutWorker, RolloutWorker],
+    policy: Policy,
+    steps: int,
+    env_transitions: int,
+    running: Callable[[], bool] = always,
+) -> Rollout:
+    """`collect` of two workers whose physics and networks overlap: while one group's
+    physics steps in a background thread (MuJoCo releases the GIL), the other group's
+    perception, policy and safety run, so both cores stay busy. Environments of the first
+    worker come first in the merged rollout. InterruptedError, between two steps, once
+    `running()` turns False."""
+    first, second = workers
+    count = first.env.num_envs + second.env.num_envs
+    records: tuple[list, list] = ([], [])
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="physics") as physics:
+        pending = [first.act(policy, env_transitions)]
+        stepping = physics.submit(first.env.step, pending[0].command)
+        pending.append(second.act(policy, env_transitions))
+        for t in range(steps):
+            check(running)
+            for index, (worker, other) in enumerate(((first, second), (second, first))):
+                result = stepping.result()
+                if index == 0 or t + 1 < steps:  # the other group's physics, in the background
+                    stepping = physics.submit(other.env.step, pending[1 - index].command)
+                records[index].append(worker.observe(policy, pending[index], result))
+                if t + 1 < steps:
+                    pending[index] = worker.act(policy, env_transitions + (t + 1) * count)
+    return merge_environments([first.finish(policy, records[0]), second.finish(policy, records[1])])
+
+
+class RolloutWorker:
+    """B environments acting with a policy through the training profile's safety filter."""
+
+    def __init__(
+        self,
+        env: VectorEnv,
+        perception: Perception | None,
+        safety: SafetyFilter,
+        seed: int = 0,
+    ) -> None:
+        if env.num_envs != safety.num_envs or (
+            perception is not None and perception.num_envs != env.num_envs
+        ):
+            raise ValueError("env, perception and safety must hold the same environments")
+        self.env, self.perception, self.safety = env, perception, safety
+        self.observation: Observation = env.reset(seed=seed)
+        every = np.arange(env.num_envs)
+        self.safety.start_episodes(every, self.observation.q.astype(np.float64))
+        self.percepts: Percepts | None = None
+        self._perceive(every)
+        self.carry: builder.Carry | None = None
+        self.generator = torch.Generator().manual_seed(seed)
+        """Of the action noise and of a student's pose-estimate error."""
+        self.pose_noise = PoseNoiseConfig()
+        """The estimator's error on a student's object pose (a teacher reads the true one)."""
+
+    @torch.no_grad()
+    def collect(
+        self,
+        policy: Policy,
+        steps: int,
+        env_transitions: int,
+        deterministic: bool = False,
+        running: Callable[[], bool] = always,
+    ) -> Rollout:
+        """Act `steps` times in every environment with `policy`.
+
+        Args:
+            policy: the acting policy (its log std already set for `env_transitions`).
+            steps: T.
+            env_transitions: the schedule counter at the start (safety's xi annealing).
+            deterministic: act with the mean (evaluation) instead of sampling.
+            running: checked before every step: InterruptedError once it turns False.
+        """
+        records = []
+        for t in range(steps):
+            check(running)
+            pending = self.act(policy, env_transitions + t * self.env.num_envs, deterministic)
+            records.append(self.observe(policy, pending, self.env.step(pending.command)))
+        return self.finish(policy, records)
+
+    def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
+        """The first half of a step: inputs, the policy's action and the safe command."""
+        if self.carry is None:
+            self.carry = builder.initial_carry(policy, self.env.num_envs)
+        inputs = self._inputs(policy)
+        acted = policy.act(inputs, deterministic, self.generator)
+        obs = self.observation
+        safe = self.safety.command(
+            acted.action.numpy().astype(np.float64),
+            obs.q.astype(np.float64),
+            obs.dq.astype(np.float64),
+            env_transitions,
+        )
+        return Pending(inputs, acted, Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
+
+    def observe(self, policy: Policy, pending: Pending, result: StepResult) -> dict[str, object]:
+        """The second half, after `env.step(pending.command)`: bootstrap timeouts, start new
+        episodes, perceive; returns what the step records."""
+        acted = pending.acted
+        self.carry = builder.end_step(self.carry, acted.action, acted.memory)
+        rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
+        final_values = torch.zeros_like(rewards)
+        timed_out = np.flatnonzero(result.truncated & ~result.terminated)
+        if len(timed_out):
+            final_values[timed_out] = self._final_values(
+                policy, result.final_observation, timed_out
+            )
+        self._start(result.reset_ids, result.observation)
+        return {
+            "inputs": pending.inputs,
+            "actions": acted.action,
+            "log_prob": acted.log_prob,
+            "values": acted.values,
+            "rewards": rewards,
+            "final_values": final_values,
+            "dones": torch.as_tensor(result.terminated | result.truncated),
+            "success": torch.as_tensor(result.success),
+        }
+
+    def finish(self, policy: Policy, records: list[dict[str, object]]) -> Rollout:
+        """The rollout of the recorded steps, with the values of the states after them."""
+        next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
+        fields = {
+            key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"
+        }
+        return Rollout(
+            inputs=cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields
+        )
+
+    def snapshot(self) -> Snapshot:
+        """The whole state this worker continues from: its env, perception and safety filter
+        (their own snapshots), the carry, the current observation and percepts, and the
+        action noise generator."""
+        parts = {
+            "env": self.env.snapshot(),
+            "safety": self.safety.snapshot(),
+            "observation": (fields_of(self.observation), {}),
+            "generator": ({"state": generator_state(self.generator)}, {}),
+        }
+        if self.perception is not None:
+            parts["perception"] = self.perception.snapshot()
+            parts["percepts"] = (fields_of(self.percepts), {})
+        if self.carry is not None:
+            parts["carry"] = (fields_of(self.carry), {})
+        return nest(parts)
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from `snapshot` (on a worker built from the same config)."""
+        self.env.restore(*part(arrays, meta, "env"))
+        self.safety.restore(*part(arrays, meta, "safety"))
+        self.observation = array_dataclass(Observation, part(arrays, meta, "observation")[0])
+        set_generator_state(self.generator, part(arrays, meta, "generator")[0]["state"])
+        if self.perception is not None:
+            self.perception.restore(*part(arrays, meta, "perception"))
+            self.percepts = tensor_dataclass(Percepts, part(arrays, meta, "percepts")[0])
+        self.carry = None
+        if "carry" in meta:
+            self.carry = tensor_dataclass(builder.Carry, part(arrays, meta, "carry")[0])
+
+    def _inputs(self, policy: Policy) -> PolicyInputs:
+        """The inputs of the current observation (zeroing the carry of new episodes)."""
+        obs = self.observation
+        self.carry = builder.begin_step(
+            self.carry, torch.as_tensor(obs.episode_ids), torch.as_tensor(obs.episode_step)
+        )
+        robot = builder.robot_observation(obs)
+        return builder.policy_inputs(
+            policy.config,
+            self.carry,
+            robot,
+            tokens_of(self.percepts),
+            pose_noise=self.pose_noise,
+            generator=self.generator,
+        )
+
+    def _final_values(self, policy: Policy, final: Observation, env_ids: np.ndarray) -> Tensor:
+        """(K, R) values of the final states of the episodes in `env_ids` (K,), before their
+        caches make way for the next episodes."""
+        rows = torch.as_tensor(env_ids)
+        robot = take_rows(builder.robot_observation(final), rows)
+        percepts = (
+            None if self.perception is None else self.perception.step(robot.object_pose, rows)
+        )
+        inputs = builder.policy_inputs(
+            policy.config,
+            take_rows(self.carry, rows),
+            robot,
+            tokens_of(percepts),
+            pose_noise=self.pose_noise,
+            generator=self.generator,
+        )
+        return policy.act(inputs, deterministic=True).values
+
+    def _start(self, reset_ids: np.ndarray, observation: Observation) -> None:
+        """Take the step's observation; episodes that began get fresh caches and filters."""
+        if len(reset_ids):
+            self.safety.start_episodes(reset_ids, observation.q[reset_ids].astype(np.float64))
+        self.observation = observation
+        self._perceive(reset_ids)
+
+    def _perceive(self, started: np.ndarray) -> None:
+        """Percepts of the current observation; new caches for the episodes `started`."""
+        if self.perception is None:
+            return
+        if len(started):
+            self.perception.start_episodes(scenes_of(self.env, started))
+        self.percepts = self.perception.step(torch.as_tensor(self.observation.object_pose))

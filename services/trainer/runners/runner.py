@@ -1,0 +1,398 @@
+"""The training loop: collect a rollout, compute per-term advantages, update PPO, advance
+the one schedule counter, log, checkpoint.
+
+Rollouts come from a `RolloutSource`: `InProcess` runs the sim, perception, policy and the
+safety filter's training profile through `RolloutWorker` in this process
+(`hamnet trainer --inprocess`); `hamnet.trainer.collection.streamed.Streamed` announces the weights and
+gathers chunks from rollout workers over Zenoh (`hamnet trainer`). Either way one loop learns. Rewards are
+scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
+bootstrap of truncated episodes is added after scaling, since values live in scaled units.
+The policy's input statistics (`InputNormalizer`, saved with its weights) take in each
+rollout's observations after the update.
+Per iteration one JSON line goes to `<run_dir>/metrics.jsonl`; a progress line goes to the
+log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import dataclasses
+import json
+import logging
+import os
+import time
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.policy.policy import Policy
+from hamnet.policy.registry import build, with_changes
+from hamnet.policy.rollout_record import Rollout
+from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
+from hamnet.runtime.compute import torch_threads
+from hamnet.safety.config import with_profile
+from hamnet.task.rewards import REWARD_NAMES
+from hamnet.trainer.algorithms.gae import gae
+from hamnet.trainer.algorithms.normalization import ReturnScaler
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
+from hamnet.trainer.algorithms.ppo_losses import energy_loss
+from hamnet.trainer.collection.sources import InProcess, RolloutSource
+from hamnet.trainer.runners import snapshots
+from hamnet.trainer.runners.episodes import EpisodeTracker
+from hamnet.trainer.runners.progress import ppo_line
+from hamnet.trainer.runners.ranks import ONE, Ranks
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.snapshots import Arrays, Resumable, ResumeError, Snapshot, nest, part
+from hamnet.trainer.runners.stopping import always
+
+log = logging.getLogger(__name__)
+
+
+class Runner:
+    """Owns the run: rollout source, policy, optimizer, reward scaler, counters."""
+
+    def __init__(
+        self,
+        config: RunConfig,
+        source: Callable[[Policy], RolloutSource] | None = None,
+        resume: bool = False,
+        ranks: Ranks = ONE,
+    ) -> None:
+        """`source(policy)` makes the rollout source for the run's policy (default `InProcess`).
+        With `resume`, continue from the snapshot in `config.run_dir` (`hamnet.trainer.runners.snapshots`);
+        ResumeError when there is none or it is of another run, before anything is built.
+        With several `ranks` this process learns from its source's environments, the others
+        from theirs (`hamnet.trainer.runners.ranks`); only the main rank writes metrics and checkpoints."""
+        self.config, self.ranks = config, ranks
+        saved = snapshots.read_run(config.run_dir, config.identity) if resume else None
+        torch.set_num_threads(1)
+        self.policy = build(
+            config.architecture,
+            with_changes(
+                config.architecture,
+                log_std=config.log_std,
+                init=config.init,
+                shared_value_gradient=config.shared_value_gradient,
+            ),
+            config.seed,
+        )
+        self.source = InProcess(config) if source is None else source(self.policy)
+        cores = max(1, (os.cpu_count() or 1) // ranks.size)  # ranks share the machine
+        self.learner_threads = config.learner_threads or (
+            cores if self.source.alone_in_update else 1
+        )
+        """Torch threads of the update (`RunConfig.learner_threads`, resolved)."""
+        # After the source: every rank subscribes to its workers' chunks before the main one
+        # announces the first weights.
+        ranks.broadcast(self.policy)
+        self.optimizer = optimizer_for(
+            self.policy.actor_parameters(), self.policy.critic_parameters(), config.ppo
+        )
+        self.shuffle = torch.Generator().manual_seed(config.seed)
+        """Draws the update's minibatches: its own stream, so a run from rollout workers
+        shuffles as the same run in one process does (whose cores draw from torch's)."""
+        self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
+        """The energy loss of an action mean, read as the workers' safety profile reads it."""
+        envs = self.source.num_envs * ranks.size  # every rank's: they see them all
+        self.scaler = ReturnScaler(envs, config.ppo.gamma)
+        self.tracker = EpisodeTracker(envs, len(REWARD_NAMES))
+        self.env_transitions = 0
+        self.iteration = 0
+        self.wall_clock_s = 0.0
+        """Wall-clock time of the run at its latest iteration, over every resume, s."""
+        self.last_row: dict[str, float] = {}
+        """The metrics of the latest iteration (empty before the first)."""
+        self.interrupted = False
+        """The last `run` was stopped in the middle of an iteration (and went back to its
+        start) or while waiting for workers."""
+        self.action_bounds = (
+            -torch.ones(self.policy.config.action_dim),
+            torch.ones(self.policy.config.action_dim),
+        )
+        config.run_dir.mkdir(parents=True, exist_ok=True)
+        self.metrics_path = config.run_dir / "metrics.jsonl"
+        if saved is not None:
+            self.restore(*saved)
+
+    @property
+    def version(self) -> int:
+        """Version of the current weights: the updates made so far plus one."""
+        return self.iteration + 1
+
+    def iterate(self, running: Callable[[], bool] = always) -> dict[str, float]:
+        """One rollout and one PPO update; returns that iteration's metrics. A fresh run's
+        first rollout only fills the input statistics (its actions saw zeros), so every
+        action learned from saw standardised inputs. InterruptedError, with the iteration
+        half done, once `running()` turns False (`run` goes back to before it)."""
+        started = time.perf_counter()
+        config, policy = self.config, self.policy
+        policy.set_env_transitions(self.env_transitions)
+        policy.eval()
+        collected = self.source.collect(
+            policy, config.rollout_steps, self.env_transitions, self.version, running
+        )
+        rollout = collected.rollout
+        collect_done = time.perf_counter()
+        whole = self.ranks.environments(rollout)
+        self.tracker.add(whole, collected.envs)
+        if policy.normalizer.count:
+            stats = self.learn(rollout, whole, collected.envs, running)
+        else:
+            self.scaler_warm_up(whole, collected.envs)
+            stats = UpdateStats.none(self.optimizer.param_groups[0]["lr"])
+        policy.normalizer.update(whole.inputs.observation)  # after: act and evaluate agreed
+        transitions = whole.actions.shape[0] * whole.actions.shape[1]
+        return {
+            **self.advance(transitions, started, collect_done),
+            "log_std": float(policy.log_std.detach().mean()),
+            **dataclasses.asdict(stats),
+            "policy_lag": collected.policy_lag,
+            "dropped_rollouts": collected.dropped,
+            **collected.figures,
+            **self.tracker.summary(),
+        }
+
+    def advance(self, transitions: int, started: float, collected: float) -> dict[str, float]:
+        """Count an iteration of `transitions` env transitions; returns its counters and
+        timing (`started`, `collected`: `time.perf_counter()` at its start and once its
+        rollout was in)."""
+        self.env_transitions += transitions
+        self.iteration += 1
+        done = time.perf_counter()
+        return {
+            "iteration": self.iteration,
+            "env_transitions": self.env_transitions,
+            "env_steps_per_s": transitions / (done - started),
+            "collect_s": collected - started,
+            "learn_s": done - collected,
+        }
+
+    def scaler_warm_up(self, whole: Rollout, envs: torch.Tensor | None) -> None:
+        """Fold a rollout that is not learned from into the reward scaler's statistics."""
+        for t in range(len(whole.rewards)):
+            self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
+
+    def learn(
+        self,
+        rollout: Rollout,
+        whole: Rollout | None = None,
+        envs: torch.Tensor | None = None,
+        running: Callable[[], bool] = always,
+    ) -> UpdateStats:
+        """One PPO update of this rank's `rollout` (`batch`), on `learner_threads` threads,
+        the critic alone on features computed once after the actor stops (`ppo.update`);
+        `running` stops it."""
+        batch = self.batch(rollout, whole, envs)
+        self.policy.train()
+        with torch_threads(self.learner_threads):
+            return update(
+                self.policy.evaluate,
+                self.policy.parameters(),
+                self.optimizer,
+                batch,
+                self.action_bounds,
+                self.config.ppo,
+                generator=self.shuffle,
+                energy=self.energy,
+                ranks=self.ranks,
+                running=running,
+                critic=self.policy if self.policy.reads_value_features else None,
+            )
+
+    def batch(
+        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+    ) -> Batch:
+        """Scale rewards, bootstrap, GAE per term: the update's batch of this rank's
+        `rollout`; `whole` (default `rollout`): every rank's environments, which the scaler
+        sees; `envs`: which environments they are (None: all)."""
+        whole = rollout if whole is None else whole
+        scaled = torch.stack(
+            [
+                self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
+                for t in range(len(whole.rewards))
+            ]
+        )
+        envs = rollout.rewards.shape[1]
+        scaled = scaled[:, self.ranks.rank * envs : (self.ranks.rank + 1) * envs]  # this rank's
+        rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
+        ppo = self.config.ppo
+        advantages, returns = gae(
+            rewards, rollout.values, rollout.next_values, rollout.dones, ppo.gamma, ppo.gae_lambda
+        )
+        flat = lambda x: x.reshape(-1, *x.shape[2:])
+        robot_state = rollout.inputs.observation.base[
+            :, self.policy.config.observation.columns("base", "robot_state")
+        ]
+        return Batch(
+            rollout.inputs,
+            flat(rollout.actions),
+            flat(rollout.log_prob),
+            flat(advantages),
+            flat(returns),
+            joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
+        )
+
+    def progress(self, row: dict[str, float]) -> str:
+        """The progress line of an iteration's metrics."""
+        return ppo_line(row)
+
+    @property
+    def checkpoints(self) -> Path:
+        """Where the run's checkpoint and snapshot go."""
+        return self.config.run_dir / "checkpoints"
+
+    def checkpoint(self) -> Path:
+        """Write the policy's weights (loadable by `hamnet policy --checkpoint`) and the rest
+        of the run's snapshot (`hamnet.trainer.runners.snapshots`); returns the weights' path."""
+        path = self.checkpoints / "latest.safetensors"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        snapshots.write(self.checkpoints, self.snapshot())
+        save_checkpoint(path, self.policy, self.version)
+        return path
+
+    def snapshot(self) -> Snapshot:
+        """Everything but the policy's weights that the run continues from: Adam's state and
+        learning rate, reward scaler, episode tracker, torch's global RNG and the minibatches'
+        generator, counters, the run's
+        identity and, from an in-process source, every worker's state."""
+        parts = {
+            "optimizer": snapshots.optimizer_snapshot(self.optimizer),
+            "scaler": self.scaler.snapshot(),
+            "tracker": self.tracker.snapshot(),
+            "torch": ({"rng": torch.get_rng_state(), "shuffle": self.shuffle.get_state()}, {}),
+        }
+        if isinstance(self.source, Resumable):  # streamed: the workers simply go on
+            parts["source"] = self.source.snapshot()
+        arrays, meta = nest(parts)
+        counters = {
+            "iteration": self.iteration,
+            "env_transitions": self.env_transitions,
+            "wall_clock_s": self.wall_clock_s,
+        }
+        return arrays, {
+            **meta,
+            "counters": counters,
+            "run": snapshots.as_json(self.config.identity),
+        }
+
+    def state(self) -> Snapshot:
+        """The whole run in memory, copied: its snapshot and the policy's weights."""
+        arrays, meta = self.snapshot()
+        weights = {f"policy.{name}": value for name, value in self.policy.state_dict().items()}
+        copied = {
+            name: value.clone() if isinstance(value, torch.Tensor) else np.array(value)
+            for name, value in {**arrays, **weights}.items()
+        }
+        return copied, copy.deepcopy(meta)
+
+    def load_state(self, state: Snapshot) -> None:
+        """Go back to `state` (from `state()`): the weights, then the snapshot's parts."""
+        arrays, meta = state
+        prefix = "policy."
+        self.policy.load_state_dict(
+            {
+                name[len(prefix) :]: value
+                for name, value in arrays.items()
+                if name.startswith(prefix)
+            }
+        )
+        rest = {name: value for name, value in arrays.items() if not name.startswith(prefix)}
+        self.restore_parts({name: np.asarray(value) for name, value in rest.items()}, meta)
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue from a snapshot of this run and the weights beside it; metrics rows written
+        after the snapshot are dropped.
+
+        Raises:
+            ResumeError: the weights are missing or not the snapshot's, or a part does not fit.
+        """
+        iteration = meta["counters"]["iteration"]
+        try:
+            weights = read_checkpoint(self.checkpoints / "latest.safetensors")
+            if weights.version != iteration + 1:
+                raise ResumeError(
+                    f"weights of version {weights.version}, the snapshot is of "
+                    f"iteration {iteration} (a write was cut short)"
+                )
+            load_into(self.policy, weights)
+        except ValueError as error:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
+        self.restore_parts(arrays, meta)
+        if self.ranks.main:
+            snapshots.trim_metrics(self.metrics_path, self.iteration)
+
+    def restore_parts(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Everything of a snapshot but the weights: optimizer, scaler, tracker, source,
+        random generators and counters (ResumeError when a part does not fit)."""
+        counters = meta["counters"]
+        try:
+            snapshots.restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+            self.scaler.restore(*part(arrays, meta, "scaler"))
+            self.tracker.restore(*part(arrays, meta, "tracker"))
+            if "source" in meta and isinstance(self.source, Resumable):
+                self.source.restore(*part(arrays, meta, "source"))
+        except ValueError as error:
+            raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
+        torch.set_rng_state(torch.tensor(arrays["torch.rng"]))
+        self.shuffle.set_state(torch.tensor(arrays["torch.shuffle"]))
+        self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
+        self.wall_clock_s = counters["wall_clock_s"]
+
+    def run(
+        self,
+        on_iteration: Callable[[dict[str, float]], None] | None = None,
+        running: Callable[[], bool] = always,
+    ) -> Path:
+        """Iterate until a budget is spent or `running()` turns False (on any rank: all stop
+        together); returns the metrics file. `on_iteration` sees every iteration's metrics (a
+        publisher, a test). Only the main rank writes metrics, logs and checkpoints.
+
+        With one rank, `running()` turning False also stops the iteration under way, between
+        two steps of its rollout or two minibatches of its update: the run then goes back to
+        where that iteration began (a snapshot kept in memory), so the checkpoint it writes
+        is the state after its last whole iteration and `--resume` continues exactly from it.
+        Several ranks finish the iteration together (their collectives must not part)."""
+        config, main = self.config, self.ranks.main
+        started = last_log = last_checkpoint = time.monotonic()
+        before = self.wall_clock_s  # a resumed run's budget counts its earlier time too
+        inner = running if self.ranks.size == 1 else always
+        with contextlib.ExitStack() as stack:
+            metrics = stack.enter_context(self.metrics_path.open("a")) if main else None
+            while self.ranks.all(
+                running()
+                and self.env_transitions < config.max_env_transitions
+                and before + time.monotonic() - started < config.max_wall_clock_s
+            ):
+                boundary = self.state() if inner is not always else None
+                try:
+                    row = self.iterate(inner)
+                except InterruptedError:  # stopped mid-iteration, or while waiting for workers
+                    if boundary is not None:
+                        self.load_state(boundary)
+                    self.interrupted = True
+                    break
+                self.wall_clock_s = before + time.monotonic() - started
+                row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}
+                if metrics is not None:
+                    metrics.write(json.dumps(row) + "\n")
+                    metrics.flush()
+                if on_iteration is not None:
+                    on_iteration(row)
+                if not main:
+                    continue
+                now = time.monotonic()
+                if now - last_log >= config.log_period_s:
+                    log.info(self.progress(row))
+                    last_log = now
+                if now - last_checkpoint >= config.checkpoint_period_s:
+                    self.checkpoint()
+                    last_checkpoint = now
+        if main:
+            self.checkpoint()
+        return self.metrics_path
