@@ -102,14 +102,19 @@ def test_graph_prints_or_writes_the_diagram(tmp_path, capsys) -> None:
     assert page.read_text() == f"intro\n{BEGIN}\n{fenced(diagram())}{END}\noutro\n"
 
 
-def test_graph_refuses_a_markdown_file_without_markers_and_output_without_graph(tmp_path) -> None:
+def test_graph_refuses_a_markdown_file_without_markers_and_output_without_graph(
+    tmp_path, capsys
+) -> None:
     page = tmp_path / "page.md"
     page.write_text("no markers\n")
     with pytest.raises(ConfigError, match="needs one line"):
         topics.main(["--graph", "--output", str(page)])
     assert page.read_text() == "no markers\n"
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as refused:
         topics.main(["--output", str(tmp_path / "x.mmd")])
+    assert refused.value.code == 2
+    assert "--output writes the diagram: give --graph too" in capsys.readouterr().err
+    assert not (tmp_path / "x.mmd").exists()
 
 
 def test_every_path_in_where_is_x_exists() -> None:
