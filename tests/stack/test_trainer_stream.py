@@ -24,8 +24,8 @@ from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.pubsub import DropCounter, Inbox, Publisher
 from hamnet.runtime.service import HEALTH
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.trainer.publisher import WEIGHTS, encode_weights
 from hamnet.trainer.collection.streamed import ROLLOUT
+from hamnet.trainer.publisher import WEIGHTS, encode_weights
 from tests.conftest import transport_args
 
 B, T, ITERATIONS = 2, 2, 3
