@@ -51,12 +51,13 @@ def timed_update(
 ) -> tuple[float, UpdateStats]:
     """Seconds and stats of one update of `runner`'s policy on `batch` (the policy and its
     optimizer are left where the update put them)."""
-    policy, ppo, optimizer = runner.policy, runner.config.ppo, runner.optimizer
+    policy, ppo, algorithm = runner.policy, runner.config.ppo, runner.algorithm
     policy.train()
     with torch_threads(threads):
         started = time.perf_counter()
-        stats = update(policy.evaluate, policy.parameters(), optimizer, batch, runner.action_bounds,
-                       ppo, generator=torch.Generator().manual_seed(0), energy=runner.energy,
+        stats = update(policy.evaluate, policy.parameters(), algorithm.optimizer, batch,
+                       algorithm.action_bounds, ppo, generator=torch.Generator().manual_seed(0),
+                       energy=algorithm.energy,
                        critic=policy if cached else None)  # fmt: skip
         return time.perf_counter() - started, stats
 
@@ -74,14 +75,14 @@ def main() -> dict:
         runner.iterate()  # warms the optimizer
         runner.policy.eval()
         rollout = runner.source.collect(runner.policy, config.rollout_steps, 0, 1).rollout
-        batch = runner.batch(rollout)
+        batch = runner.algorithm.batch(rollout)
         samples = batch.actions.shape[0]
         progress(f"{samples} samples of {TEACHER} on the easy stage collected")
-        start = copy.deepcopy((runner.policy.state_dict(), runner.optimizer.state_dict()))
+        start = copy.deepcopy((runner.policy.state_dict(), runner.algorithm.optimizer.state_dict()))
         seconds, steps = {}, {}
         for name, (threads, cached) in SETUPS.items():
             runner.policy.load_state_dict(start[0])
-            runner.optimizer.load_state_dict(copy.deepcopy(start[1]))
+            runner.algorithm.optimizer.load_state_dict(copy.deepcopy(start[1]))
             seconds[name], stats = timed_update(runner, batch, threads, cached)
             steps[name] = {"actor": stats.gradient_steps, "critic_alone": stats.value_steps}
             progress(f"{name}: {seconds[name]:.2f} s, {threads} thread(s), {steps[name]}")

@@ -167,7 +167,7 @@ def component_shares(runner: Runner, iterations: int) -> dict[str, float]:
     )
     worker.safety.command = timed(worker.safety.command, seconds, "safety")
     runner.policy.act = timed(runner.policy.act, seconds, "policy")
-    runner.learn = timed(runner.learn, seconds, "learner")
+    runner.algorithm.learn = timed(runner.algorithm.learn, seconds, "learner")
     started = time.perf_counter()
     for _ in range(iterations):
         runner.iterate()

@@ -33,7 +33,7 @@ from hamnet.sim.env import VectorEnv
 from hamnet.trainer.algorithms.gae import gae
 from hamnet.trainer.algorithms.normalization import ReturnScaler
 from hamnet.trainer.algorithms.ppo import Batch, optimizer_for, update
-from hamnet.trainer.collection.rollout_worker import scenes_of, tokens_of
+from hamnet.trainer.collection.seat import scenes_of, tokens_of
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.runners.run_config import stage_sim
 

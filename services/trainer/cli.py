@@ -54,10 +54,13 @@ from hamnet.runtime.errors import ConfigError
 from hamnet.runtime.runs import commit
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.stages import stage_in
+from hamnet.trainer.algorithms.algorithm import Algorithm
+from hamnet.trainer.algorithms.choice import algorithm_of
+from hamnet.trainer.algorithms.ppo_learner import PPO
+from hamnet.trainer.algorithms.teacher import DaggerError
 from hamnet.trainer.collection.streamed import Streamed
 from hamnet.trainer.config import AlgoConfig
 from hamnet.trainer.publisher import TrainerPublisher
-from hamnet.trainer.results.evaluate import evaluate
 from hamnet.trainer.results.summary import write_summary
 from hamnet.trainer.runners.launch_ranks import start_other_ranks, wait_for
 from hamnet.trainer.runners.ranks import ONE, Ranks, from_environment
@@ -149,10 +152,6 @@ def main(argv: Sequence[str]) -> int:
     default = TrainerConfig(run=stage_default(argv))
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
     code = commit()  # the commit of the code that trains
-    if config.algorithm.algo == "dagger":
-        from hamnet.trainer.dagger_cli import distil
-
-        return distil(config, identity, code)
     spawn = config.ranks > 1 and "WORLD_SIZE" not in os.environ  # else torchrun's, or one
     children = start_other_ranks(argv, config.ranks) if spawn else []
     try:
@@ -163,7 +162,9 @@ def main(argv: Sequence[str]) -> int:
 
 
 def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ranks) -> int:
-    """Train as this learner rank; the main one then evaluates and writes the summary."""
+    """Train as this learner rank; the main one then evaluates and writes the summary. Every
+    unusable input (a snapshot of another run, DAgger without a usable teacher or with a
+    non-student architecture) is one line on stderr and exit status 2."""
     run = config.resumed_run
     if config.run.workers % ranks.size or (ranks.size > 1 and config.inprocess):
         print(
@@ -175,21 +176,22 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
     if not ranks.main:  # its own identity on the network
         identity = ServiceIdentity(identity.service, f"{identity.worker}-rank{ranks.rank}")
     try:
+        algorithm = algorithm_of(config.algorithm, run)
         if config.inprocess and not config.publish:
             with until_signalled() as running:
-                runner = Runner(run, resume=config.resume is not None)
+                runner = Runner(run, resume=config.resume is not None, algorithm=algorithm)
                 runner.run(running=running)
                 stopped = not running()
         else:
             with Service(identity, config.common.transport) as service:
-                runner = train_with(service, config, ranks)
+                runner = train_with(service, config, algorithm, ranks)
                 stopped = not service.running
-    except ResumeError as error:
+    except (DaggerError, ResumeError) as error:
         print(f"hamnet trainer: {error}", file=sys.stderr)
         return 2
     if not ranks.main:
         return 0
-    held_out = None
+    held_out, extra = None, {**algorithm.summary_fields(), "stopped_by_signal": stopped}
     if stopped:  # the launcher's grace period leaves no time for the evaluation
         log.info(
             "stopped: checkpoint, metrics and summary written without the held-out "
@@ -198,23 +200,28 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
             run.run_dir,
         )
     elif run.eval_episodes:
-        held_out = evaluate(runner.policy, run, run.eval_episodes, runner.env_transitions)
+        held_out, figures = algorithm.held_out(runner.policy, runner.config, runner.env_transitions)
+        extra |= figures
         log.info(
             "on %d held-out episodes: success rate %.3f, goal return %.4f",
             run.eval_episodes,
             held_out.success_rate,
             held_out.goal_return,
         )
-    print(write_summary(run, held_out, code, {"stopped_by_signal": stopped}))
+    print(write_summary(runner.config, held_out, code, extra))
     return 0
 
 
-def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> Runner:
-    """Train while publishing on `service` (the main rank): in-process, or from streamed
-    rollouts (this rank's workers')."""
+def train_with(
+    service: Service, config: TrainerConfig, algorithm: Algorithm | None = None, ranks: Ranks = ONE
+) -> Runner:
+    """Train by `algorithm` (default PPO) while publishing on `service` (the main rank):
+    in-process, or from the chunks of this rank's rollout workers."""
     run, resume = config.resumed_run, config.resume is not None
     if config.inprocess:
-        return publish_while(service, Runner(run, resume=resume), config.weights_period_s)
+        runner = Runner(run, resume=resume, algorithm=algorithm)
+        return publish_while(service, runner, config.weights_period_s)
+    chosen = PPO(run) if algorithm is None else algorithm
     runner = Runner(
         run,
         lambda policy: Streamed(
@@ -225,9 +232,12 @@ def train_with(service: Service, config: TrainerConfig, ranks: Ranks = ONE) -> R
             config.max_policy_lag,
             ranks=ranks,
             worker_timeout_s=config.worker_timeout_s,
+            decoder=chosen.decoder,
+            topic=chosen.topic,
         ),
         resume,
         ranks,
+        chosen,
     )
     if not ranks.main:
         runner.run(running=lambda: service.running)

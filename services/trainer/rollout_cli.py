@@ -31,10 +31,11 @@ import tyro
 
 from hamnet.runtime.cli import CommonConfig, Flattened, parse_service
 from hamnet.runtime.service import Service
+from hamnet.trainer.algorithms.choice import algorithm_of
+from hamnet.trainer.algorithms.teacher import DaggerError
 from hamnet.trainer.cli import stage_default
 from hamnet.trainer.collection.worker_service import RolloutService
 from hamnet.trainer.config import AlgoConfig
-from hamnet.trainer.runners.dagger_runner import DaggerError, Teacher, check_student, load_teacher
 from hamnet.trainer.runners.run_config import RunConfig
 
 
@@ -63,23 +64,12 @@ def main(argv: Sequence[str]) -> int:
     default = RolloutConfig(run=stage_default(argv))
     config, identity = parse_service(RolloutConfig, argv, "rollout", __doc__, default=default)
     torch.set_num_threads(1)
-    algorithm, teacher = config.algorithm, None
-    if algorithm.algo == "dagger":
-        try:
-            teacher = dagger_teacher(config)
-        except DaggerError as error:
-            print(f"hamnet rollout: {error}", file=sys.stderr)
-            return 2
+    try:
+        algorithm = algorithm_of(config.algorithm, config.run)
+        algorithm.prepare(config.run)  # a non-student architecture, before the session opens
+    except DaggerError as error:
+        print(f"hamnet rollout: {error}", file=sys.stderr)
+        return 2
     with Service(identity, config.common.transport) as service:
-        RolloutService(
-            service, config.run, config.max_policy_lag, teacher=teacher, dagger=algorithm.dagger
-        ).run()
+        RolloutService(service, config.run, config.max_policy_lag, algorithm=algorithm).run()
     return 0
-
-
-def dagger_teacher(config: RolloutConfig) -> Teacher:
-    """The teacher of a DAgger worker; DaggerError without one, or with a non-student run."""
-    if config.algorithm.teacher is None:
-        raise DaggerError("--algo dagger needs --teacher CKPT, the trainer's teacher checkpoint")
-    check_student(config.run.architecture)
-    return load_teacher(config.algorithm.teacher)

@@ -113,7 +113,7 @@ def metrics(iteration: int, rng: np.random.Generator) -> Metrics:
 
 
 def dagger_metrics(iteration: int, rng: np.random.Generator) -> Metrics:
-    """Metrics of DAgger iteration `iteration` (the keys of `DaggerRunner`'s rows): the
+    """Metrics of DAgger iteration `iteration` (the keys of a DAgger run's rows): the
     imitation loss falling, beta half way down."""
     success = float(rng.uniform(0.05, 0.15))
     terms = (success, 0.01, 0.1)

@@ -84,7 +84,7 @@ def test_the_rollout_worker_gives_a_student_no_privileged_field() -> None:
     )
     actions = []
     for observation in (nan, true):
-        worker.observation, worker.carry = observation, None
+        worker.observation, worker.seat.carry = observation, None
         worker.generator.manual_seed(0)
         with torch.no_grad():  # as `collect` acts
             pending = worker.act(policy, env_transitions=0, deterministic=True)

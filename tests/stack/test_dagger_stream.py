@@ -19,7 +19,7 @@ from hamnet.policy.weights import save_checkpoint
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime.pubsub import DropCounter, Inbox
 from hamnet.runtime.transport import TransportConfig, open_session
-from hamnet.trainer.runners.dagger_runner import load_teacher
+from hamnet.trainer.algorithms.teacher import load_teacher
 from hamnet.trainer.storage.demonstration_chunks import DEMONSTRATIONS
 from tests.conftest import transport_args
 from tests.stack.test_trainer_stream import finish, rows

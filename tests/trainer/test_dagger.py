@@ -16,14 +16,16 @@ from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import policy_from, read_checkpoint, save_checkpoint
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.algorithms.dagger import beta_at, imitation_loss, update_student
+from hamnet.trainer.algorithms.dagger_learner import Dagger
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
+from hamnet.trainer.algorithms.teacher import load_teacher
 from hamnet.trainer.cli import main
 from hamnet.trainer.collection.dagger_worker import build_dagger_worker
 from hamnet.trainer.collection.sources import build_workers
 from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.rollout_cli import main as rollout_main
-from hamnet.trainer.runners.dagger_runner import DaggerRunner, load_teacher
 from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.runner import Runner
 from hamnet.trainer.runners.snapshots import ResumeError
 
 B = 4
@@ -120,13 +122,16 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
 ) -> None:
     """4 iterations in one go vs 2, a snapshot, 2 more in a new runner: equal metrics and
     student weights. A 3-step timeout and a beta that falls within the run make episodes end
-    and who acts them be drawn on both sides of the snapshot. Another teacher is refused."""
+    and who acts them be drawn on both sides of the snapshot. PPO and another teacher are
+    refused."""
     dagger = DaggerConfig(beta_decay_transitions=3 * B * STEPS)
     teacher = load_teacher(teacher_file)
-    whole = DaggerRunner(tiny_run(tmp_path / "whole", 4, timeout=3), dagger, teacher)
+    whole = Runner(tiny_run(tmp_path / "whole", 4, timeout=3), algorithm=Dagger(teacher, dagger))
     whole.run()
-    DaggerRunner(tiny_run(tmp_path / "split", 2, timeout=3), dagger, teacher).run()
-    resumed = DaggerRunner(tiny_run(tmp_path / "split", 4, timeout=3), dagger, teacher, resume=True)
+    Runner(tiny_run(tmp_path / "split", 2, timeout=3), algorithm=Dagger(teacher, dagger)).run()
+    resumed = Runner(
+        tiny_run(tmp_path / "split", 4, timeout=3), resume=True, algorithm=Dagger(teacher, dagger)
+    )
     assert resumed.iteration == 2
     resumed.run()
     expected, got = rows(tmp_path / "whole"), rows(tmp_path / "split")
@@ -141,8 +146,15 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
     other = tmp_path / "other.safetensors"
     save_checkpoint(other, build("hamnet", seed=2), 7)
+    as_ppo = dataclasses.replace(tiny_run(tmp_path / "split", 4, timeout=3), overlap=False)
+    with pytest.raises(ResumeError, match="it is not a ppo run"):
+        Runner(as_ppo, resume=True)
     with pytest.raises(ResumeError, match="distils the teacher"):
-        DaggerRunner(tiny_run(tmp_path / "split", 4, timeout=3), dagger, load_teacher(other), True)
+        Runner(
+            tiny_run(tmp_path / "split", 4, timeout=3),
+            resume=True,
+            algorithm=Dagger(load_teacher(other), dagger),
+        )
 
 
 TINY = ["--algo", "dagger", "--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",

@@ -22,9 +22,9 @@ from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
+from hamnet.trainer.algorithms import ppo_learner
 from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
 from hamnet.trainer.results.evaluate import evaluate, success_rate
-from hamnet.trainer.runners import runner as runner_module
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
 
@@ -201,7 +201,7 @@ def test_the_runner_learns_the_critic_at_its_own_rate(tmp_path: Path) -> None:
                        run_dir=tmp_path, eval_episodes=0)  # fmt: skip
     runner = Runner(config)
     critic = {id(p) for p in runner.policy.network.critic.parameters()}
-    groups = runner.optimizer.param_groups
+    groups = runner.algorithm.optimizer.param_groups
     assert {id(p) for p in groups[1]["params"]} == critic
     assert groups[1]["lr"] == config.ppo.value_lr
     assert any(p is runner.policy.log_std for p in groups[0]["params"])  # learned by default
@@ -212,13 +212,13 @@ def test_the_update_takes_every_core_while_the_environments_wait(tmp_path: Path,
     every core (`learner_threads` 0), then acting goes back to one thread; a number given
     is kept."""
     seen = []
-    original = runner_module.update
+    original = ppo_learner.update
 
     def spy(*args, **kwargs):
         seen.append(torch.get_num_threads())
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(runner_module, "update", spy)
+    monkeypatch.setattr(ppo_learner, "update", spy)
     for threads, expected in ((0, os.cpu_count()), (1, 1)):
         config = RunConfig(sim=tiny_sim(), run_dir=tmp_path / str(threads), steps_per_rollout=2,
                            learner_threads=threads, eval_episodes=0)  # fmt: skip

@@ -27,12 +27,9 @@ import numpy as np
 import torch
 
 from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.messages.robot_state import Observation
-from hamnet.messages.safe_command import Command
 from hamnet.perception.config import CloudConfig, student_clouds
-from hamnet.perception.core import Perception, Percepts
+from hamnet.perception.core import Perception
 from hamnet.policy import inputs as builder
-from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.policy.rollout_record import cat_rows
@@ -40,27 +37,18 @@ from hamnet.safety.config import with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.algorithms.dagger import Demonstrations, beta_at
-from hamnet.trainer.collection.rollout_worker import scenes_of, tokens_of
-from hamnet.trainer.collection.sources import frozen_encoder
+from hamnet.trainer.collection.seat import Seat
+from hamnet.trainer.collection.sources import Collected, frozen_encoder
+from hamnet.trainer.collection.worker import Worker
 from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.runners.run_config import RunConfig
-from hamnet.trainer.runners.snapshots import (
-    Arrays,
-    Snapshot,
-    array_dataclass,
-    fields_of,
-    generator_state,
-    nest,
-    part,
-    set_generator_state,
-    tensor_dataclass,
-)
+from hamnet.trainer.runners.snapshots import Arrays, Snapshot, nest, part
 from hamnet.trainer.runners.stopping import always, check
 
 ROLES = ("teacher", "student")
 
 
-class DaggerWorker:
+class DaggerWorker(Worker):
     """B environments stepped by the teacher or the student, labelled by the teacher."""
 
     def __init__(
@@ -71,25 +59,12 @@ class DaggerWorker:
         seed: int = 0,
     ) -> None:
         """`perceptions`: the teacher's and the student's (None for a policy without clouds)."""
-        self.env, self.safety, self.perceptions = env, safety, perceptions
-        self.observation: Observation = env.reset(seed=seed)
-        every = np.arange(env.num_envs)
-        self.safety.start_episodes(every, self.observation.q.astype(np.float64))
-        self.percepts: dict[str, Percepts | None] = dict.fromkeys(ROLES)
-        self._perceive(every)
-        self.carries: dict[str, builder.Carry | None] = dict.fromkeys(ROLES)
-        self.generator = torch.Generator().manual_seed(seed)
-        """Of who acts each episode and of the student's pose-estimate error."""
-        self.pose_noise = PoseNoiseConfig()
+        super().__init__(env, {role: Seat(perceptions[role]) for role in ROLES}, safety, seed)
         self.teacher_acts = torch.zeros(env.num_envs, dtype=torch.bool)
         """(B,) the teacher acts the environment's current episode."""
         self.undrawn = torch.ones(env.num_envs, dtype=torch.bool)
         """(B,) episodes that began since the last draw (drawn at their first step, with beta
         at that step's counter)."""
-
-    @property
-    def num_envs(self) -> int:
-        return self.env.num_envs
 
     @torch.no_grad()
     def collect(
@@ -131,45 +106,28 @@ class DaggerWorker:
         """Draw who acts new episodes, act with both, step with the chosen action."""
         obs = self.observation
         ids, step = torch.as_tensor(obs.episode_ids), torch.as_tensor(obs.episode_step)
-        for role, policy in zip(ROLES, (teacher, student), strict=True):
-            if self.carries[role] is None:
-                self.carries[role] = builder.initial_carry(policy, self.num_envs)
-        starts = (step == 0) | (ids != self.carries["student"].episode_ids)  # begin_step's rule
-        self.carries = {role: builder.begin_step(c, ids, step) for role, c in self.carries.items()}
+        carry = self.seats["student"].carry
+        starts = (step == 0) | (  # begin_step's rule
+            ids != (carry.episode_ids if carry is not None else -1)
+        )
+        policies = {"teacher": teacher, "student": student}
+        self.begin(policies)
         coin = torch.rand(self.num_envs, generator=self.generator) < beta
         self.teacher_acts = torch.where(self.undrawn, coin, self.teacher_acts)
         self.undrawn[:] = False
         robot = builder.robot_observation(obs)
         inputs = {
-            role: builder.policy_inputs(
-                policy.config,
-                self.carries[role],
-                robot,
-                tokens_of(self.percepts[role]),
-                pose_noise=self.pose_noise,
-                generator=self.generator,
-            )
-            for role, policy in zip(ROLES, (teacher, student), strict=True)
+            role: self.seats[role].inputs(policies[role], robot, self.pose_noise, self.generator)
+            for role in ROLES
         }
         label = teacher.act(inputs["teacher"], deterministic=True)
         own = student.act(inputs["student"], deterministic=True)
         action = torch.where(self.teacher_acts[:, None], label.action, own.action)  # (B, A)
-        safe = self.safety.command(
-            action.numpy().astype(np.float64),
-            obs.q.astype(np.float64),
-            obs.dq.astype(np.float64),
-            env_transitions,
-        )
-        result = self.env.step(Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
+        result = self.env.step(self.command(action, env_transitions))
         for role, out in (("teacher", label), ("student", own)):
-            self.carries[role] = builder.end_step(self.carries[role], action, out.memory)
-        if len(result.reset_ids):
-            self.safety.start_episodes(
-                result.reset_ids, result.observation.q[result.reset_ids].astype(np.float64)
-            )
-            self.undrawn[torch.as_tensor(result.reset_ids)] = True
-        self.observation = result.observation
-        self._perceive(result.reset_ids)
+            self.seats[role].end(action, out.memory)
+        self.undrawn[torch.as_tensor(result.reset_ids, dtype=torch.long)] = True
+        self.start(result.reset_ids, result.observation)
         return {
             "inputs": inputs["student"],
             "labels": label.action,
@@ -181,53 +139,20 @@ class DaggerWorker:
             "success": torch.as_tensor(result.success),
         }
 
-    def _perceive(self, started: np.ndarray) -> None:
-        """Both policies' percepts of the current observation; new caches for `started`."""
-        pose = torch.as_tensor(self.observation.object_pose)
-        for role, perception in self.perceptions.items():
-            if perception is None:
-                continue
-            if len(started):
-                perception.start_episodes(scenes_of(self.env, started))
-            self.percepts[role] = perception.step(pose)
-
     def snapshot(self) -> Snapshot:
-        """The whole state this worker continues from: env, safety filter, both perceptions,
-        percepts and carries, the observation, the generator and who acts."""
-        parts = {
-            "env": self.env.snapshot(),
-            "safety": self.safety.snapshot(),
-            "observation": (fields_of(self.observation), {}),
-            "generator": ({"state": generator_state(self.generator)}, {}),
-            "draws": ({"teacher_acts": self.teacher_acts, "undrawn": self.undrawn}, {}),
-        }
-        for role, perception in self.perceptions.items():
-            if perception is not None:
-                parts[f"{role}.perception"] = perception.snapshot()
-                parts[f"{role}.percepts"] = (fields_of(self.percepts[role]), {})
-            if self.carries[role] is not None:
-                parts[f"{role}.carry"] = (fields_of(self.carries[role]), {})
-        return nest(parts)
+        """The shared worker's state and who acts."""
+        arrays, meta = super().snapshot()
+        draws, draws_meta = nest(
+            {"draws": ({"teacher_acts": self.teacher_acts, "undrawn": self.undrawn}, {})}
+        )
+        return {**arrays, **draws}, {**meta, **draws_meta}
 
     def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
         """Continue from `snapshot` (on a worker built from the same config)."""
-        self.env.restore(*part(arrays, meta, "env"))
-        self.safety.restore(*part(arrays, meta, "safety"))
-        self.observation = array_dataclass(Observation, part(arrays, meta, "observation")[0])
-        set_generator_state(self.generator, part(arrays, meta, "generator")[0]["state"])
+        super().restore(arrays, meta)
         draws = part(arrays, meta, "draws")[0]
         self.teacher_acts = torch.tensor(draws["teacher_acts"])
         self.undrawn = torch.tensor(draws["undrawn"])
-        for role, perception in self.perceptions.items():
-            if perception is not None:
-                perception.restore(*part(arrays, meta, f"{role}.perception"))
-                self.percepts[role] = tensor_dataclass(
-                    Percepts, part(arrays, meta, f"{role}.percepts")[0]
-                )
-            self.carries[role] = None
-            if f"{role}.carry" in meta:
-                carry = part(arrays, meta, f"{role}.carry")[0]
-                self.carries[role] = tensor_dataclass(builder.Carry, carry)
 
 
 STUDENT_PERCEPTION_SEED = 1
@@ -254,3 +179,41 @@ def build_dagger_worker(config: RunConfig, teacher: Policy) -> DaggerWorker:
     env = VectorEnv(dataclasses.replace(config.sim, num_envs=b, seed=seed))
     safety = SafetyFilter(np.zeros((b, NUM_JOINTS)), with_profile("training"))
     return DaggerWorker(env, perceptions, safety, seed)
+
+
+class InProcessDagger:
+    """DAgger's rollouts from one `DaggerWorker` in this process (a `RolloutSource` whose
+    rollouts are `Demonstrations`)."""
+
+    def __init__(self, config: RunConfig, teacher: Policy, dagger: DaggerConfig) -> None:
+        self.worker = build_dagger_worker(config, teacher)
+        self.teacher, self.dagger = teacher, dagger
+
+    @property
+    def num_envs(self) -> int:
+        return self.worker.num_envs
+
+    @property
+    def alone_in_update(self) -> bool:
+        return True
+
+    def collect(
+        self,
+        policy: Policy,
+        steps: int,
+        env_transitions: int,
+        version: int,
+        running: Callable[[], bool] = always,
+    ) -> Collected:
+        """T = `steps` steps of every environment, the student `policy` acting where beta's
+        coin says (at the counter `env_transitions`), the teacher labelling."""
+        policy.eval()
+        return Collected(
+            self.worker.collect(self.teacher, policy, steps, env_transitions, self.dagger, running)
+        )
+
+    def snapshot(self) -> Snapshot:
+        return self.worker.snapshot()
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        self.worker.restore(arrays, meta)

@@ -20,7 +20,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import torch
@@ -28,27 +27,20 @@ from torch import Tensor
 
 from hamnet.messages.robot_state import Observation
 from hamnet.messages.safe_command import Command
-from hamnet.perception.core import EpisodeScenes, Perception, Percepts
+from hamnet.perception.core import Perception
 from hamnet.policy import inputs as builder
 from hamnet.policy.networks import PolicyInputs
-from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.policy import Action, Policy
 from hamnet.policy.rollout_record import Rollout, cat_rows, merge_environments
 from hamnet.runtime.trees import take_rows
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import StepResult, VectorEnv
-from hamnet.trainer.runners.snapshots import (
-    Arrays,
-    Snapshot,
-    array_dataclass,
-    fields_of,
-    generator_state,
-    nest,
-    part,
-    set_generator_state,
-    tensor_dataclass,
-)
+from hamnet.trainer.collection.seat import Seat, tokens_of
+from hamnet.trainer.collection.worker import Worker
 from hamnet.trainer.runners.stopping import always, check
+
+POLICY = "policy"
+"""The one seat of a rollout worker: the acting policy's."""
 
 
 @dataclass(frozen=True)
@@ -58,27 +50,6 @@ class Pending:
     inputs: PolicyInputs
     acted: Action
     command: Command
-
-
-def scenes_of(env: VectorEnv, env_ids: np.ndarray) -> EpisodeScenes:
-    """Perception's input for the current episodes of `env_ids` (K,)."""
-    s = env.scenes(env_ids)
-    return EpisodeScenes.from_arrays(
-        s.env_ids,
-        s.episode_ids,
-        s.cuboid_centre,
-        s.cuboid_quat,
-        s.cuboid_half_extent,
-        s.cuboid_active,
-        s.object_points,
-    )
-
-
-def tokens_of(percepts: Percepts | None) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
-    """Object, local and global tokens; None for a policy without clouds."""
-    if percepts is None:
-        return None, None, None
-    return percepts.object_tokens, percepts.local_tokens, percepts.global_tokens
 
 
 @torch.no_grad()
@@ -113,7 +84,7 @@ def collect_overlapped(
     return merge_environments([first.finish(policy, records[0]), second.finish(policy, records[1])])
 
 
-class RolloutWorker:
+class RolloutWorker(Worker):
     """B environments acting with a policy through the training profile's safety filter."""
 
     def __init__(
@@ -123,21 +94,16 @@ class RolloutWorker:
         safety: SafetyFilter,
         seed: int = 0,
     ) -> None:
-        if env.num_envs != safety.num_envs or (
-            perception is not None and perception.num_envs != env.num_envs
-        ):
-            raise ValueError("env, perception and safety must hold the same environments")
-        self.env, self.perception, self.safety = env, perception, safety
-        self.observation: Observation = env.reset(seed=seed)
-        every = np.arange(env.num_envs)
-        self.safety.start_episodes(every, self.observation.q.astype(np.float64))
-        self.percepts: Percepts | None = None
-        self._perceive(every)
-        self.carry: builder.Carry | None = None
-        self.generator = torch.Generator().manual_seed(seed)
-        """Of the action noise and of a student's pose-estimate error."""
-        self.pose_noise = PoseNoiseConfig()
-        """The estimator's error on a student's object pose (a teacher reads the true one)."""
+        super().__init__(env, {POLICY: Seat(perception)}, safety, seed)
+
+    @property
+    def seat(self) -> Seat:
+        """The acting policy's perception, percepts and carry."""
+        return self.seats[POLICY]
+
+    @property
+    def perception(self) -> Perception | None:
+        return self.seat.perception
 
     @torch.no_grad()
     def collect(
@@ -166,24 +132,15 @@ class RolloutWorker:
 
     def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
         """The first half of a step: inputs, the policy's action and the safe command."""
-        if self.carry is None:
-            self.carry = builder.initial_carry(policy, self.env.num_envs)
         inputs = self._inputs(policy)
         acted = policy.act(inputs, deterministic, self.generator)
-        obs = self.observation
-        safe = self.safety.command(
-            acted.action.numpy().astype(np.float64),
-            obs.q.astype(np.float64),
-            obs.dq.astype(np.float64),
-            env_transitions,
-        )
-        return Pending(inputs, acted, Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit))
+        return Pending(inputs, acted, self.command(acted.action, env_transitions))
 
     def observe(self, policy: Policy, pending: Pending, result: StepResult) -> dict[str, object]:
         """The second half, after `env.step(pending.command)`: bootstrap timeouts, start new
         episodes, perceive; returns what the step records."""
         acted = pending.acted
-        self.carry = builder.end_step(self.carry, acted.action, acted.memory)
+        self.seat.end(acted.action, acted.memory)
         rewards = torch.as_tensor(result.reward_terms, dtype=torch.float32)  # (B, R)
         final_values = torch.zeros_like(rewards)
         timed_out = np.flatnonzero(result.truncated & ~result.terminated)
@@ -191,7 +148,7 @@ class RolloutWorker:
             final_values[timed_out] = self._final_values(
                 policy, result.final_observation, timed_out
             )
-        self._start(result.reset_ids, result.observation)
+        self.start(result.reset_ids, result.observation)
         return {
             "inputs": pending.inputs,
             "actions": acted.action,
@@ -213,81 +170,25 @@ class RolloutWorker:
             inputs=cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields
         )
 
-    def snapshot(self) -> Snapshot:
-        """The whole state this worker continues from: its env, perception and safety filter
-        (their own snapshots), the carry, the current observation and percepts, and the
-        action noise generator."""
-        parts = {
-            "env": self.env.snapshot(),
-            "safety": self.safety.snapshot(),
-            "observation": (fields_of(self.observation), {}),
-            "generator": ({"state": generator_state(self.generator)}, {}),
-        }
-        if self.perception is not None:
-            parts["perception"] = self.perception.snapshot()
-            parts["percepts"] = (fields_of(self.percepts), {})
-        if self.carry is not None:
-            parts["carry"] = (fields_of(self.carry), {})
-        return nest(parts)
-
-    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
-        """Continue from `snapshot` (on a worker built from the same config)."""
-        self.env.restore(*part(arrays, meta, "env"))
-        self.safety.restore(*part(arrays, meta, "safety"))
-        self.observation = array_dataclass(Observation, part(arrays, meta, "observation")[0])
-        set_generator_state(self.generator, part(arrays, meta, "generator")[0]["state"])
-        if self.perception is not None:
-            self.perception.restore(*part(arrays, meta, "perception"))
-            self.percepts = tensor_dataclass(Percepts, part(arrays, meta, "percepts")[0])
-        self.carry = None
-        if "carry" in meta:
-            self.carry = tensor_dataclass(builder.Carry, part(arrays, meta, "carry")[0])
-
     def _inputs(self, policy: Policy) -> PolicyInputs:
         """The inputs of the current observation (zeroing the carry of new episodes)."""
-        obs = self.observation
-        self.carry = builder.begin_step(
-            self.carry, torch.as_tensor(obs.episode_ids), torch.as_tensor(obs.episode_step)
-        )
-        robot = builder.robot_observation(obs)
-        return builder.policy_inputs(
-            policy.config,
-            self.carry,
-            robot,
-            tokens_of(self.percepts),
-            pose_noise=self.pose_noise,
-            generator=self.generator,
-        )
+        self.begin({POLICY: policy})
+        robot = builder.robot_observation(self.observation)
+        return self.seat.inputs(policy, robot, self.pose_noise, self.generator)
 
     def _final_values(self, policy: Policy, final: Observation, env_ids: np.ndarray) -> Tensor:
         """(K, R) values of the final states of the episodes in `env_ids` (K,), before their
         caches make way for the next episodes."""
         rows = torch.as_tensor(env_ids)
         robot = take_rows(builder.robot_observation(final), rows)
-        percepts = (
-            None if self.perception is None else self.perception.step(robot.object_pose, rows)
-        )
+        perception = self.seat.perception
+        percepts = None if perception is None else perception.step(robot.object_pose, rows)
         inputs = builder.policy_inputs(
             policy.config,
-            take_rows(self.carry, rows),
+            take_rows(self.seat.carry, rows),
             robot,
             tokens_of(percepts),
             pose_noise=self.pose_noise,
             generator=self.generator,
         )
         return policy.act(inputs, deterministic=True).values
-
-    def _start(self, reset_ids: np.ndarray, observation: Observation) -> None:
-        """Take the step's observation; episodes that began get fresh caches and filters."""
-        if len(reset_ids):
-            self.safety.start_episodes(reset_ids, observation.q[reset_ids].astype(np.float64))
-        self.observation = observation
-        self._perceive(reset_ids)
-
-    def _perceive(self, started: np.ndarray) -> None:
-        """Percepts of the current observation; new caches for the episodes `started`."""
-        if self.perception is None:
-            return
-        if len(started):
-            self.perception.start_episodes(scenes_of(self.env, started))
-        self.percepts = self.perception.step(torch.as_tensor(self.observation.object_pose))

@@ -10,11 +10,12 @@ collects exactly what `hamnet trainer --inprocess` would. Worker k's environment
 `seed + k * SEED_STRIDE`, so workers never repeat each other's episodes and worker 0 repeats
 an in-process run.
 
-With a teacher (`hamnet rollout --algo dagger --teacher CKPT`) a worker is DAgger's: it hosts
-`dagger_runner.InProcessDagger` (the frozen teacher from the file, the student acting with
-the announced weights, who acts drawn from beta at the announced counter) and streams
-`Demonstrations` on `trainer/<w>/demonstrations` (`hamnet.trainer.storage.demonstration_chunks`), each chunk naming the
-teacher's SHA-256.
+What it collects and streams is its algorithm's (`hamnet.trainer.algorithms.algorithm`), the
+trainer's: PPO's rollouts, or with `hamnet rollout --algo dagger --teacher CKPT` DAgger's
+(`InProcessDagger`: the frozen teacher from the file, the student acting with the announced
+weights, who acts drawn from beta at the announced counter), streamed as `Demonstrations` on
+`trainer/<w>/demonstrations` (`hamnet.trainer.storage.demonstration_chunks`), each chunk
+naming the teacher's SHA-256.
 
 With `max_policy_lag` 0 (synchronous) a worker waits for a new announcement after each chunk;
 with a lag it keeps acting with the newest weights it has (the trainer drops what is too
@@ -27,23 +28,16 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from collections.abc import Callable
-from functools import partial
 
-from hamnet.policy.chunk_codec import encode_rollout
 from hamnet.policy.policy import Policy
 from hamnet.policy.weights import WeightsError, from_announcement, load_into, policy_from
 from hamnet.proto.trainer_pb2 import RolloutChunk, WeightsAnnouncement
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
-from hamnet.trainer.collection.sources import InProcess, RolloutSource
-from hamnet.trainer.collection.streamed import ROLLOUT
-from hamnet.trainer.config import DaggerConfig
+from hamnet.trainer.algorithms.algorithm import Algorithm
+from hamnet.trainer.algorithms.ppo_learner import PPO
 from hamnet.trainer.publisher import WEIGHTS
-from hamnet.trainer.runners.dagger_runner import InProcessDagger, Teacher
 from hamnet.trainer.runners.run_config import RunConfig
-from hamnet.trainer.storage.demonstration_chunks import DEMONSTRATIONS, encode_demonstrations
-from hamnet.trainer.storage.rollout_chunks import Batch
 
 log = logging.getLogger(__name__)
 
@@ -73,25 +67,18 @@ class RolloutService:
         config: RunConfig,
         max_policy_lag: int = 0,
         report_period_s: float = 10.0,
-        teacher: Teacher | None = None,
-        dagger: DaggerConfig | None = None,
+        algorithm: Algorithm | None = None,
     ) -> None:
-        """With `teacher`, DAgger's worker, drawing who acts from `dagger`'s beta schedule
-        (default `DaggerConfig()`: give it the trainer's)."""
+        """Collect as `algorithm` does (default PPO; DAgger's worker draws who acts from its
+        beta schedule: give it the trainer's). ValueError when it cannot run `config`."""
+        self.algorithm = PPO(config) if algorithm is None else algorithm
+        config = self.algorithm.prepare(config)
         self.service, self.config, self.max_policy_lag = service, config, max_policy_lag
         self.report_period_s = report_period_s
         ns, worker = service.namespace, service.identity.worker
-        mine = worker_config(config, worker)
-        self.source: RolloutSource
-        self.encode: Callable[[Batch, int, int], RolloutChunk]
-        if teacher is None:
-            self.source, self.encode, topic = InProcess(mine), encode_rollout, ROLLOUT
-        else:
-            self.source = InProcessDagger(mine, teacher.policy, dagger or DaggerConfig())
-            self.encode = partial(encode_demonstrations, teacher_sha256=teacher.sha256)
-            topic = DEMONSTRATIONS
+        self.source = self.algorithm.in_process(worker_config(config, worker))
         service.inbox.subscribe("weights", WEIGHTS.key(ns), WeightsAnnouncement)
-        self.chunks = service.publisher(topic.key(ns, w=worker))
+        self.chunks = service.publisher(self.algorithm.topic.key(ns, w=worker))
         self.policy: Policy | None = None
         self.version = 0
         """Version of the weights held (0: none yet)."""
@@ -124,7 +111,7 @@ class RolloutService:
                 )
             except InterruptedError:
                 break
-            self._send(self.encode(collected.rollout, self.version, self.sent))
+            self._send(self.algorithm.encode(collected.rollout, self.version, self.sent))
             self.sent, self.acted = self.sent + 1, self.version
             self.env_transitions += steps * self.source.num_envs  # runs on between updates
             report.count("env_steps", steps * self.source.num_envs)

@@ -1,51 +1,42 @@
-"""The training loop: collect a rollout, compute per-term advantages, update PPO, advance
+"""The training loop: collect a rollout, let the run's algorithm learn from it, advance
 the one schedule counter, log, checkpoint.
 
-Rollouts come from a `RolloutSource`: `InProcess` runs the sim, perception, policy and the
-safety filter's training profile through `RolloutWorker` in this process
-(`hamnet trainer --inprocess`); `hamnet.trainer.collection.streamed.Streamed` announces the weights and
-gathers chunks from rollout workers over Zenoh (`hamnet trainer`). Either way one loop learns. Rewards are
-scaled by the running std of the summed return before GAE (`ReturnScaler`), and the
-bootstrap of truncated episodes is added after scaling, since values live in scaled units.
-The policy's input statistics (`InputNormalizer`, saved with its weights) take in each
-rollout's observations after the update.
+Rollouts come from a `RolloutSource`: the algorithm's in-process collection by default (PPO:
+`InProcess` runs the sim, perception, policy and the safety filter's training profile through
+`RolloutWorker` in this process, `hamnet trainer --inprocess`; DAgger: `InProcessDagger`) or
+`hamnet.trainer.collection.streamed.Streamed`, which announces the weights and gathers chunks
+from rollout workers over Zenoh (`hamnet trainer`). What is learned is the `Algorithm`'s
+(`hamnet.trainer.algorithms`: PPO by default, or DAgger): one loop, checkpoints, snapshots
+and metrics file for both. The policy's input statistics (`InputNormalizer`, saved with its
+weights) take in each rollout's observations after the update.
 Per iteration one JSON line goes to `<run_dir>/metrics.jsonl`; a progress line goes to the
-log every `log_period_s`. Shapes: T steps, B environments, R reward terms.
+log every `log_period_s`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
-import dataclasses
 import json
 import logging
 import os
 import time
 from collections.abc import Callable
-from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import build, with_changes
-from hamnet.policy.rollout_record import Rollout
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
-from hamnet.runtime.compute import torch_threads
-from hamnet.safety.config import with_profile
 from hamnet.task.rewards import REWARD_NAMES
-from hamnet.trainer.algorithms.gae import gae
-from hamnet.trainer.algorithms.normalization import ReturnScaler
-from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
-from hamnet.trainer.algorithms.ppo_losses import energy_loss
-from hamnet.trainer.collection.sources import InProcess, RolloutSource
+from hamnet.trainer.algorithms.algorithm import Algorithm
+from hamnet.trainer.algorithms.ppo_learner import PPO
+from hamnet.trainer.collection.sources import RolloutSource
 from hamnet.trainer.runners import snapshots
 from hamnet.trainer.runners.episodes import EpisodeTracker
-from hamnet.trainer.runners.progress import ppo_line
 from hamnet.trainer.runners.ranks import ONE, Ranks
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.snapshots import Arrays, Resumable, ResumeError, Snapshot, nest, part
@@ -55,7 +46,7 @@ log = logging.getLogger(__name__)
 
 
 class Runner:
-    """Owns the run: rollout source, policy, optimizer, reward scaler, counters."""
+    """Owns the run: rollout source, policy, algorithm, episode statistics, counters."""
 
     def __init__(
         self,
@@ -63,12 +54,17 @@ class Runner:
         source: Callable[[Policy], RolloutSource] | None = None,
         resume: bool = False,
         ranks: Ranks = ONE,
+        algorithm: Algorithm | None = None,
     ) -> None:
-        """`source(policy)` makes the rollout source for the run's policy (default `InProcess`).
+        """`algorithm` learns (default PPO on `config`); `source(policy)` makes the rollout
+        source for the run's policy (default the algorithm's in-process collection).
         With `resume`, continue from the snapshot in `config.run_dir` (`hamnet.trainer.runners.snapshots`);
         ResumeError when there is none or it is of another run, before anything is built.
         With several `ranks` this process learns from its source's environments, the others
-        from theirs (`hamnet.trainer.runners.ranks`); only the main rank writes metrics and checkpoints."""
+        from theirs (`hamnet.trainer.runners.ranks`); only the main rank writes metrics and
+        checkpoints. ValueError when the algorithm cannot run `config`."""
+        self.algorithm = PPO(config) if algorithm is None else algorithm
+        config = self.algorithm.prepare(config)
         self.config, self.ranks = config, ranks
         saved = snapshots.read_run(config.run_dir, config.identity) if resume else None
         torch.set_num_threads(1)
@@ -82,7 +78,7 @@ class Runner:
             ),
             config.seed,
         )
-        self.source = InProcess(config) if source is None else source(self.policy)
+        self.source = self.algorithm.in_process(config) if source is None else source(self.policy)
         cores = max(1, (os.cpu_count() or 1) // ranks.size)  # ranks share the machine
         self.learner_threads = config.learner_threads or (
             cores if self.source.alone_in_update else 1
@@ -91,16 +87,8 @@ class Runner:
         # After the source: every rank subscribes to its workers' chunks before the main one
         # announces the first weights.
         ranks.broadcast(self.policy)
-        self.optimizer = optimizer_for(
-            self.policy.actor_parameters(), self.policy.critic_parameters(), config.ppo
-        )
-        self.shuffle = torch.Generator().manual_seed(config.seed)
-        """Draws the update's minibatches: its own stream, so a run from rollout workers
-        shuffles as the same run in one process does (whose cores draw from torch's)."""
-        self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
-        """The energy loss of an action mean, read as the workers' safety profile reads it."""
         envs = self.source.num_envs * ranks.size  # every rank's: they see them all
-        self.scaler = ReturnScaler(envs, config.ppo.gamma)
+        self.algorithm.start(self.policy, envs, ranks, self.learner_threads)
         self.tracker = EpisodeTracker(envs, len(REWARD_NAMES))
         self.env_transitions = 0
         self.iteration = 0
@@ -111,10 +99,6 @@ class Runner:
         self.interrupted = False
         """The last `run` was stopped in the middle of an iteration (and went back to its
         start) or while waiting for workers."""
-        self.action_bounds = (
-            -torch.ones(self.policy.config.action_dim),
-            torch.ones(self.policy.config.action_dim),
-        )
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
         if saved is not None:
@@ -126,10 +110,9 @@ class Runner:
         return self.iteration + 1
 
     def iterate(self, running: Callable[[], bool] = always) -> dict[str, float]:
-        """One rollout and one PPO update; returns that iteration's metrics. A fresh run's
-        first rollout only fills the input statistics (its actions saw zeros), so every
-        action learned from saw standardised inputs. InterruptedError, with the iteration
-        half done, once `running()` turns False (`run` goes back to before it)."""
+        """One rollout and one update of the algorithm; returns that iteration's metrics.
+        InterruptedError, with the iteration half done, once `running()` turns False (`run`
+        goes back to before it)."""
         started = time.perf_counter()
         config, policy = self.config, self.policy
         policy.set_env_transitions(self.env_transitions)
@@ -137,21 +120,15 @@ class Runner:
         collected = self.source.collect(
             policy, config.rollout_steps, self.env_transitions, self.version, running
         )
-        rollout = collected.rollout
         collect_done = time.perf_counter()
-        whole = self.ranks.environments(rollout)
+        whole = self.ranks.environments(collected.rollout)
         self.tracker.add(whole, collected.envs)
-        if policy.normalizer.count:
-            stats = self.learn(rollout, whole, collected.envs, running)
-        else:
-            self.scaler_warm_up(whole, collected.envs)
-            stats = UpdateStats.none(self.optimizer.param_groups[0]["lr"])
-        policy.normalizer.update(whole.inputs.observation)  # after: act and evaluate agreed
-        transitions = whole.actions.shape[0] * whole.actions.shape[1]
+        learned = self.algorithm.learn(collected, whole, self.env_transitions, running)
+        policy.normalizer.update(whole.inputs.observation)  # after: act and learn agreed
+        transitions = whole.rewards.shape[0] * whole.rewards.shape[1]
         return {
             **self.advance(transitions, started, collect_done),
-            "log_std": float(policy.log_std.detach().mean()),
-            **dataclasses.asdict(stats),
+            **learned,
             "policy_lag": collected.policy_lag,
             "dropped_rollouts": collected.dropped,
             **collected.figures,
@@ -173,75 +150,6 @@ class Runner:
             "learn_s": done - collected,
         }
 
-    def scaler_warm_up(self, whole: Rollout, envs: torch.Tensor | None) -> None:
-        """Fold a rollout that is not learned from into the reward scaler's statistics."""
-        for t in range(len(whole.rewards)):
-            self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
-
-    def learn(
-        self,
-        rollout: Rollout,
-        whole: Rollout | None = None,
-        envs: torch.Tensor | None = None,
-        running: Callable[[], bool] = always,
-    ) -> UpdateStats:
-        """One PPO update of this rank's `rollout` (`batch`), on `learner_threads` threads,
-        the critic alone on features computed once after the actor stops (`ppo.update`);
-        `running` stops it."""
-        batch = self.batch(rollout, whole, envs)
-        self.policy.train()
-        with torch_threads(self.learner_threads):
-            return update(
-                self.policy.evaluate,
-                self.policy.parameters(),
-                self.optimizer,
-                batch,
-                self.action_bounds,
-                self.config.ppo,
-                generator=self.shuffle,
-                energy=self.energy,
-                ranks=self.ranks,
-                running=running,
-                critic=self.policy if self.policy.reads_value_features else None,
-            )
-
-    def batch(
-        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
-    ) -> Batch:
-        """Scale rewards, bootstrap, GAE per term: the update's batch of this rank's
-        `rollout`; `whole` (default `rollout`): every rank's environments, which the scaler
-        sees; `envs`: which environments they are (None: all)."""
-        whole = rollout if whole is None else whole
-        scaled = torch.stack(
-            [
-                self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
-                for t in range(len(whole.rewards))
-            ]
-        )
-        envs = rollout.rewards.shape[1]
-        scaled = scaled[:, self.ranks.rank * envs : (self.ranks.rank + 1) * envs]  # this rank's
-        rewards = scaled + self.config.ppo.gamma * rollout.final_values  # (T, B, R)
-        ppo = self.config.ppo
-        advantages, returns = gae(
-            rewards, rollout.values, rollout.next_values, rollout.dones, ppo.gamma, ppo.gae_lambda
-        )
-        flat = lambda x: x.reshape(-1, *x.shape[2:])
-        robot_state = rollout.inputs.observation.base[
-            :, self.policy.config.observation.columns("base", "robot_state")
-        ]
-        return Batch(
-            rollout.inputs,
-            flat(rollout.actions),
-            flat(rollout.log_prob),
-            flat(advantages),
-            flat(returns),
-            joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
-        )
-
-    def progress(self, row: dict[str, float]) -> str:
-        """The progress line of an iteration's metrics."""
-        return ppo_line(row)
-
     @property
     def checkpoints(self) -> Path:
         """Where the run's checkpoint and snapshot go."""
@@ -257,15 +165,14 @@ class Runner:
         return path
 
     def snapshot(self) -> Snapshot:
-        """Everything but the policy's weights that the run continues from: Adam's state and
-        learning rate, reward scaler, episode tracker, torch's global RNG and the minibatches'
-        generator, counters, the run's
-        identity and, from an in-process source, every worker's state."""
+        """Everything but the policy's weights that the run continues from: the algorithm's
+        part (PPO: Adam's state and rate, reward scaler, minibatches' generator; DAgger: Adam's
+        state and the teacher's identity), the episode tracker, torch's global RNG, counters,
+        the run's identity and, from an in-process source, every worker's state."""
         parts = {
-            "optimizer": snapshots.optimizer_snapshot(self.optimizer),
-            "scaler": self.scaler.snapshot(),
+            "algorithm": self.algorithm.snapshot(),
             "tracker": self.tracker.snapshot(),
-            "torch": ({"rng": torch.get_rng_state(), "shuffle": self.shuffle.get_state()}, {}),
+            "torch": ({"rng": torch.get_rng_state()}, {}),
         }
         if isinstance(self.source, Resumable):  # streamed: the workers simply go on
             parts["source"] = self.source.snapshot()
@@ -279,6 +186,7 @@ class Runner:
             **meta,
             "counters": counters,
             "run": snapshots.as_json(self.config.identity),
+            "algo": self.algorithm.name,
         }
 
     def state(self) -> Snapshot:
@@ -328,19 +236,20 @@ class Runner:
             snapshots.trim_metrics(self.metrics_path, self.iteration)
 
     def restore_parts(self, arrays: Arrays, meta: dict[str, Any]) -> None:
-        """Everything of a snapshot but the weights: optimizer, scaler, tracker, source,
-        random generators and counters (ResumeError when a part does not fit)."""
+        """Everything of a snapshot but the weights: the algorithm's part, tracker, source,
+        random generator and counters (ResumeError when a part does not fit or the snapshot
+        is of another algorithm)."""
         counters = meta["counters"]
         try:
-            snapshots.restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
-            self.scaler.restore(*part(arrays, meta, "scaler"))
+            if meta.get("algo") != self.algorithm.name:
+                raise ResumeError(f"it is not a {self.algorithm.name} run")
+            self.algorithm.restore(*part(arrays, meta, "algorithm"))
             self.tracker.restore(*part(arrays, meta, "tracker"))
             if "source" in meta and isinstance(self.source, Resumable):
                 self.source.restore(*part(arrays, meta, "source"))
         except ValueError as error:
             raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
         torch.set_rng_state(torch.tensor(arrays["torch.rng"]))
-        self.shuffle.set_state(torch.tensor(arrays["torch.shuffle"]))
         self.iteration, self.env_transitions = counters["iteration"], counters["env_transitions"]
         self.wall_clock_s = counters["wall_clock_s"]
 
@@ -388,7 +297,7 @@ class Runner:
                     continue
                 now = time.monotonic()
                 if now - last_log >= config.log_period_s:
-                    log.info(self.progress(row))
+                    log.info(self.algorithm.progress(row))
                     last_log = now
                 if now - last_checkpoint >= config.checkpoint_period_s:
                     self.checkpoint()

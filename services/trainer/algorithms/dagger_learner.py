@@ -1,0 +1,167 @@
+"""DAgger as a run's algorithm: the frozen teacher labels every state the mixture of teacher
+and student visits, the student (the run's policy) learns to act as the teacher would
+(`dagger.update_student`), on deployable inputs.
+
+Its rollouts are `Demonstrations`: from a `DaggerWorker` in this process (`InProcessDagger`,
+one group of environments, no overlap: two perceptions share the step) or from
+`hamnet rollout --algo dagger` workers over Zenoh, whose chunks name the teacher's SHA-256
+(`hamnet.trainer.storage.demonstration_chunks`). The student's checkpoint is a policy
+checkpoint like PPO's, served by `hamnet policy --checkpoint`; its held-out result is
+measured beside the teacher's on the same episodes with the same evaluation code: the
+teacher with clouds of every surface, as it was trained, the student with clouds as the
+cameras see them and the pose estimate, as it is deployed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+
+from hamnet.perception.config import student_clouds
+from hamnet.policy.policy import Policy
+from hamnet.proto.trainer_pb2 import RolloutChunk
+from hamnet.runtime import contract
+from hamnet.runtime.compute import torch_threads
+from hamnet.trainer.algorithms.dagger import Demonstrations, beta_at, update_student
+from hamnet.trainer.algorithms.teacher import Teacher, check_student
+from hamnet.trainer.collection.dagger_worker import InProcessDagger
+from hamnet.trainer.collection.sources import Collected, RolloutSource
+from hamnet.trainer.config import DaggerConfig
+from hamnet.trainer.results.evaluate import HeldOut, evaluate
+from hamnet.trainer.results.summary import repository_path
+from hamnet.trainer.runners.progress import dagger_line
+from hamnet.trainer.runners.ranks import ONE, Ranks
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.snapshots import (
+    Arrays,
+    ResumeError,
+    Snapshot,
+    nest,
+    optimizer_snapshot,
+    part,
+    restore_optimizer,
+)
+from hamnet.trainer.runners.stopping import always
+from hamnet.trainer.storage.demonstration_chunks import (
+    DEMONSTRATIONS,
+    demonstrations_decoder,
+    encode_demonstrations,
+)
+from hamnet.trainer.storage.rollout_chunks import Arrived
+
+log = logging.getLogger(__name__)
+
+
+class Dagger:
+    """A DAgger run's teacher, schedule, optimizer and the outcomes of the student's episodes."""
+
+    name = "dagger"
+
+    def __init__(self, teacher: Teacher, config: DaggerConfig) -> None:
+        self.teacher, self.dagger = teacher, config
+        self.student_episodes: deque[bool] = deque(maxlen=200)
+        """Outcomes of the last episodes the student acted (the episode tracker's window)."""
+
+    def prepare(self, config: RunConfig) -> RunConfig:
+        """DaggerError unless the run's architecture is a student; one group of environments."""
+        check_student(config.architecture)
+        return dataclasses.replace(config, overlap=False)
+
+    def in_process(self, config: RunConfig) -> RolloutSource:
+        return InProcessDagger(config, self.teacher.policy, self.dagger)
+
+    @property
+    def topic(self) -> contract.Topic:
+        return DEMONSTRATIONS
+
+    def encode(self, rollout: Demonstrations, version: int, sequence: int) -> RolloutChunk:
+        return encode_demonstrations(rollout, version, sequence, self.teacher.sha256)
+
+    def decoder(self, policy: Policy) -> Callable[[str, bytes], Arrived]:
+        """Demonstrations of this run's teacher only: another's are refused."""
+        return demonstrations_decoder(self.teacher.sha256)(policy)
+
+    def start(self, policy: Policy, envs: int, ranks: Ranks = ONE, threads: int = 1) -> None:
+        """The student is `policy`; DAgger learns from one rank."""
+        self.student, self.threads = policy, threads
+        self.optimizer = torch.optim.Adam(policy.parameters(), lr=self.dagger.lr)
+
+    def learn(
+        self,
+        collected: Collected,
+        whole: Demonstrations,
+        env_transitions: int,
+        running: Callable[[], bool] = always,
+    ) -> dict[str, float]:
+        """One imitation update on the whole window collected from the counter
+        `env_transitions`."""
+        demos: Demonstrations = collected.rollout
+        ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
+        self.student_episodes.extend(demos.success[ended].tolist())
+        with torch_threads(self.threads):
+            stats = update_student(self.student, self.optimizer, demos, self.dagger)
+        return {
+            "beta": beta_at(env_transitions, self.dagger),
+            "student_share": 1.0 - float(demos.teacher_acted.float().mean()),
+            **dataclasses.asdict(stats),
+            "learning_rate": self.dagger.lr,
+            "student_episodes": len(self.student_episodes),
+            "student_episode_success": (
+                float(np.mean(self.student_episodes)) if self.student_episodes else math.nan
+            ),
+        }
+
+    def progress(self, row: dict[str, float]) -> str:
+        return dagger_line(row)
+
+    def snapshot(self) -> Snapshot:
+        """Adam's state, the student's last outcomes and the teacher's identity."""
+        outcomes = np.array(self.student_episodes, dtype=bool)
+        arrays, meta = nest({"optimizer": optimizer_snapshot(self.optimizer)})
+        teacher = {"path": str(self.teacher.path), "sha256": self.teacher.sha256}
+        return {**arrays, "student_episodes": outcomes}, {**meta, "teacher": teacher}
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Continue a DAgger run of this teacher (ResumeError for another's)."""
+        saved = meta.get("teacher")
+        if saved is None:
+            raise ResumeError("it is not a DAgger run")
+        if saved["sha256"] != self.teacher.sha256:
+            raise ResumeError(
+                f"it distils the teacher {saved['path']} (sha256 {saved['sha256'][:12]}), "
+                f"not {self.teacher.path} ({self.teacher.sha256[:12]})"
+            )
+        restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+        self.student_episodes.clear()
+        self.student_episodes.extend(np.asarray(arrays["student_episodes"]).tolist())
+
+    def held_out(
+        self, policy: Policy, config: RunConfig, env_transitions: int
+    ) -> tuple[HeldOut, dict[str, object]]:
+        """The student, with clouds as the cameras see them, and the teacher on the same
+        episodes; the student's figures are the run's."""
+        episodes = config.eval_episodes
+        student = evaluate(policy, config, episodes, env_transitions, student_clouds())
+        teacher = evaluate(self.teacher.policy, config, episodes, env_transitions)
+        ratio = student.success_rate / teacher.success_rate if teacher.success_rate else None
+        log.info("teacher on the same episodes: %.3f", teacher.success_rate)
+        return student, {
+            "student_success_rate": student.success_rate,
+            "teacher_success_rate": teacher.success_rate,
+            "teacher_goal_return": teacher.goal_return,
+            "student_vs_teacher": ratio,
+        }
+
+    def summary_fields(self) -> dict[str, object]:
+        return {
+            "algo": "dagger",
+            "teacher": repository_path(self.teacher.path),
+            "teacher_sha256": self.teacher.sha256,
+        }

@@ -1,0 +1,192 @@
+"""PPO as a run's algorithm: per-term advantages of reward-scaled rollouts, then the clipped
+update (`ppo.update`) with the KL-adaptive rate.
+
+Rewards are scaled by the running std of the summed return before GAE (`ReturnScaler`), and
+the bootstrap of truncated episodes is added after scaling, since values live in scaled
+units. A fresh run's first rollout only fills the input statistics and the scaler (its
+actions saw zeros), so every action learned from saw standardised inputs. Shapes: T steps,
+B environments, R reward terms.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import torch
+
+from hamnet.fr3.limits import NUM_JOINTS
+from hamnet.policy.chunk_codec import encode_rollout
+from hamnet.policy.policy import Policy
+from hamnet.policy.rollout_record import Rollout
+from hamnet.proto.trainer_pb2 import RolloutChunk
+from hamnet.runtime import contract
+from hamnet.runtime.compute import torch_threads
+from hamnet.safety.config import with_profile
+from hamnet.trainer.algorithms.gae import gae
+from hamnet.trainer.algorithms.normalization import ReturnScaler
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
+from hamnet.trainer.algorithms.ppo_losses import energy_loss
+from hamnet.trainer.collection.sources import Collected, InProcess, RolloutSource
+from hamnet.trainer.collection.streamed import ROLLOUT
+from hamnet.trainer.results.evaluate import HeldOut, evaluate
+from hamnet.trainer.runners.progress import ppo_line
+from hamnet.trainer.runners.ranks import ONE, Ranks
+from hamnet.trainer.runners.run_config import RunConfig
+from hamnet.trainer.runners.snapshots import (
+    Arrays,
+    Snapshot,
+    nest,
+    optimizer_snapshot,
+    part,
+    restore_optimizer,
+)
+from hamnet.trainer.runners.stopping import always
+from hamnet.trainer.storage.rollout_chunks import Arrived, chunk_decoder
+
+
+class PPO:
+    """The run's PPO: its optimizer, reward scaler and minibatch generator."""
+
+    name = "ppo"
+
+    def __init__(self, config: RunConfig) -> None:
+        """`config.ppo` sets the update, `config.seed` the minibatches' generator."""
+        self.ppo, self.seed = config.ppo, config.seed
+        self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
+        """The energy loss of an action mean, read as the workers' safety profile reads it."""
+
+    def prepare(self, config: RunConfig) -> RunConfig:
+        return config
+
+    def in_process(self, config: RunConfig) -> RolloutSource:
+        return InProcess(config)
+
+    @property
+    def topic(self) -> contract.Topic:
+        return ROLLOUT
+
+    def encode(self, rollout: Rollout, version: int, sequence: int) -> RolloutChunk:
+        return encode_rollout(rollout, version, sequence)
+
+    def decoder(self, policy: Policy) -> Callable[[str, bytes], Arrived]:
+        return chunk_decoder(policy)
+
+    def start(self, policy: Policy, envs: int, ranks: Ranks = ONE, threads: int = 1) -> None:
+        self.policy, self.ranks, self.threads = policy, ranks, threads
+        self.optimizer = optimizer_for(
+            policy.actor_parameters(), policy.critic_parameters(), self.ppo
+        )
+        self.shuffle = torch.Generator().manual_seed(self.seed)
+        """Draws the update's minibatches: its own stream, so a run from rollout workers
+        shuffles as the same run in one process does (whose cores draw from torch's)."""
+        self.scaler = ReturnScaler(envs, self.ppo.gamma)
+        dim = policy.config.action_dim
+        self.action_bounds = (-torch.ones(dim), torch.ones(dim))
+
+    def learn(
+        self,
+        collected: Collected,
+        whole: Rollout,
+        env_transitions: int,
+        running: Callable[[], bool] = always,
+    ) -> dict[str, float]:
+        """One update of this rank's rollout, or the first rollout's warm-up."""
+        if self.policy.normalizer.count:
+            stats = self.update(collected.rollout, whole, collected.envs, running)
+        else:
+            for t in range(len(whole.rewards)):
+                self.scaler.scale(whole.rewards[t], whole.dones[t], collected.envs)
+            stats = UpdateStats.none(self.optimizer.param_groups[0]["lr"])
+        return {"log_std": float(self.policy.log_std.detach().mean()), **dataclasses.asdict(stats)}
+
+    def update(
+        self,
+        rollout: Rollout,
+        whole: Rollout | None = None,
+        envs: torch.Tensor | None = None,
+        running: Callable[[], bool] = always,
+    ) -> UpdateStats:
+        """One PPO update of this rank's `rollout` (`batch`), on the learner's threads, the
+        critic alone on features computed once after the actor stops (`ppo.update`)."""
+        batch = self.batch(rollout, whole, envs)
+        self.policy.train()
+        with torch_threads(self.threads):
+            return update(
+                self.policy.evaluate,
+                self.policy.parameters(),
+                self.optimizer,
+                batch,
+                self.action_bounds,
+                self.ppo,
+                generator=self.shuffle,
+                energy=self.energy,
+                ranks=self.ranks,
+                running=running,
+                critic=self.policy if self.policy.reads_value_features else None,
+            )
+
+    def batch(
+        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+    ) -> Batch:
+        """Scale rewards, bootstrap, GAE per term: the update's batch of this rank's
+        `rollout`; `whole` (default `rollout`): every rank's environments, which the scaler
+        sees; `envs`: which environments they are (None: all)."""
+        whole = rollout if whole is None else whole
+        scaled = torch.stack(
+            [
+                self.scaler.scale(whole.rewards[t], whole.dones[t], envs)
+                for t in range(len(whole.rewards))
+            ]
+        )
+        count = rollout.rewards.shape[1]
+        scaled = scaled[:, self.ranks.rank * count : (self.ranks.rank + 1) * count]  # this rank's
+        rewards = scaled + self.ppo.gamma * rollout.final_values  # (T, B, R)
+        advantages, returns = gae(
+            rewards,
+            rollout.values,
+            rollout.next_values,
+            rollout.dones,
+            self.ppo.gamma,
+            self.ppo.gae_lambda,
+        )
+        flat = lambda x: x.reshape(-1, *x.shape[2:])
+        robot_state = rollout.inputs.observation.base[
+            :, self.policy.config.observation.columns("base", "robot_state")
+        ]
+        return Batch(
+            rollout.inputs,
+            flat(rollout.actions),
+            flat(rollout.log_prob),
+            flat(advantages),
+            flat(returns),
+            joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
+        )
+
+    def progress(self, row: dict[str, float]) -> str:
+        return ppo_line(row)
+
+    def snapshot(self) -> Snapshot:
+        """Adam's state and rate, the reward scaler and the minibatches' generator."""
+        return nest(
+            {
+                "optimizer": optimizer_snapshot(self.optimizer),
+                "scaler": self.scaler.snapshot(),
+                "shuffle": ({"state": self.shuffle.get_state()}, {}),
+            }
+        )
+
+    def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+        self.scaler.restore(*part(arrays, meta, "scaler"))
+        self.shuffle.set_state(torch.tensor(part(arrays, meta, "shuffle")[0]["state"]))
+
+    def held_out(
+        self, policy: Policy, config: RunConfig, env_transitions: int
+    ) -> tuple[HeldOut, dict[str, object]]:
+        return evaluate(policy, config, config.eval_episodes, env_transitions), {}
+
+    def summary_fields(self) -> dict[str, object]:
+        return {}
