@@ -62,6 +62,12 @@ COMMANDS: tuple[Subcommand, ...] = (
         12,
     ),
     Subcommand(
+        "eval",
+        "a policy on held-out scenes and the nine benchmark domains (success with intervals)",
+        "hamnet.evaluation.cli",
+        31,
+    ),
+    Subcommand(
         "rollout",
         "rollout worker: in-process cores acting with the trainer's weights",
         "hamnet.trainer.rollout_cli",

@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "monitor": 7,
     "recorder": 7,
     "launcher": 8,
+    "evaluation": 8,
     "tools": 8,
 }
 """The layer of every package of `hamnet` (`proto` lives in proto/, `cli` is services/cli.py,

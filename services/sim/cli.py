@@ -40,8 +40,8 @@ class SimServiceConfig:
     sim: Annotated[SimConfig, OwnPrefix] = field(default_factory=SimConfig)
     loop: Annotated[SimLoopConfig, Flattened] = field(default_factory=SimLoopConfig)
     show_scene: int | None = None
-    """Write a Rerun recording of the procedural scene drawn from this seed, print its path
-    and exit (open it with `rerun <file>`)."""
+    """Write a Rerun recording of the scene drawn from this seed (procedural, or `--domain`),
+    print its path and exit (open it with `rerun <file>`)."""
     scene_file: Path | None = None
     """Where `--show-scene` writes; None: runs/scene-<seed>.rrd."""
     print_model_path: bool = False
@@ -65,7 +65,7 @@ def main(argv: Sequence[str]) -> int:
 
         path = config.scene_file or Path("runs") / f"scene-{config.show_scene}.rrd"
         path.parent.mkdir(parents=True, exist_ok=True)
-        save_scene(path, config.show_scene, config.sim.scene)
+        save_scene(path, config.show_scene, config.sim.scene, domain=config.sim.domain)
         print(path)
         return 0
     env = VectorEnv(config.sim)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hamnet.sim.curriculum import CurriculumConfig
+from hamnet.sim.domains import DOMAIN_NAMES
 from hamnet.sim.objects.config import ObjectLibraryConfig
 from hamnet.sim.objects.randomization import ObjectRandomization
 from hamnet.sim.placement import PlacementConfig
@@ -22,7 +23,7 @@ from hamnet.sim.task_config import TaskConfig
 
 @dataclass(frozen=True)
 class SimConfig:
-    """A batch of simulated FR3 environments with procedural scenes."""
+    """A batch of simulated FR3 environments with procedural scenes or a benchmark domain."""
 
     num_envs: int = 4
     """Environments stepped together by this worker."""
@@ -49,11 +50,20 @@ class SimConfig:
     joint_dynamics: JointDynamicsRandomization = field(default_factory=JointDynamicsRandomization)
     task: TaskConfig = field(default_factory=TaskConfig)
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
+    domain: str = ""
+    """Empty: procedural scenes (`scene`); else every scene is this benchmark domain
+    (`hamnet.sim.domains.DOMAIN_NAMES`: cabinet, sink, grill, ...), its start and goal
+    apart in position and in orientation (`domains.pair_placement`)."""
 
     def __post_init__(self) -> None:
         for name in ("num_envs", "num_objects", "size_bins"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.domain and self.domain not in DOMAIN_NAMES:
+            raise ValueError(
+                f"domain must be '' (procedural scenes) or one of {', '.join(DOMAIN_NAMES)}, "
+                f"got {self.domain!r}"
+            )
         if self.nthread < 0:
             raise ValueError(f"nthread must be >= 0 (0: every core), got {self.nthread}")
         period = self.physics_steps_per_sample * self.control_samples * TIMESTEP

@@ -1,8 +1,10 @@
 """`VectorEnv`: B simulated FR3 environments with a Gymnasium-style vector API.
 
-`reset(seed)` draws every episode; `step(command)` applies one safe command (joint
-references per control sample, gains, torque clip) for one policy period and returns the
-batched observation, the reward terms, and the termination flags. Environments whose
+`reset(seed)` draws every episode (procedural scenes or `config.domain`), and
+`start_planned(plan)` starts chosen benchmark episodes (`hamnet.sim.domains.EpisodePlan`);
+`step(command)` applies one safe command (joint references per control sample, gains,
+torque clip) for one policy period and returns the batched observation, the reward terms,
+and the termination flags. Environments whose
 episode ended are reset inside `step` (auto-reset): the returned observation is then the
 first of the new episode, while rewards, flags and `episode_ids` belong to the step that
 ended the old one, and `final_observation` keeps the observation that ended it (to bootstrap
@@ -25,6 +27,7 @@ from hamnet.sim import episodes as draw
 from hamnet.sim import quaternion
 from hamnet.sim.config import SimConfig
 from hamnet.sim.curriculum import CurriculumValues, curriculum_values, scene_config_at
+from hamnet.sim.domains import EpisodePlan
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.rewards import Potentials, potentials, reward_terms
@@ -125,6 +128,22 @@ class VectorEnv:
         if seed is not None:
             self.rng = np.random.default_rng(seed)
         self._new_episodes(np.arange(self.num_envs))
+        return self.observe()
+
+    def start_planned(self, plan: EpisodePlan, env_ids: np.ndarray | None = None) -> Observation:
+        """Start the planned episodes `plan` in `env_ids` (K,), every environment if None.
+
+        Row k of the plan gives environment env_ids[k] its domain, object entry, pose pair
+        and arm start (`episodes.draw_planned`), whatever `config.domain` says; the same
+        rows give the same episodes, in any environment of any batch. Episodes after them
+        are drawn as usual (auto-reset in `step`).
+        """
+        ids = np.arange(self.num_envs) if env_ids is None else np.asarray(env_ids, np.int64)
+        started = time.perf_counter()
+        drawn = draw.draw_planned(
+            self.physics, self.kinematics, self.library, ids, plan, self.config
+        )
+        self._record(drawn, started)
         return self.observe()
 
     def step(self, command: Command) -> StepResult:
@@ -270,6 +289,11 @@ class VectorEnv:
             scene_config,
             self.schedule.p_near_init,
         )
+        self._record(drawn, started)
+
+    def _record(self, drawn: draw.Episodes, started: float) -> None:
+        """Keep what was drawn for `drawn.env_ids` and start their episodes' bookkeeping."""
+        env_ids = drawn.env_ids
         self.object_index[env_ids] = drawn.object_index
         self.goal_pos[env_ids] = drawn.goal_pos
         self.goal_quat[env_ids] = drawn.goal_quat

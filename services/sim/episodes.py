@@ -1,8 +1,10 @@
 """Drawing new episodes for a set of environments: object, size and physics, scene, goal and
 start poses, and the arm's start, written into the batched physics.
 
-An environment whose placement fails (no pose fits its scene) gets a new scene until one
-fits. Objects come in `size_bins` discrete sizes (meshes are compiled once), so the library the
+Scenes are procedural or, with `SimConfig.domain`, one benchmark domain
+(`hamnet.sim.domains`); `draw_planned` starts the episodes of an `EpisodePlan`, each from
+its own seeds. An environment whose placement fails (no pose fits its scene) gets a new
+scene until one fits. Objects come in `size_bins` discrete sizes (meshes are compiled once), so the library the
 world is built from holds every object at every size; `Library` keeps, per entry, the
 stable poses and heights that placement and the tight ceiling need.
 """
@@ -10,20 +12,22 @@ stable poses and heights that placement and the tight ceiling need.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
 
 from hamnet.fr3.limits import Q_HOME
-from hamnet.sim import quaternion, robot, robot_init
+from hamnet.sim import domains, quaternion, robot, robot_init
 from hamnet.sim.config import SimConfig
 from hamnet.sim.objects.library import ObjectSet
 from hamnet.sim.objects.randomization import ObjectRandomization, max_rule_frictions
 from hamnet.sim.objects.spec import restitution_solref
 from hamnet.sim.physics import BatchPhysics
-from hamnet.sim.placement import Placement, sample_placements
+from hamnet.sim.placement import Placement, PlacementConfig, sample_placements
 from hamnet.sim.scene import SceneBatch, sample_scenes
 from hamnet.sim.scene_config import SceneConfig
 
@@ -34,6 +38,10 @@ SCENES_PER_ROUND = 8
 one batched draw instead of many small ones (a large object fits in few scenes)."""
 
 T = TypeVar("T", SceneBatch, Placement)
+D = TypeVar("D")
+
+SceneSampler = Callable[[np.random.Generator, np.ndarray], SceneBatch]
+"""(rng, object_height (K,)) -> K scenes: `sample_scenes` or a domain's builder, configured."""
 
 
 def sized_library(
@@ -134,10 +142,74 @@ def draw_episodes(
     scene_config: SceneConfig,
     p_near_init: float,
 ) -> Episodes:
-    """Draw and apply new episodes for `env_ids`; their state is reset at rest."""
+    """Draw and apply new episodes for `env_ids`: procedural scenes from `scene_config`, or
+    the benchmark domain `config.domain`; their state is reset at rest."""
+    entry = rng.integers(len(library.objects), size=len(env_ids))  # (K,)
+    if config.domain:
+        builder = domains.domain_builder(config.domain)
+        sampler = functools.partial(builder, config=scene_config)
+        placement_config = domains.pair_placement(config.start_goal_placement)
+    else:
+        sampler = functools.partial(sample_scenes, config=scene_config)
+        placement_config = config.start_goal_placement
+    scenes, placement = _scenes_and_placements(
+        rng, library, entry, sampler, placement_config, config.placement.max_scene_draws
+    )
+    drawn = (entry, scenes, placement)
+    return _apply(rng, rng, physics, kinematics, library, env_ids, drawn, config, p_near_init)
+
+
+def draw_planned(
+    physics: BatchPhysics,
+    kinematics: robot_init.ArmKinematics,
+    library: Library,
+    env_ids: np.ndarray,
+    plan: domains.EpisodePlan,
+    config: SimConfig,
+) -> Episodes:
+    """Apply the planned episodes `plan` (K rows) to `env_ids` (K,), each from its own seeds.
+
+    Row k's pair seed draws its domain's scene, start and goal (apart in position and in
+    orientation, `domains.pair_placement`), then the object's and arm's physics; its init
+    seed draws a random, collision-free arm start (`_arm_starts`, no near starts, as the
+    paper's benchmark). Rows are drawn one at a time, so a row's episode never depends on
+    the others.
+    """
+    if len(plan) != len(env_ids) or np.any(plan.object_index >= len(library.objects)):
+        raise ValueError("the plan needs one row per environment and entries of the library")
+    placement_config = domains.pair_placement(config.start_goal_placement)
+    drawn = []
+    for k in range(len(env_ids)):
+        pair = np.random.default_rng(int(plan.pair_seed[k]))
+        builder = domains.domain_builder(domains.DOMAIN_NAMES[plan.domain[k]])
+        sampler = functools.partial(builder, config=config.scene)
+        entry = plan.object_index[k : k + 1]  # (1,)
+        scenes, placement = _scenes_and_placements(
+            pair, library, entry, sampler, placement_config, config.placement.max_scene_draws
+        )
+        arm = np.random.default_rng(int(plan.init_seed[k]))
+        episode = (entry, scenes, placement)
+        ids = env_ids[k : k + 1]
+        drawn.append(_apply(pair, arm, physics, kinematics, library, ids, episode, config, 0.0))
+    return _concatenate(drawn)
+
+
+def _apply(
+    rng: np.random.Generator,
+    arm_rng: np.random.Generator,
+    physics: BatchPhysics,
+    kinematics: robot_init.ArmKinematics,
+    library: Library,
+    env_ids: np.ndarray,
+    drawn: tuple[np.ndarray, SceneBatch, Placement],
+    config: SimConfig,
+    p_near_init: float,
+) -> Episodes:
+    """Draw the physics of episodes whose object `entry` (K,), scenes and placement are
+    drawn, with `rng`, and the arm's starts with `arm_rng` (the same generator but for
+    planned episodes); write them all into `physics` for `env_ids` (K,)."""
+    entry, scenes, placement = drawn
     count = len(env_ids)
-    entry = rng.integers(len(library.objects), size=count)  # (K,)
-    scenes, placement = _scenes_and_placements(rng, library, entry, scene_config, config)
     draws = _object_draws(rng, config, count)
     robot_friction, object_friction, scene_friction = max_rule_frictions(
         draws["hand_friction"], draws["friction"], scenes.friction
@@ -152,31 +224,12 @@ def draw_episodes(
     radius = library.planar_radius[entry].max(axis=1)  # (K,)
     cuboids = robot_init.Cuboids(scenes.centre, scenes.quat, scenes.half_extent, scenes.active)
     q, fallback = _arm_starts(
-        rng,
-        physics,
-        kinematics,
-        env_ids,
-        near,
-        placement.start_pos,
-        placement.start_quat,
-        radius,
-        cuboids,
-        placement.goal_pos,
-        config,
+        arm_rng, physics, kinematics, env_ids, near, placement, radius, cuboids, config
     )
     physics.set_state(env_ids, q, placement.start_pos, placement.start_quat)
-    params = np.stack(
-        [
-            draws["mass"],
-            draws["friction"],
-            draws["restitution"],
-            draws["hand_friction"],
-            scenes.friction,
-            library.scale[entry],
-            *joint_dynamics.T,
-        ],
-        axis=1,
-    ).astype(np.float32)
+    columns = [draws[name] for name in ("mass", "friction", "restitution", "hand_friction")]
+    columns += [scenes.friction, library.scale[entry], *joint_dynamics.T]
+    params = np.stack(columns, axis=1).astype(np.float32)  # (K, P), PHYSICS_PARAM_NAMES
     return Episodes(
         env_ids, entry, scenes, placement.goal_pos, placement.goal_quat, params, near, fallback
     )
@@ -186,10 +239,11 @@ def _scenes_and_placements(
     rng: np.random.Generator,
     library: Library,
     entry: np.ndarray,
-    scene_config: SceneConfig,
-    config: SimConfig,
+    sampler: SceneSampler,
+    placement_config: PlacementConfig,
+    max_scene_draws: int,
 ) -> tuple[SceneBatch, Placement]:
-    """A scene and valid goal and start poses for each object `entry` (K,).
+    """A scene from `sampler` and valid goal and start poses for each object `entry` (K,).
 
     `sample_placements` gives up on a scene where no candidate fits (rows with `valid`
     False hold unchecked poses, e.g. overhanging a plate); those environments get a new
@@ -203,11 +257,11 @@ def _scenes_and_placements(
     rows = np.arange(len(entry))  # environments still without a valid placement
     scenes = placement = None
     per_round = SCENES_PER_ROUND
-    for _ in range(-(-config.placement.max_scene_draws // per_round)):
+    for _ in range(-(-max_scene_draws // per_round)):
         # `per_round` candidate scenes per pending environment in one batched draw.
         tries = np.repeat(rows, per_round)  # (R * per_round,)
         drawn = entry[tries]
-        new_scenes = sample_scenes(rng, height[tries], scene_config)
+        new_scenes = sampler(rng, height[tries])
         new_placement = sample_placements(
             rng,
             new_scenes,
@@ -215,7 +269,7 @@ def _scenes_and_placements(
             library.planar_radius[drawn],
             library.rest_height[drawn],
             library.top_height[drawn],
-            config.start_goal_placement,
+            placement_config,
             pose_weight=library.probability[drawn],
         )
         valid = new_placement.valid.reshape(len(rows), per_round)  # (R, per_round)
@@ -231,7 +285,7 @@ def _scenes_and_placements(
             return scenes, placement
     names = sorted({library.objects[int(i)].name for i in entry[rows]})
     raise RuntimeError(
-        f"no valid placement in {config.placement.max_scene_draws} scenes for {names}: "
+        f"no valid placement in {max_scene_draws} scenes for {names}: "
         "lower objects.radius or raise placement.max_scene_draws"
     )
 
@@ -252,6 +306,16 @@ def _with_rows(batch: T, rows: np.ndarray, new: T) -> T:
     return dataclasses.replace(batch, **values)
 
 
+def _concatenate(parts: list[D]) -> D:
+    """One dataclass of arrays (nested ones included) from `parts`, rows after rows."""
+    values = {}
+    for field in dataclasses.fields(parts[0]):
+        column = [getattr(part, field.name) for part in parts]
+        nested = dataclasses.is_dataclass(column[0])
+        values[field.name] = _concatenate(column) if nested else np.concatenate(column)
+    return dataclasses.replace(parts[0], **values)
+
+
 def _object_draws(rng: np.random.Generator, config: SimConfig, count: int) -> dict[str, np.ndarray]:
     ranges = config.objects
     return {
@@ -268,15 +332,15 @@ def _arm_starts(
     kinematics: robot_init.ArmKinematics,
     env_ids: np.ndarray,
     near: np.ndarray,
-    object_pos: np.ndarray,
-    object_quat: np.ndarray,
+    placement: Placement,
     object_radius: np.ndarray,
     cuboids: robot_init.Cuboids,
-    goal_pos: np.ndarray,
     config: SimConfig,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(K, J) collision-free arm starts: near or random draws, then the fallbacks; and (K,)
-    whether each environment fell back."""
+    """(K, J) collision-free arm starts with the object at its start: near or random draws,
+    then the fallbacks; and (K,) whether each environment fell back."""
+    object_pos, object_quat = placement.start_pos, placement.start_quat  # (K, 3), (K, 4)
+    goal_pos = placement.goal_pos  # (K, 3)
     init = config.robot_init
     q = np.tile(robot_init.RETRACTED, (len(env_ids), 1))
     pending = np.ones(len(env_ids), dtype=bool)

@@ -9,7 +9,8 @@ could run forever: an environment with no passing candidate is reported invalid 
 its scene). The goal is drawn first, biased toward elevated plates; the start then prefers
 faces lower than the goal and keeps its distance from the goal in position or orientation
 (the authors' rule, so in-place reorientations occur), so an episode never starts in
-success. Shapes: B environments, K stable orientations,
+success. Goal and start draw only from the regions the scene's `region_goal` and
+`region_start` allow (every region in a procedural scene). Shapes: B environments, K stable orientations,
 T tries, R regions.
 """
 
@@ -138,11 +139,13 @@ def sample_placements(
     area = np.prod(scene.region_hi - scene.region_lo, axis=-1) * scene.region_flat  # (B, R)
     bias = config.elevated_goal_bias
     elevated = scene.region_z > scene.table_top[:, None]  # (B, R)
-    goal = _pick(_candidates(rng, scene, area * np.where(elevated, bias, 1.0), objects, config))
+    goal_weight = area * np.where(elevated, bias, 1.0) * scene.region_goal  # (B, R)
+    goal = _pick(_candidates(rng, scene, goal_weight, objects, config))
 
     lower = scene.region_z < goal.surface_z[:, None]  # (B, R)
     orientation = (goal.pose, goal.quat) if config.start_keeps_goal_orientation else None
-    start = _candidates(rng, scene, area * np.where(lower, bias, 1.0), objects, config, orientation)
+    start_weight = area * np.where(lower, bias, 1.0) * scene.region_start  # (B, R)
+    start = _candidates(rng, scene, start_weight, objects, config, orientation)
     distance = np.linalg.norm(start.pos - goal.pos[:, None], axis=-1)  # (B, T), m
     angle = quaternion.angle_between(start.quat, goal.quat[:, None])  # (B, T), rad
     far = distance >= config.min_position_separation  # (B, T)

@@ -111,6 +111,11 @@ class SceneBatch:
     """(B, R) world z of a region's top face, m (meaningful where region_flat)."""
     region_flat: np.ndarray
     """(B, R) bool: the region is a horizontal face with some area, where objects may stand."""
+    region_start: np.ndarray
+    """(B, R) bool: the start may stand on the region (all True here; a benchmark domain
+    keeps it apart from the goal, e.g. in a sink's basin while the goal is on its counter)."""
+    region_goal: np.ndarray
+    """(B, R) bool: the goal may stand on the region (all True here)."""
 
     @property
     def num_envs(self) -> int:
@@ -132,9 +137,7 @@ def sample_scenes(
         The B scenes.
     """
     config = config if config is not None else SceneConfig()
-    object_height = np.asarray(object_height, dtype=np.float64)  # (B,)
-    if object_height.ndim != 1 or not np.all(object_height > 0):
-        raise ValueError("object_height must be a (B,) array of positive heights")
+    object_height = checked_heights(object_height)  # (B,)
     num_envs = len(object_height)
     ranges = (config.table_dim_x, config.table_dim_y, config.table_dim_z)
     table_dim = rng.uniform(*np.transpose(ranges), size=(num_envs, 3))  # (B, 3), m
@@ -172,7 +175,21 @@ def sample_scenes(
         region_hi=region_hi,
         region_z=region_z,
         region_flat=region_flat,
+        region_start=np.ones_like(region_flat),
+        region_goal=np.ones_like(region_flat),
     )
+
+
+def checked_heights(object_height: np.ndarray) -> np.ndarray:
+    """`object_height` as a (B,) float64 array, m.
+
+    Raises:
+        ValueError: it is not a (B,) array of positive heights.
+    """
+    object_height = np.asarray(object_height, dtype=np.float64)
+    if object_height.ndim != 1 or not np.all(object_height > 0):
+        raise ValueError("object_height must be a (B,) array of positive heights")
+    return object_height
 
 
 def _cuboids(

@@ -19,6 +19,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from hamnet.sim import quaternion
+from hamnet.sim.domains import domain_builder
 from hamnet.sim.placement import Placement, sample_placements
 from hamnet.sim.scene import (
     CEILING,
@@ -108,6 +109,31 @@ def scene_blueprint() -> rrb.Blueprint:
     )
 
 
+def log_cuboids(
+    centre: np.ndarray,
+    quat: np.ndarray,
+    half_extent: np.ndarray,
+    active: np.ndarray,
+    recording: rr.RecordingStream | None = None,
+) -> None:
+    """Log one environment's active cuboid slots (centre (N, 3), quat (N, 4) wxyz,
+    half_extent (N, 3), active (N,)) as `scene/base` and `scene/case`, coloured by slot."""
+    for name, slots in (("base", np.arange(NUM_BASE)), ("case", np.arange(NUM_BASE, NUM_CUBOIDS))):
+        shown = slots[active[slots]]  # active slot indices of this group
+        rr.log(
+            f"scene/{name}",
+            rr.Boxes3D(
+                centers=centre[shown],
+                half_sizes=half_extent[shown],
+                quaternions=quat[shown][:, [1, 2, 3, 0]],  # Rerun wants xyzw
+                colors=_COLOURS[shown],
+                labels=[CUBOID_NAMES[i] for i in shown],
+                fill_mode=rr.components.FillMode.Solid,
+            ),
+            recording=recording,
+        )
+
+
 def log_scene(
     scene: SceneBatch,
     env_index: int,
@@ -123,21 +149,8 @@ def log_scene(
         recording: where to log; None logs into the current recording.
     """
     rr.log("scene", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True, recording=recording)
-    active = scene.active[env_index]  # (N,)
-    for name, slots in (("base", np.arange(NUM_BASE)), ("case", np.arange(NUM_BASE, NUM_CUBOIDS))):
-        shown = slots[active[slots]]  # active slot indices of this group
-        rr.log(
-            f"scene/{name}",
-            rr.Boxes3D(
-                centers=scene.centre[env_index, shown],
-                half_sizes=scene.half_extent[env_index, shown],
-                quaternions=scene.quat[env_index, shown][:, [1, 2, 3, 0]],  # Rerun wants xyzw
-                colors=_COLOURS[shown],
-                labels=[CUBOID_NAMES[i] for i in shown],
-                fill_mode=rr.components.FillMode.Solid,
-            ),
-            recording=recording,
-        )
+    i = env_index
+    log_cuboids(scene.centre[i], scene.quat[i], scene.half_extent[i], scene.active[i], recording)
     if placement is None:
         return
     poses = {
@@ -164,14 +177,18 @@ def save_scene(
     config: SceneConfig | None = None,
     object_radius: float = 0.05,
     object_height: float = 0.08,
+    domain: str = "",
 ) -> None:
     """Sample one scene and its placement from `seed` and write them to the `.rrd` file `path`.
 
     The object is a stand-in upright cylinder of `object_radius` and `object_height` (m)
     with one stable orientation; an invalid placement is still shown (the cuboids matter).
+    `domain` names a benchmark domain (`hamnet.sim.domains`) to draw instead of a procedural
+    scene; its cuboids keep the colours of the slots they fill.
     """
     rng = np.random.default_rng(seed)
-    scene = sample_scenes(rng, np.array([object_height]), config)
+    sample = domain_builder(domain) if domain else sample_scenes
+    scene = sample(rng, np.array([object_height]), config)
     placement = sample_placements(
         rng,
         scene,

@@ -132,7 +132,7 @@ class RolloutWorker(Worker):
 
     def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
         """The first half of a step: inputs, the policy's action and the safe command."""
-        inputs = self._inputs(policy)
+        inputs = self.inputs(policy)
         acted = policy.act(inputs, deterministic, self.generator)
         return Pending(inputs, acted, self.command(acted.action, env_transitions))
 
@@ -162,7 +162,7 @@ class RolloutWorker(Worker):
 
     def finish(self, policy: Policy, records: list[dict[str, object]]) -> Rollout:
         """The rollout of the recorded steps, with the values of the states after them."""
-        next_values = policy.act(self._inputs(policy), deterministic=True).values  # (B, R)
+        next_values = policy.act(self.inputs(policy), deterministic=True).values  # (B, R)
         fields = {
             key: torch.stack([r[key] for r in records]) for key in records[0] if key != "inputs"
         }
@@ -170,7 +170,7 @@ class RolloutWorker(Worker):
             inputs=cat_rows([r["inputs"] for r in records]), next_values=next_values, **fields
         )
 
-    def _inputs(self, policy: Policy) -> PolicyInputs:
+    def inputs(self, policy: Policy) -> PolicyInputs:
         """The inputs of the current observation (zeroing the carry of new episodes)."""
         self.begin({POLICY: policy})
         robot = builder.robot_observation(self.observation)

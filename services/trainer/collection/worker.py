@@ -16,7 +16,7 @@ import torch
 from hamnet.messages.robot_state import Observation
 from hamnet.messages.safe_command import Command
 from hamnet.policy.observation import PoseNoiseConfig
-from hamnet.safety.filter import SafetyFilter
+from hamnet.safety.filter import SafeOutput, SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.collection.seat import Seat
 from hamnet.trainer.runners.snapshots import (
@@ -70,15 +70,20 @@ class Worker:
         for role, seat in self.seats.items():
             seat.begin(policies[role], ids, step)
 
-    def command(self, action: torch.Tensor, env_transitions: int) -> Command:
-        """The safe command of `action` (B, A) at the schedule counter `env_transitions`."""
+    def safe(self, action: torch.Tensor, env_transitions: int) -> SafeOutput:
+        """What the safety filter makes of `action` (B, A) at the schedule counter
+        `env_transitions` (its command, and whether it stopped following the policy)."""
         obs = self.observation
-        safe = self.safety.command(
+        return self.safety.command(
             action.numpy().astype(np.float64),
             obs.q.astype(np.float64),
             obs.dq.astype(np.float64),
             env_transitions,
         )
+
+    def command(self, action: torch.Tensor, env_transitions: int) -> Command:
+        """The safe command of `action` (B, A) at the schedule counter `env_transitions`."""
+        safe = self.safe(action, env_transitions)
         return Command(safe.q_ref, safe.kp, safe.kd, safe.tau_limit)
 
     def start(self, reset_ids: np.ndarray, observation: Observation) -> None:

@@ -1,0 +1,80 @@
+"""`hamnet eval` end to end on a random policy: real sim, benchmark domains, safety filter,
+report, figure, records and recordings, as a user runs it (a few episodes)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hamnet.evaluation.cli import main
+from hamnet.evaluation.records import FAILURE_REASONS, read_records
+from hamnet.policy.registry import build
+from hamnet.policy.weights import save_checkpoint
+
+pytestmark = pytest.mark.stack  # a command-line check: left out of --fast
+
+SUITES = ("procedural", "cabinet", "sink")
+
+
+@pytest.fixture(scope="module")
+def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Path]:
+    """A random state MLP evaluated with --quick on three suites; (out folder, the last
+    printed line as JSON, the checkpoint)."""
+    folder = tmp_path_factory.mktemp("eval")
+    checkpoint = folder / "random.safetensors"
+    save_checkpoint(checkpoint, build("mlp", seed=0), 1)
+    out = folder / "out"
+    argv = ["--policy", str(checkpoint), "--quick", "--suites", *SUITES, "--out", str(out)]
+    return out, argv, checkpoint
+
+
+def test_a_quick_eval_writes_a_well_formed_report(evaluated, capsys) -> None:
+    """Every suite asked for is played with --quick's 2 episodes each and reported with an
+    interval that holds its rate; every episode has a known reason; the last line is the
+    JSON a script reads; the figure and one recording per suite exist."""
+    out, argv, _ = evaluated
+    assert main(argv) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(last) >= {"success_rate", "episodes", "per_domain"}
+    assert last["episodes"] == 2 * len(SUITES) and list(last["per_domain"]) == list(SUITES)
+    report = json.loads((out / "report.json").read_text())
+    assert list(report["per_domain"]) == list(SUITES)
+    for summary in (*report["per_domain"].values(), report["overall"]):
+        assert summary["ci_low"] <= summary["rate"] <= summary["ci_high"]
+        assert summary["successes"] + sum(summary["reasons"].values()) == summary["episodes"]
+    records = read_records(out / "random.records.jsonl")
+    assert [r.suite for r in records] == [s for s in SUITES for _ in range(2)]
+    assert all(r.success or r.reason in FAILURE_REASONS for r in records)
+    assert all(0 < r.length and r.start_distance > 0 for r in records)
+    assert (out / "report.png").read_bytes()[:4] == b"\x89PNG"
+    assert sorted(p.name for p in (out / "recordings").iterdir()) == sorted(
+        f"{suite}_0.rrd" for suite in SUITES
+    )
+
+
+def test_the_same_seed_plays_the_same_episodes(evaluated, tmp_path: Path) -> None:
+    """Two evaluations with one seed give identical records (the plan is the seed's alone),
+    and a comparison of the policy with its copy plays both on those episodes: no
+    difference in any suite."""
+    out, argv, checkpoint = evaluated
+    copy = tmp_path / "copy.safetensors"
+    copy.write_bytes(checkpoint.read_bytes())
+    again = tmp_path / "again"
+    argv = [*argv[:-1], str(again), "--record", "0"]
+    assert main([*argv[:1], str(checkpoint), str(copy), *argv[2:]]) == 0
+    first = read_records(out / "random.records.jsonl")
+    assert read_records(again / "random.records.jsonl") == first
+    assert read_records(again / "copy.records.jsonl") == first
+    report = json.loads((again / "report.json").read_text())
+    assert report["reference"] == str(checkpoint) and len(report["differences"]) == 4
+    assert all(difference["difference"] == 0 for difference in report["differences"])
+
+
+def test_an_unknown_policy_is_one_line_and_status_2(tmp_path: Path, capsys) -> None:
+    assert main(["--policy", "no-such-policy", "--out", str(tmp_path)]) == 2
+    assert "no-such-policy" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stopped:
+        main(["--policy", "a/x.safetensors", "b/x.safetensors", "--out", str(tmp_path)])
+    assert stopped.value.code == 2 and "share a name" in capsys.readouterr().err
