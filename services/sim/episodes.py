@@ -148,7 +148,7 @@ def draw_episodes(
     if config.domain:
         builder = domains.domain_builder(config.domain)
         sampler = functools.partial(builder, config=scene_config)
-        placement_config = domains.pair_placement(config.start_goal_placement)
+        placement_config = domains.pair_placement(config.task)
     else:
         sampler = functools.partial(sample_scenes, config=scene_config)
         placement_config = config.start_goal_placement
@@ -177,7 +177,7 @@ def draw_planned(
     """
     if len(plan) != len(env_ids) or np.any(plan.object_index >= len(library.objects)):
         raise ValueError("the plan needs one row per environment and entries of the library")
-    placement_config = domains.pair_placement(config.start_goal_placement)
+    placement_config = domains.pair_placement(config.task)
     drawn = []
     for k in range(len(env_ids)):
         pair = np.random.default_rng(int(plan.pair_seed[k]))

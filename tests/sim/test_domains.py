@@ -30,7 +30,7 @@ B = 16
 SEEDS = range(3)
 SETTLE_STEPS = 10
 """Policy steps of 0.1 s an object is left to settle: one second."""
-PAIR = pair_placement(SimConfig().start_goal_placement)
+PAIR = pair_placement(SimConfig().task)
 """Start and goal apart by >= 0.05 m and >= 0.1 rad, both."""
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from hamnet.sim.domains.registry import DOMAIN_NAMES, domain_builder
 from hamnet.sim.placement import PlacementConfig
+from hamnet.sim.task_config import TaskConfig
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,10 +67,17 @@ class EpisodePlan:
         return len(self.domain)
 
 
-def pair_placement(placement: PlacementConfig) -> PlacementConfig:
-    """`placement` for a domain's start and goal: they must differ in position and in
-    orientation, each by at least its separation (`SimConfig.start_goal_placement`: the
-    success thresholds, 0.05 m and 0.1 rad by default), as the paper's benchmark keeps
-    "sufficient separation in both position and orientation" (appendix "Details on the
-    Simulation Benchmark")."""
-    return dataclasses.replace(placement, require_both_separations=True)
+def pair_placement(task: TaskConfig) -> PlacementConfig:
+    """The placement of a domain's start and goal: the default (paper) placement, whatever
+    the stage's curriculum says (the easy stage keeps the goal's orientation and pushes
+    15-25 cm, which a benchmark pair must not and a cabinet shelf cannot hold), with the
+    separations raised to `task`'s success thresholds (0.05 m and 0.1 rad by default) and
+    both required, as the paper's benchmark keeps "sufficient separation in both position
+    and orientation" (appendix "Details on the Simulation Benchmark")."""
+    placement = PlacementConfig()
+    return dataclasses.replace(
+        placement,
+        min_position_separation=max(placement.min_position_separation, task.success_radius),
+        min_orientation_separation=max(placement.min_orientation_separation, task.success_angle),
+        require_both_separations=True,
+    )
