@@ -10,6 +10,7 @@ from pathlib import Path
 
 from hamnet.evaluation.records import SUITES
 from hamnet.runtime.errors import ConfigError
+from hamnet.safety.config import Profile
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,11 @@ class EvalConfig:
     env_transitions: int = 0
     """Schedule counter the policies act at (the safety filter's action bound anneals with
     it); 0: the start of the curriculum, where the widest bound holds."""
+    safety_profile: Profile = "training"
+    """The safety filter between policy and sim: `training` (what the policy was trained and
+    the trainer's held-out evaluation measured with) or `deploy` (every stage the real robot
+    runs: Cartesian clip, torque pre-clip, Ruckig references), to measure what the deployed
+    filter changes."""
     record: int = 2
     """Episodes per suite of the first policy drawn into a Rerun recording."""
     skills: bool = False

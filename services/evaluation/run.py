@@ -21,6 +21,7 @@ from hamnet.evaluation.skills import SkillSteps
 from hamnet.messages.robot_state import Observation
 from hamnet.perception.config import student_clouds
 from hamnet.policy.policy import Policy
+from hamnet.safety.config import with_profile
 from hamnet.sim.domains import DOMAIN_NAMES
 from hamnet.trainer.collection.rollout_worker import RolloutWorker
 from hamnet.trainer.collection.sources import build_workers, frozen_encoder
@@ -34,14 +35,16 @@ SKILL_ARCHITECTURES = ("hamnet", "student")
 
 def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
     """Up to `config.num_envs` environments of `stage` with perception as `policy` reads it (a
-    student's clouds as the cameras see them) on the shipped frozen encoder."""
+    student's clouds as the cameras see them) on the shipped frozen encoder, and the safety
+    filter of `config.safety_profile`."""
     most = max(config.episodes_per_domain, config.procedural_episodes)  # in one suite
     envs = min(config.num_envs, most)  # no environment stepped for nothing
     sim = dataclasses.replace(stage_sim(stage), num_envs=envs, seed=seed_of(config.seed))
     run = RunConfig(stage=stage, sim=sim, architecture=policy.architecture)
     clouds = None if policy.config.privileged else student_clouds()
     encoder = frozen_encoder(run) if policy.config.clouds else None
-    (worker,), _ = build_workers(run, groups=1, clouds=clouds, encoder=encoder)
+    safety = with_profile(config.safety_profile)
+    (worker,), _ = build_workers(run, groups=1, clouds=clouds, encoder=encoder, safety=safety)
     return worker
 
 

@@ -68,13 +68,16 @@ def test_a_quick_eval_writes_a_well_formed_report(evaluated, capsys) -> None:
 def test_the_same_seed_plays_the_same_episodes(evaluated, tmp_path: Path) -> None:
     """Two evaluations with one seed give identical records (the plan is the seed's alone),
     and a comparison of the policy with its copy plays both on those episodes: no
-    difference in any suite."""
+    difference in any suite. The same episodes play through the deploy profile's filter."""
     out, argv, checkpoint = evaluated
     copy = tmp_path / "copy.safetensors"
     copy.write_bytes(checkpoint.read_bytes())
     again = tmp_path / "again"
     argv = [*argv[:-1], str(again), "--record", "0"]
     assert main([*argv[:1], str(checkpoint), str(copy), *argv[2:]]) == 0
+    deployed = tmp_path / "deployed"
+    assert main([*argv[:-3], str(deployed), "--safety-profile", "deploy"]) == 0
+    assert len(read_records(deployed / "random.records.jsonl")) == len(SUITES) * 2
     first = read_records(out / "random.records.jsonl")
     assert read_records(again / "random.records.jsonl") == first
     assert read_records(again / "copy.records.jsonl") == first

@@ -23,7 +23,7 @@ from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.policy.rollout_record import Rollout
-from hamnet.safety.config import with_profile
+from hamnet.safety.config import SafetyConfig, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
@@ -49,24 +49,27 @@ def build_workers(
     groups: int,
     clouds: CloudConfig | None = None,
     encoder: tuple[UniCORN, int] | None = None,
+    safety: SafetyConfig | None = None,
 ) -> tuple[list[RolloutWorker], int]:
     """The in-process cores of the run, in `groups` groups of environments (each its own
     sim, perception caches and filter), and the encoder's version (0: random weights; no
     perception at all for a policy without clouds). The groups share one frozen encoder:
     `encoder` when given, else `frozen_encoder(config)`; perception samples `clouds`
-    (default: every surface, noise-free)."""
+    (default: every surface, noise-free); the safety filter is `safety` (default: the
+    training profile)."""
     size = config.num_envs // groups
     frozen, version = None, 0
     if architecture(config.architecture).config.clouds:
         frozen, version = frozen_encoder(config) if encoder is None else encoder
     threads = 1 if groups > 1 else config.sim.nthread  # the other core runs the networks
+    safety = with_profile("training") if safety is None else safety
     workers = []
     for group in range(groups):
         seed = config.seed + group
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
         perception = None if frozen is None else Perception(frozen, size, clouds, seed=seed)
-        safety = SafetyFilter(np.zeros((size, NUM_JOINTS)), with_profile("training"))
-        workers.append(RolloutWorker(env, perception, safety, seed))
+        safe = SafetyFilter(np.zeros((size, NUM_JOINTS)), safety)
+        workers.append(RolloutWorker(env, perception, safe, seed))
     return workers, version
 
 
