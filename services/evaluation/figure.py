@@ -20,6 +20,7 @@ from matplotlib.axes import Axes
 
 from hamnet.evaluation.metrics import OVERALL, Summary, summarise_suites
 from hamnet.evaluation.records import FAILURE_REASONS, EpisodeRecord
+from hamnet.trainer.results.plot import save_figure
 
 GROUP_WIDTH = 0.8
 """Share of each suite's slot on the x-axis taken by its bars (the rest separates suites)."""
@@ -122,8 +123,4 @@ def plot_evaluation(policies: Mapping[str, Sequence[EpisodeRecord]], out: Path, 
     bottom.set_title(f"failure reasons ({hatches})" if len(summaries) > 1 else "failure reasons")
     top.set_title("success rate per suite")
     figure.suptitle(title)
-    figure.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(out, dpi=110)
-    plt.close(figure)
-    return out
+    return save_figure(figure, out)

@@ -24,6 +24,7 @@ import rerun.blueprint as rrb
 from matplotlib.patches import Patch
 
 from hamnet.evaluation.skills import NOISE, Skills, SkillsConfig
+from hamnet.trainer.results.plot import save_figure
 
 NOISE_COLOUR = (0.0, 0.0, 0.0, 1.0)
 """Unclustered steps are black, as in the paper's Fig. qual-umap."""
@@ -96,11 +97,7 @@ def plot_skills(skills: Skills, out: Path, config: SkillsConfig | None = None) -
         timeline.set_yticks(range(len(shown)), [f"{suites[e]} #{e}" for e in shown], fontsize=8)
     timeline.set_xlabel("policy step")
     timeline.set_title("skill per step")
-    figure.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(out, dpi=110)
-    plt.close(figure)
-    return out
+    return save_figure(figure, out)
 
 
 def _as_3d(projection: np.ndarray) -> np.ndarray:

@@ -174,16 +174,7 @@ def sink(
         Segments((cx0, bx0, bx1, cx1), counter), Segments((cy0, by0, by1, cy1), counter)
     )
     basin = cells((1, 1))
-    in_basin = rng.random(fixture.num_envs) < P_START_FIRST  # (B,)
-    return assemble(
-        fixture,
-        parts,
-        profile,
-        height,
-        config,
-        start_cells=either(in_basin, basin, ~basin),
-        goal_cells=either(in_basin, ~basin, basin),
-    )
+    return _either_way(rng, fixture, parts, profile, height, config, basin, ~basin)
 
 
 def basket(
@@ -265,13 +256,28 @@ def grill(
     across = Segments((y[0], -band, band, y[1]), (0.0, 0.0, 0.0), (0.0, s.bar_height, 0.0))
     profile = fixture.profile(Segments(x, (0.0,)), across)
     right, left = cells((0, 0)), cells((0, 2))
-    start_right = rng.random(fixture.num_envs) < P_START_FIRST  # (B,)
+    return _either_way(rng, fixture, parts, profile, height, config, right, left)
+
+
+def _either_way(
+    rng: np.random.Generator,
+    fixture: Fixture,
+    parts: list[Part],
+    profile: tuple[np.ndarray, np.ndarray, np.ndarray],
+    height: np.ndarray,
+    config: SceneConfig,
+    first: np.ndarray,
+    second: np.ndarray,
+) -> SceneBatch:
+    """The scenes with the start in the cells `first` and the goal in `second`, or the
+    other way round, with probability `P_START_FIRST` per environment."""
+    start_first = rng.random(fixture.num_envs) < P_START_FIRST  # (B,)
     return assemble(
         fixture,
         parts,
         profile,
         height,
         config,
-        start_cells=either(start_right, right, left),
-        goal_cells=either(start_right, left, right),
+        start_cells=either(start_first, first, second),
+        goal_cells=either(start_first, second, first),
     )

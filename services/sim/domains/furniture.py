@@ -43,19 +43,16 @@ class CabinetShape:
 
 
 @dataclass(frozen=True)
-class CabinetTopShape:
-    """The "top of cabinet": the object on top of a tall cabinet, open above (Fig. 1i: the
-    robot "must consider its kinematics while manipulating the object on a high shelf").
-    Our choice: a 50 x 35 cm top 0.8 m above the floor, 0.4 m above the robot's base and
-    about its shoulder's height, so reaching over the far edge nears the arm's limit."""
+class SlabShape:
+    """A domain that is one top surface, open above: the top of a cabinet, a flat table."""
 
-    front_x: float = 0.35
+    front_x: float
     """x of the front edge, m."""
-    depth: float = 0.35
+    depth: float
     """Depth along x, m."""
-    width: float = 0.50
+    width: float
     """Width along y, m."""
-    top_z: float = 0.40
+    top_z: float
     """World z of the top, m."""
 
 
@@ -91,25 +88,16 @@ class DrawerShape:
     """Thickness of the chest's sides and back, m."""
 
 
-@dataclass(frozen=True)
-class FlatShape:
-    """The "flat" domain: a plain table. Our choice: 45 x 60 cm at the height of the
-    robot's base (0.4 m above the floor), in the middle of the procedural tables' range."""
-
-    front_x: float = 0.30
-    """x of the front edge, m."""
-    depth: float = 0.45
-    """Depth along x, m."""
-    width: float = 0.60
-    """Width along y, m."""
-    top_z: float = 0.0
-    """World z of the top, m."""
-
-
 CABINET = CabinetShape()
-CABINET_TOP = CabinetTopShape()
+CABINET_TOP = SlabShape(front_x=0.35, depth=0.35, width=0.50, top_z=0.40)
+"""The "top of cabinet": the object on top of a tall cabinet, open above (Fig. 1i: the
+robot "must consider its kinematics while manipulating the object on a high shelf").
+Our choice: a 50 x 35 cm top 0.8 m above the floor, 0.4 m above the robot's base and
+about its shoulder's height, so reaching over the far edge nears the arm's limit."""
 DRAWER = DrawerShape()
-FLAT = FlatShape()
+FLAT = SlabShape(front_x=0.30, depth=0.45, width=0.60, top_z=0.0)
+"""The "flat" domain: a plain table. Our choice: 45 x 60 cm at the height of the robot's
+base (0.4 m above the floor), in the middle of the procedural tables' range."""
 
 
 def _plain(x: tuple[float, float], y: tuple[float, float]) -> tuple[Segments, Segments]:
@@ -139,12 +127,8 @@ def cabinet(
 def cabinet_top(
     rng: np.random.Generator, object_height: np.ndarray, config: SceneConfig | None = None
 ) -> SceneBatch:
-    """B tall cabinets (`CabinetTopShape`) with the object on top."""
-    height, config, fixture = prepare(rng, object_height, config)
-    s = CABINET_TOP
-    x, y = (s.front_x, s.front_x + s.depth), (-s.width / 2, s.width / 2)
-    parts = [fixture.box((x[0], y[0], FLOOR_Z), (x[1], y[1], s.top_z))]
-    return assemble(fixture, parts, fixture.profile(*_plain(x, y)), height, config)
+    """B tall cabinets (`CABINET_TOP`) with the object on top."""
+    return _slab(rng, object_height, config, CABINET_TOP)
 
 
 def drawer(
@@ -174,9 +158,18 @@ def drawer(
 def flat(
     rng: np.random.Generator, object_height: np.ndarray, config: SceneConfig | None = None
 ) -> SceneBatch:
-    """B plain tables (`FlatShape`)."""
+    """B plain tables (`FLAT`)."""
+    return _slab(rng, object_height, config, FLAT)
+
+
+def _slab(
+    rng: np.random.Generator,
+    object_height: np.ndarray,
+    config: SceneConfig | None,
+    shape: SlabShape,
+) -> SceneBatch:
+    """B single slabs of `shape`, from the floor to their top."""
     height, config, fixture = prepare(rng, object_height, config)
-    s = FLAT
-    x, y = (s.front_x, s.front_x + s.depth), (-s.width / 2, s.width / 2)
-    parts = [fixture.box((x[0], y[0], FLOOR_Z), (x[1], y[1], s.top_z))]
+    x, y = (shape.front_x, shape.front_x + shape.depth), (-shape.width / 2, shape.width / 2)
+    parts = [fixture.box((x[0], y[0], FLOOR_Z), (x[1], y[1], shape.top_z))]
     return assemble(fixture, parts, fixture.profile(*_plain(x, y)), height, config)

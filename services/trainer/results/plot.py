@@ -22,6 +22,15 @@ from hamnet.runtime.runs import read_metrics
 from hamnet.task.rewards import REWARD_NAMES
 
 
+def save_figure(figure: plt.Figure, out: Path, dpi: int = 110) -> Path:
+    """Lay `figure` out, write it to `out` (its folder made) and close it; returns `out`."""
+    figure.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(out, dpi=dpi)
+    plt.close(figure)
+    return out
+
+
 def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
     """Write the curves of `rows` to `out` (PNG); returns `out`."""
     x = [row["env_transitions"] / 1e6 for row in rows]
@@ -73,11 +82,7 @@ def plot_run(rows: list[dict[str, float]], out: Path, title: str) -> Path:
     for axis in axes[1]:
         axis.set_xlabel("env transitions (millions)")
     figure.suptitle(title)
-    figure.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(out, dpi=110)
-    plt.close(figure)
-    return out
+    return save_figure(figure, out)
 
 
 def main(argv: Sequence[str]) -> int:
