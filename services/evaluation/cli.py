@@ -1,11 +1,13 @@
 """`hamnet eval`: a policy on held-out procedural scenes and on the paper's nine benchmark
 domains (rebuilt from cuboids: `hamnet.sim.domains`), per domain-object pair with several
-start and goal pairs and collision-free robot initialisations, in this process.
+start and goal pairs and collision-free robot initialisations, in this process or, with
+`--stack`, through perception, policy and safety running as services (docs/evaluation.md).
 
     hamnet eval --quick                                   # a handful of episodes, under 2 min
     hamnet eval --policy easy-teacher                     # the paper's protocol (5 pairs x 128 inits)
     hamnet eval --policy runs/train/checkpoints/latest.safetensors easy-teacher  # compared
     hamnet eval --suites cabinet sink --objects 2 --inits 16 --skills
+    hamnet eval --quick --stack --safety-profile deploy  # perception, policy, safety as services
 
 Writes to `--out`: `report.json` (per suite and overall: success rate with its 95% Wilson
 interval, failure reasons, episode lengths; with several policies, each against the first),
@@ -29,7 +31,7 @@ from hamnet.evaluation.figure import plot_evaluation
 from hamnet.evaluation.metrics import OVERALL, summarise, summarise_suites
 from hamnet.evaluation.records import EpisodeRecord, write_records
 from hamnet.evaluation.report import comparison_report, policy_report, write_report
-from hamnet.evaluation.run import evaluate_policy
+from hamnet.evaluation.run import evaluate_on_stack, evaluate_policy
 from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_card, read_weights, shipped_names
 from hamnet.policy.weights import WeightsError, policy_from
@@ -73,7 +75,10 @@ def main(argv: Sequence[str]) -> int:
     for index, (name, policy) in enumerate(policies.items()):
         log.info("evaluating %s (%s) on the %s stage", name, policy.architecture, stage)
         recordings = config.out / "recordings" if index == 0 and config.record else None
-        records, steps = evaluate_policy(policy, config, stage, recordings)
+        if config.stack:
+            records, steps = evaluate_on_stack(name, policy, config, stage, recordings), None
+        else:
+            records, steps = evaluate_policy(policy, config, stage, recordings)
         played[name] = records
         write_records(config.out / f"{Path(name).stem}.records.jsonl", records)
         if steps is not None and index == 0:

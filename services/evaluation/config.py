@@ -51,6 +51,10 @@ class EvalConfig:
     skills: bool = False
     """Collect HAMnet's modulation embeddings and write the skills analysis (UMAP and
     HDBSCAN; paper Sec. on the emergence of skills)."""
+    stack: bool = False
+    """Serve the policy, its perception and the safety filter as `hamnet` services on
+    Zenoh, this process their sim, instead of running their cores in this process (slower:
+    every step crosses the network)."""
     quick: bool = False
     """A handful of episodes: one object, one pair, two initialisations per domain."""
     out: Path = Path("runs/eval")
@@ -65,6 +69,8 @@ class EvalConfig:
         stems = [Path(name).stem for name in self.policy]
         if len(set(stems)) < len(stems):
             raise ConfigError(f"--policy: two policies share a name ({stems}): rename one file")
+        if self.stack and self.skills:
+            raise ConfigError("--skills reads the policy's embedding in process: not with --stack")
         counts = (self.objects, self.pairs, self.inits, self.num_envs)
         if min(counts) < 1 or self.procedural_episodes < 0 or self.record < 0:
             raise ConfigError("--objects, --pairs, --inits and --num-envs must be >= 1")

@@ -1,13 +1,20 @@
-"""Evaluating one policy in this process: build its environments once, then play every
-suite's episodes in batches (`play`), recording a few and collecting the skills' embeddings
-when asked. The sim, perception, input builder and safety filter are the trainer's
-in-process cores (`hamnet.trainer.collection`), so what is measured is what was trained.
+"""Evaluating one policy: build its environments once, then play every suite's episodes in
+batches, recording a few and collecting the skills' embeddings when asked.
+
+In this process (the default) the sim, perception, input builder and safety filter are the
+trainer's in-process cores (`hamnet.trainer.collection`), so what is measured is what was
+trained; with `--stack` perception, the policy and the safety filter run as services and
+this process is their sim (`stack`). Either way the same batches of the same episodes are
+played and booked alike (`outcomes`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +22,19 @@ import numpy as np
 from hamnet.evaluation.config import EvalConfig
 from hamnet.evaluation.episode_plan import Slot, domain_slots, planned, procedural_slots, seed_of
 from hamnet.evaluation.episode_view import EpisodeView
-from hamnet.evaluation.play import Embeddings, Labels, play
+from hamnet.evaluation.outcomes import Labels
+from hamnet.evaluation.play import Embeddings, play
 from hamnet.evaluation.records import PROCEDURAL, EpisodeRecord
 from hamnet.evaluation.skills import SkillSteps
+from hamnet.evaluation.stack import EvalShell, service_commands, services, stack_identity
 from hamnet.messages.robot_state import Observation
 from hamnet.perception.config import student_clouds
 from hamnet.policy.policy import Policy
+from hamnet.runtime.service import Service
+from hamnet.runtime.transport import TransportConfig
 from hamnet.safety.config import with_profile
 from hamnet.sim.domains import DOMAIN_NAMES
+from hamnet.sim.env import VectorEnv
 from hamnet.trainer.collection.rollout_worker import RolloutWorker
 from hamnet.trainer.collection.sources import build_workers, frozen_encoder
 from hamnet.trainer.runners.run_config import RunConfig, stage_sim
@@ -33,14 +45,31 @@ SKILL_ARCHITECTURES = ("hamnet", "student")
 """Architectures with a modulation embedding z_tau to analyse."""
 
 
-def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
-    """Up to `config.num_envs` environments of `stage` with perception as `policy` reads it (a
-    student's clouds as the cameras see them) on the shipped frozen encoder, and the safety
-    filter of `config.safety_profile`."""
+@dataclass(frozen=True)
+class Batch:
+    """Episodes started in the environments, the first len(labels.suite) of them counted."""
+
+    started: Observation
+    labels: Labels
+    first: int
+    """Index of the batch's first episode within its suite."""
+    view: EpisodeView | None
+    """The recording of its first episodes, if any."""
+
+
+def run_config(policy: Policy, config: EvalConfig, stage: str) -> RunConfig:
+    """Up to `config.num_envs` environments of `stage` for `policy`."""
     most = max(config.episodes_per_domain, config.procedural_episodes)  # in one suite
     envs = min(config.num_envs, most)  # no environment stepped for nothing
     sim = dataclasses.replace(stage_sim(stage), num_envs=envs, seed=seed_of(config.seed))
-    run = RunConfig(stage=stage, sim=sim, architecture=policy.architecture)
+    return RunConfig(stage=stage, sim=sim, architecture=policy.architecture)
+
+
+def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
+    """The environments with perception as `policy` reads it (a student's clouds as the
+    cameras see them) on the shipped frozen encoder, and the safety filter of
+    `config.safety_profile`."""
+    run = run_config(policy, config, stage)
     clouds = None if policy.config.privileged else student_clouds()
     encoder = frozen_encoder(run) if policy.config.clouds else None
     safety = with_profile(config.safety_profile)
@@ -48,75 +77,101 @@ def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
     return worker
 
 
-def start(worker: RolloutWorker, config: EvalConfig, slots: list[Slot], batch: int) -> Observation:
-    """Start `slots` (one batch of one suite) in the worker's environments."""
-    env = worker.env
+def batches(env: VectorEnv, config: EvalConfig, recordings: Path | None) -> Iterator[Batch]:
+    """Every suite's episodes, started batch after batch in `env`; with `recordings`, the
+    first `config.record` of each suite drawn into `.rrd` files there."""
+    names = [entry.name for entry in env.library.objects]
+    for suite in config.suites:
+        if suite == PROCEDURAL:
+            slots = procedural_slots(config)
+        else:
+            slots = domain_slots(config, suite, len(names))
+        for batch, first in enumerate(range(0, len(slots), env.num_envs)):
+            chunk = slots[first : first + env.num_envs]
+            started = start(env, config, chunk, batch)
+            labels = Labels(
+                [slot.suite for slot in chunk],
+                [names[int(entry)] for entry in env.object_index[: len(chunk)]],
+                [slot.pair for slot in chunk],
+                [slot.init for slot in chunk],
+            )
+            shown = max(0, min(config.record - first, len(chunk))) if recordings else 0
+            paths = [recordings / f"{suite}_{first + k}.rrd" for k in range(shown)]
+            view = EpisodeView(env, list(range(shown)), paths) if shown else None
+            yield Batch(started, labels, first, view)
+            log.info("%s: %d of %d episodes played", suite, first + len(chunk), len(slots))
+
+
+def start(env: VectorEnv, config: EvalConfig, slots: list[Slot], batch: int) -> Observation:
+    """Start `slots` (one batch of one suite) in `env`."""
     if slots[0].suite == PROCEDURAL:  # the stage's own draws, on a held-out seed per batch
         return env.reset(seed=seed_of(config.seed, len(DOMAIN_NAMES), batch))
     return env.start_planned(planned(slots, env.num_envs))
 
 
+def played(
+    env: VectorEnv,
+    config: EvalConfig,
+    recordings: Path | None,
+    play_batch: Callable[[Batch], list[EpisodeRecord]],
+) -> list[EpisodeRecord]:
+    """The records of every batch, each played by `play_batch`."""
+    records: list[EpisodeRecord] = []
+    for batch in batches(env, config, recordings):
+        records += play_batch(batch)
+        if batch.view is not None:
+            batch.view.close()
+    return records
+
+
 def evaluate_policy(
     policy: Policy, config: EvalConfig, stage: str, recordings: Path | None = None
 ) -> tuple[list[EpisodeRecord], SkillSteps | None]:
-    """Every episode of `config.suites` played by `policy`; with `recordings`, the first
-    `config.record` episodes of each suite as `.rrd` files there; the skills' steps when
-    `config.skills` and the policy has a modulation embedding."""
+    """Every episode of `config.suites` played by `policy` in this process; the skills'
+    steps when `config.skills` and the policy has a modulation embedding."""
     worker = worker_for(policy, config, stage)
-    env, size = worker.env, worker.env.num_envs
-    names = [entry.name for entry in env.library.objects]
-    embeddings = (
-        Embeddings() if config.skills and policy.architecture in SKILL_ARCHITECTURES else None
-    )
+    skills = config.skills and policy.architecture in SKILL_ARCHITECTURES
+    embeddings = Embeddings() if skills else None
     records: list[EpisodeRecord] = []
-    for suite in config.suites:
-        slots = (
-            procedural_slots(config)
-            if suite == PROCEDURAL
-            else domain_slots(config, suite, len(names))
+
+    def play_batch(batch: Batch) -> list[EpisodeRecord]:
+        done = play(
+            policy,
+            worker,
+            batch.started,
+            batch.labels,
+            config.env_transitions,
+            first_episode=len(records),  # the embeddings' episode ids: lines of the records
+            embeddings=embeddings,
+            frame=None if batch.view is None else batch.view.frame,
         )
-        for batch, first in enumerate(range(0, len(slots), size)):
-            chunk = slots[first : first + size]
-            started = start(worker, config, chunk, batch)
-            objects = env.object_index[: len(chunk)]
-            labels = Labels(
-                [slot.suite for slot in chunk],
-                [names[int(entry)] for entry in objects],
-                [slot.pair for slot in chunk],
-                [slot.init for slot in chunk],
-            )
-            shown = max(0, min(config.record - first, len(chunk))) if recordings else 0
-            view = (
-                EpisodeView(
-                    env,
-                    list(range(shown)),
-                    [recordings / f"{suite}_{first + k}.rrd" for k in range(shown)],
-                )
-                if shown
-                else None
-            )
-            played = play(
-                policy,
-                worker,
-                started,
-                labels,
-                config.env_transitions,
-                first_episode=len(records),
-                embeddings=embeddings,
-                frame=None if view is None else view.frame,
-            )
-            if view is not None:
-                view.close()
-            records += played
-            rate = np.mean([record.success for record in played])
-            log.info(
-                "%s: %d of %d episodes played, success %.3f in this batch",
-                suite,
-                first + len(chunk),
-                len(slots),
-                rate,
-            )
+        records.extend(done)
+        return done
+
+    played(worker.env, config, recordings, play_batch)
     return records, None if embeddings is None else skill_steps(embeddings, records)
+
+
+def evaluate_on_stack(
+    weights: str, policy: Policy, config: EvalConfig, stage: str, recordings: Path | None = None
+) -> list[EpisodeRecord]:
+    """Every episode of `config.suites` played by `policy` (checkpoint or shipped name
+    `weights`) served by `hamnet policy`, its perception and its safety filter as services,
+    this process their sim; the services log to `config.out / "logs"`."""
+    env = VectorEnv(run_config(policy, config, stage).sim)
+    transport = TransportConfig(namespace=f"eval{uuid.uuid4().hex[:8]}")
+    commands = service_commands(weights, policy, config.safety_profile, transport)
+    with (
+        services(commands, config.out / "logs"),
+        Service(stack_identity(), transport) as service,
+    ):
+        shell = EvalShell(service, env)
+
+        def play_batch(batch: Batch) -> list[EpisodeRecord]:
+            shell.frame = None if batch.view is None else batch.view.frame
+            return shell.play(batch.started, batch.labels)
+
+        return played(env, config, recordings, play_batch)
 
 
 def skill_steps(embeddings: Embeddings, records: list[EpisodeRecord]) -> SkillSteps:

@@ -130,8 +130,9 @@ class SimShell:
             log.info("no command yet: holding the joint positions until one arrives")
         self.advance(hold_command(self.observation.q, self.env.config.control_samples))
 
-    def advance(self, command: Command) -> None:
-        """Step every environment; publish transition k, new scenes and state k+1."""
+    def advance(self, command: Command) -> StepResult:
+        """Step every environment; publish transition k, new scenes and state k+1; returns
+        the step's result."""
         started, resetting = time.perf_counter(), self.env.reset_seconds
         result = self.env.step(command)
         self.report.tick(
@@ -147,6 +148,7 @@ class SimShell:
         if len(result.reset_ids):
             self._publish_scene(result.reset_ids)
         self.state.put(encode_state(self.observation, self.step))
+        return result
 
     def count_episodes(self, result: StepResult) -> None:
         """Count the episodes that ended and those that succeeded (`episodes_ended`,

@@ -3,6 +3,8 @@ report, figure, records and recordings, as a user runs it (a few episodes)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
@@ -19,10 +21,11 @@ SUITES = ("procedural", "cabinet", "sink")
 
 
 @pytest.fixture(scope="module")
-def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Path]:
+def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str], Path, dict]:
     """A random state MLP evaluated with --quick on three suites of the easy stage (whose
     own placement, 15-25 cm pushes keeping the goal's orientation, no domain pair could
-    meet: the domains place by their own rule); (out folder, argv, the checkpoint)."""
+    meet: the domains place by their own rule); (out folder, argv, the checkpoint, the last
+    printed line as JSON)."""
     folder = tmp_path_factory.mktemp("eval")
     checkpoint = folder / "random.safetensors"
     save_checkpoint(checkpoint, build("mlp", seed=0), 1)
@@ -38,16 +41,18 @@ def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Pat
         "--out",
         str(out),
     ]
-    return out, argv, checkpoint
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        status = main(argv)
+    assert status == 0
+    return out, argv, checkpoint, json.loads(printed.getvalue().strip().splitlines()[-1])
 
 
-def test_a_quick_eval_writes_a_well_formed_report(evaluated, capsys) -> None:
+def test_a_quick_eval_writes_a_well_formed_report(evaluated) -> None:
     """Every suite asked for is played with --quick's 2 episodes each and reported with an
     interval that holds its rate; every episode has a known reason; the last line is the
     JSON a script reads; the figure and one recording per suite exist."""
-    out, argv, _ = evaluated
-    assert main(argv) == 0
-    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    out, _, _, last = evaluated
     assert set(last) >= {"success_rate", "episodes", "per_domain"}
     assert last["episodes"] == 2 * len(SUITES) and list(last["per_domain"]) == list(SUITES)
     report = json.loads((out / "report.json").read_text())
@@ -69,7 +74,7 @@ def test_the_same_seed_plays_the_same_episodes(evaluated, tmp_path: Path) -> Non
     """Two evaluations with one seed give identical records (the plan is the seed's alone),
     and a comparison of the policy with its copy plays both on those episodes: no
     difference in any suite. The same episodes play through the deploy profile's filter."""
-    out, argv, checkpoint = evaluated
+    out, argv, checkpoint, _ = evaluated
     copy = tmp_path / "copy.safetensors"
     copy.write_bytes(checkpoint.read_bytes())
     again = tmp_path / "again"
@@ -92,3 +97,23 @@ def test_an_unknown_policy_is_one_line_and_status_2(tmp_path: Path, capsys) -> N
     with pytest.raises(SystemExit) as stopped:
         main(["--policy", "a/x.safetensors", "b/x.safetensors", "--out", str(tmp_path)])
     assert stopped.value.code == 2 and "share a name" in capsys.readouterr().err
+
+
+def test_over_the_services_the_same_episodes_are_played(evaluated, tmp_path: Path) -> None:
+    """--stack serves the policy, its perception (when it reads clouds) and the safety
+    filter as processes and plays the same
+    episodes (same suites, objects, pairs, inits and starts) as in this process; their
+    logs are kept."""
+    out, argv, _, _ = evaluated
+    stacked = tmp_path / "stacked"
+    assert main([*argv[:-1], str(stacked), "--stack", "--record", "0"]) == 0
+    here = read_records(out / "random.records.jsonl")
+    there = read_records(stacked / "random.records.jsonl")
+    key = lambda r: (r.suite, r.object_name, r.pair, r.init, round(r.start_distance, 6))
+    assert [key(r) for r in there] == [key(r) for r in here]
+    assert all(r.success or r.reason in FAILURE_REASONS for r in there)
+    logs = {"policy.log", "safety.log"} | (
+        {"perception.log"} if build("mlp").config.clouds else set()
+    )
+    assert {p.name for p in (stacked / "logs").iterdir()} == logs
+    assert "serving mlp" in (stacked / "logs" / "policy.log").read_text()
