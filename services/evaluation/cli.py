@@ -7,7 +7,7 @@ start and goal pairs and collision-free robot initialisations, in this process o
     hamnet eval --policy easy-teacher                     # the paper's protocol (5 pairs x 128 inits)
     hamnet eval --policy runs/train/checkpoints/latest.safetensors easy-teacher  # compared
     hamnet eval --suites cabinet sink --objects 2 --inits 16 --skills
-    hamnet eval --quick --stack --safety-profile deploy  # perception, policy, safety as services
+    hamnet eval --quick --stack                          # perception, policy, safety as services
 
 Writes to `--out`: `report.json` (per suite and overall: success rate with its 95% Wilson
 interval, failure reasons, episode lengths; with several policies, each against the first),
@@ -15,7 +15,8 @@ interval, failure reasons, episode lengths; with several policies, each against 
 (one line per episode), `recordings/<suite>_<k>.rrd` (a few episodes of the first policy:
 `rerun FILE`) and, with `--skills`, `skills/` (UMAP and HDBSCAN of HAMnet's modulation
 embeddings: figure, per-episode cluster timelines, Rerun view). Prints a progress line per
-batch and, last, one JSON line: success_rate, ci, episodes, per_domain, report.
+batch and, last, one JSON line: success_rate, ci, episodes, per_domain (each benchmark
+domain's rate), procedural, report.
 """
 
 from __future__ import annotations
@@ -28,8 +29,13 @@ from pathlib import Path
 
 from hamnet.evaluation.config import EvalConfig
 from hamnet.evaluation.figure import plot_evaluation
-from hamnet.evaluation.metrics import OVERALL, summarise, summarise_suites
-from hamnet.evaluation.records import EpisodeRecord, write_records
+from hamnet.evaluation.metrics import OVERALL, summarise_suites
+from hamnet.evaluation.records import (
+    BENCHMARK_DOMAINS,
+    PROCEDURAL,
+    EpisodeRecord,
+    write_records,
+)
 from hamnet.evaluation.report import comparison_report, policy_report, write_report
 from hamnet.evaluation.run import evaluate_on_stack, evaluate_policy
 from hamnet.policy.policy import Policy
@@ -94,21 +100,23 @@ def main(argv: Sequence[str]) -> int:
     )
     path = write_report(report, config.out / "report.json")
     plot_evaluation(played, config.out / "report.png", f"hamnet eval on the {stage} stage")
-    first = next(iter(played.values()))
-    overall = summarise(first)
-    print(
-        json.dumps(
-            {
-                "success_rate": overall.rate,
-                "ci": [overall.ci_low, overall.ci_high],
-                "episodes": overall.episodes,
-                "per_domain": {
-                    suite: summary.rate
-                    for suite, summary in summarise_suites(first).items()
-                    if suite != OVERALL
-                },
-                "report": str(path),
-            }
-        )
-    )
+    print(json.dumps(last_line(next(iter(played.values())), path)))
     return 0
+
+
+def last_line(records: list[EpisodeRecord], report: Path) -> dict[str, object]:
+    """What a script reads of the first policy: its overall success rate with the interval,
+    its episodes, the rate of each benchmark domain played (`per_domain`) and of the
+    held-out procedural scenes, and where the report is."""
+    summaries = summarise_suites(records)
+    overall = summaries[OVERALL]
+    return {
+        "success_rate": overall.rate,
+        "ci": [overall.ci_low, overall.ci_high],
+        "episodes": overall.episodes,
+        "per_domain": {
+            suite: summaries[suite].rate for suite in BENCHMARK_DOMAINS if suite in summaries
+        },
+        "procedural": summaries[PROCEDURAL].rate if PROCEDURAL in summaries else None,
+        "report": str(report),
+    }

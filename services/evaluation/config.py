@@ -41,11 +41,11 @@ class EvalConfig:
     env_transitions: int = 0
     """Schedule counter the policies act at (the safety filter's action bound anneals with
     it); 0: the start of the curriculum, where the widest bound holds."""
-    safety_profile: Profile = "training"
+    safety_profile: Profile | None = None
     """The safety filter between policy and sim: `training` (what the policy was trained and
     the trainer's held-out evaluation measured with) or `deploy` (every stage the real robot
     runs: Cartesian clip, torque pre-clip, Ruckig references), to measure what the deployed
-    filter changes."""
+    filter changes; unset: training in this process, deploy with `--stack` (as deployed)."""
     record: int = 2
     """Episodes per suite of the first policy drawn into a Rerun recording."""
     skills: bool = False
@@ -81,6 +81,13 @@ class EvalConfig:
         if not self.quick:
             return self
         return replace(self, objects=1, pairs=1, inits=2, procedural_episodes=2, record=1)
+
+    @property
+    def filter_profile(self) -> Profile:
+        """`safety_profile`, resolved."""
+        if self.safety_profile is not None:
+            return self.safety_profile
+        return "deploy" if self.stack else "training"
 
     @property
     def episodes_per_domain(self) -> int:

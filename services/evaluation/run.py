@@ -68,11 +68,11 @@ def run_config(policy: Policy, config: EvalConfig, stage: str) -> RunConfig:
 def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
     """The environments with perception as `policy` reads it (a student's clouds as the
     cameras see them) on the shipped frozen encoder, and the safety filter of
-    `config.safety_profile`."""
+    `config.filter_profile`."""
     run = run_config(policy, config, stage)
     clouds = None if policy.config.privileged else student_clouds()
     encoder = frozen_encoder(run) if policy.config.clouds else None
-    safety = with_profile(config.safety_profile)
+    safety = with_profile(config.filter_profile)
     (worker,), _ = build_workers(run, groups=1, clouds=clouds, encoder=encoder, safety=safety)
     return worker
 
@@ -160,7 +160,7 @@ def evaluate_on_stack(
     this process their sim; the services log to `config.out / "logs"`."""
     env = VectorEnv(run_config(policy, config, stage).sim)
     transport = TransportConfig(namespace=f"eval{uuid.uuid4().hex[:8]}")
-    commands = service_commands(weights, policy, config.safety_profile, transport)
+    commands = service_commands(weights, policy, config.filter_profile, transport)
     with (
         services(commands, config.out / "logs"),
         Service(stack_identity(), transport) as service,

@@ -6,7 +6,7 @@ lock-step: each step waits for its command) on the evaluation's `VectorEnv`, so 
 episodes, the arm's events and the books (`outcomes.Outcomes`) are those of the in-process
 evaluation; what differs is everything between state and command: messages, the services'
 own decoding and timing, and the safety service's filter (`--safety-profile`, deploy by
-default there as on the robot). A safety stop is what the service says it did: its
+default here as on the robot). A safety stop is what the service says it did: its
 `WATCHDOG_STOP` and `ESTOP_LATCHED` events name the environments. The watchdog waits
 `WATCHDOG_S`: the sim waits for every command, so lateness is this machine's, not the
 policy's; only a dead policy should stop the arm here.

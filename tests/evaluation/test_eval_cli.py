@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from hamnet.evaluation.cli import main
+from hamnet.evaluation.config import EvalConfig
 from hamnet.evaluation.records import FAILURE_REASONS, read_records
 from hamnet.policy.registry import build
 from hamnet.policy.weights import save_checkpoint
@@ -53,8 +54,8 @@ def test_a_quick_eval_writes_a_well_formed_report(evaluated) -> None:
     interval that holds its rate; every episode has a known reason; the last line is the
     JSON a script reads; the figure and one recording per suite exist."""
     out, _, _, last = evaluated
-    assert set(last) >= {"success_rate", "episodes", "per_domain"}
-    assert last["episodes"] == 2 * len(SUITES) and list(last["per_domain"]) == list(SUITES)
+    assert set(last) >= {"success_rate", "episodes", "per_domain", "procedural"}
+    assert last["episodes"] == 2 * len(SUITES) and list(last["per_domain"]) == list(SUITES[1:])
     report = json.loads((out / "report.json").read_text())
     assert list(report["per_domain"]) == list(SUITES)
     for summary in (*report["per_domain"].values(), report["overall"]):
@@ -82,6 +83,12 @@ def test_the_same_seed_plays_the_same_episodes(evaluated, tmp_path: Path) -> Non
     assert main([*argv[:1], str(checkpoint), str(copy), *argv[2:]]) == 0
     deployed = tmp_path / "deployed"
     assert main([*argv[:-3], str(deployed), "--safety-profile", "deploy"]) == 0
+    assert (
+        EvalConfig(stack=True).filter_profile
+        == "deploy"
+        == EvalConfig(safety_profile="deploy").filter_profile
+    )
+    assert EvalConfig().filter_profile == "training"
     assert len(read_records(deployed / "random.records.jsonl")) == len(SUITES) * 2
     first = read_records(out / "random.records.jsonl")
     assert read_records(again / "random.records.jsonl") == first
