@@ -11,11 +11,14 @@ optimizer state, on a second rollout, with the same minibatch order:
 - critic: one thread, the critic-only steps on features computed once per update
   (`ppo.update`'s `critic`, the trainer's default);
 - default: that, on every core (`RunConfig.learner_threads`: an in-process trainer's
-  rollouts wait for its update).
+  rollouts wait for its update);
+- bfloat16: the default under bfloat16 autocast (`PPOConfig.bfloat16`), with how the
+  whole batch's gradient at the start state agrees with float32's (cosine).
 
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `update_s` per setup, `critic_speedup` (baseline / critic), `threads_speedup`
-(critic / default), `update_speedup` (baseline / default), and the steps each update took.
+(critic / default), `update_speedup` (baseline / default), `bfloat16_speedup` (default /
+bfloat16), `bfloat16_gradient_cosine`, and the steps each update took.
 
     .venv/bin/python benchmarks/learner.py --quick   # 16 envs, 2048 samples: about 40 s
     .venv/bin/python benchmarks/learner.py           # 64 envs, 8192 samples (the run's): 2-3 min
@@ -42,18 +45,25 @@ from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
 
 TEACHER = "easy-teacher"
-SETUPS = {"baseline": (1, False), "critic": (1, True), "default": (os.cpu_count() or 1, True)}
-"""Setup -> (torch threads, critic-only steps on features computed once)."""
+CORES = os.cpu_count() or 1
+SETUPS = {
+    "baseline": (1, False, False),
+    "critic": (1, True, False),
+    "default": (CORES, True, False),
+    "bfloat16": (CORES, True, True),
+}
+"""Setup -> (torch threads, critic-only steps on features computed once, bfloat16)."""
 
 
 def timed_update(
-    runner: Runner, batch: Batch, threads: int, cached: bool
+    runner: Runner, batch: Batch, threads: int, cached: bool, bfloat16: bool
 ) -> tuple[float, UpdateStats]:
     """Seconds and stats of one update of `runner`'s policy on `batch` (the policy and its
     optimizer are left where the update put them)."""
     policy, ppo, algorithm = runner.policy, runner.config.ppo, runner.algorithm
     policy.train()
-    with torch_threads(threads):
+    low_precision = torch.autocast("cpu", dtype=torch.bfloat16, enabled=bfloat16)
+    with torch_threads(threads), low_precision:
         started = time.perf_counter()
         stats = update(policy.evaluate, policy.parameters(), algorithm.optimizer, batch,
                        algorithm.action_bounds, ppo, generator=torch.Generator().manual_seed(0),
@@ -80,10 +90,13 @@ def main() -> dict:
         progress(f"{samples} samples of {TEACHER} on the easy stage collected")
         start = copy.deepcopy((runner.policy.state_dict(), runner.algorithm.optimizer.state_dict()))
         seconds, steps = {}, {}
-        for name, (threads, cached) in SETUPS.items():
+        full, low = runner.algorithm.gradient(batch), runner.algorithm.gradient(batch, True)
+        cosine = float(torch.nn.functional.cosine_similarity(full, low, dim=0))
+        progress(f"bfloat16 gradient against float32's: cosine {cosine:.4f}")
+        for name, (threads, cached, bfloat16) in SETUPS.items():
             runner.policy.load_state_dict(start[0])
             runner.algorithm.optimizer.load_state_dict(copy.deepcopy(start[1]))
-            seconds[name], stats = timed_update(runner, batch, threads, cached)
+            seconds[name], stats = timed_update(runner, batch, threads, cached, bfloat16)
             steps[name] = {"actor": stats.gradient_steps, "critic_alone": stats.value_steps}
             progress(f"{name}: {seconds[name]:.2f} s, {threads} thread(s), {steps[name]}")
     return {
@@ -96,7 +109,9 @@ def main() -> dict:
         "critic_speedup": round(seconds["baseline"] / seconds["critic"], 3),
         "threads_speedup": round(seconds["critic"] / seconds["default"], 3),
         "update_speedup": round(seconds["baseline"] / seconds["default"], 3),
-        "threads": SETUPS["default"][0],
+        "bfloat16_speedup": round(seconds["default"] / seconds["bfloat16"], 3),
+        "bfloat16_gradient_cosine": round(cosine, 4),
+        "threads": CORES,
         "cpus": os.cpu_count(),
     }
 

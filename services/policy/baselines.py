@@ -56,7 +56,9 @@ class MonolithicMLP(nn.Module):
 
     def forward(self, inputs: PolicyInputs) -> NetworkOutput:
         """Mean (B, A), values (B, R); no module weights (B, 0, 1)."""
-        summary = self.object.attention(inputs.observation.object_query, require(inputs.object_tokens, "object tokens"))
+        summary = self.object.attention(
+            inputs.observation.object_query, require(inputs.object_tokens, "object tokens")
+        )
         x = torch.cat((self.context(inputs), summary), dim=-1)  # (B, F + E)
         mean = self.actor(x)
         return NetworkOutput(mean, self.critic(x), _no_modules(len(x), x), None)

@@ -128,7 +128,10 @@ class _ModuleMixture(torch.autograd.Function):
     beyond one chunk, recomputes the scaled inputs in the backward instead of keeping them."""
 
     @staticmethod
+    @torch.amp.custom_fwd(device_type="cpu", cast_inputs=torch.bfloat16)
     def forward(ctx, x: Tensor, weights: Tensor, stacked: Tensor) -> Tensor:
+        """Under autocast (a bfloat16 update) every input is cast to bfloat16, as a linear
+        layer's are; otherwise they keep their dtype."""
         out = x.new_empty(len(x), stacked.shape[1])  # (B, I)
         chunks = _chunks(len(x))
         for rows in chunks:
@@ -141,6 +144,7 @@ class _ModuleMixture(torch.autograd.Function):
         return out
 
     @staticmethod
+    @torch.amp.custom_bwd(device_type="cpu")
     def backward(ctx, grad: Tensor) -> tuple[Tensor | None, ...]:
         x, weights, stacked = ctx.saved_tensors
         inputs = ctx.needs_input_grad[0] or ctx.needs_input_grad[1]

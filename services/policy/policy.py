@@ -115,7 +115,10 @@ class Policy(nn.Module):
         return [p for p in self.parameters() if id(p) not in critic]
 
     def act(
-        self, inputs: PolicyInputs, deterministic: bool = False, generator: torch.Generator | None = None
+        self,
+        inputs: PolicyInputs,
+        deterministic: bool = False,
+        generator: torch.Generator | None = None,
     ) -> Action:
         """Actions for one batch: a sample (or the mean), its log-prob, values, modules."""
         out = self.network(self._standardised(inputs))
@@ -129,10 +132,13 @@ class Policy(nn.Module):
         return Action(action, log_prob, out.values, out.module_weights, out.memory)
 
     def evaluate(self, inputs: PolicyInputs, actions: Tensor) -> Evaluation:
-        """Log-prob and entropy of `actions` (B, A) and the values, with gradients."""
+        """Log-prob and entropy of `actions` (B, A) and the values, with gradients. Under
+        autocast (a bfloat16 update) only the network runs in low precision: the mean and
+        values come back as float32, and the log-probabilities are computed from them."""
         out = self.network(self._standardised(inputs))
+        mean, values = out.mean.float(), out.values.float()
         entropy = (self.log_std + 0.5 + _LOG_SQRT_2PI).sum().expand(actions.shape[0])  # (B,)
-        return Evaluation(self._log_prob(actions, out.mean), entropy, out.values, out.memory, out.mean)
+        return Evaluation(self._log_prob(actions, mean), entropy, values, out.memory, mean)
 
     @property
     def reads_value_features(self) -> bool:
@@ -145,8 +151,9 @@ class Policy(nn.Module):
         return self.network.value_features(self._standardised(inputs))
 
     def values_from(self, features: Any) -> Tensor:
-        """(B, R) values of `value_features`' output, with gradients for the critic."""
-        return self.network.values_from(features)
+        """(B, R) values of `value_features`' output, with gradients for the critic (float32,
+        under autocast too)."""
+        return self.network.values_from(features).float()
 
     def _standardised(self, inputs: PolicyInputs) -> PolicyInputs:
         """`inputs` with the observation standardised by the running statistics."""

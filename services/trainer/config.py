@@ -101,6 +101,11 @@ class PPOConfig:
     apart, so a large value gradient does not shrink the actor's step (on HAMnet it cut
     every actor step to 40%, `ModelConfig.shared_value_gradient`); one group: the global
     norm, as the authors."""
+    bfloat16: bool = False
+    """Run the update's network passes under bfloat16 autocast on the CPU (matrix products
+    in bfloat16 where the CPU has AMX or AVX-512 BF16; the distribution, log-probabilities,
+    losses and parameters stay float32). Ours, measured: `benchmarks/learner.py` reports
+    the update's speedup and how the gradient of a batch agrees with float32's."""
 
     def __post_init__(self) -> None:
         for name in ("gamma", "gae_lambda"):

@@ -28,7 +28,7 @@ from hamnet.safety.config import with_profile
 from hamnet.trainer.algorithms.gae import gae
 from hamnet.trainer.algorithms.normalization import ReturnScaler
 from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
-from hamnet.trainer.algorithms.ppo_losses import energy_loss
+from hamnet.trainer.algorithms.ppo_losses import energy_loss, policy_loss, value_loss
 from hamnet.trainer.collection.sources import Collected, InProcess, RolloutSource
 from hamnet.trainer.collection.streamed import ROLLOUT
 from hamnet.trainer.results.evaluate import HeldOut, evaluate
@@ -113,7 +113,8 @@ class PPO:
         critic alone on features computed once after the actor stops (`ppo.update`)."""
         batch = self.batch(rollout, whole, envs)
         self.policy.train()
-        with torch_threads(self.threads):
+        low_precision = torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.ppo.bfloat16)
+        with torch_threads(self.threads), low_precision:
             return update(
                 self.policy.evaluate,
                 self.policy.parameters(),
@@ -127,6 +128,22 @@ class PPO:
                 running=running,
                 critic=self.policy if self.policy.reads_value_features else None,
             )
+
+    def gradient(self, batch: Batch, bfloat16: bool = False) -> torch.Tensor:
+        """The flat gradient of the clipped surrogate and the value loss of the whole
+        `batch` at the current weights, the network's pass in bfloat16 or float32: how far
+        a bfloat16 update's direction is from float32's (`PPOConfig.bfloat16`). Leaves the
+        gradients set."""
+        policy = self.policy.train()
+        policy.zero_grad(set_to_none=True)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bfloat16):
+            out = policy.evaluate(batch.inputs, batch.actions)
+            loss = policy_loss(
+                out.log_prob, batch.old_log_prob, batch.advantages, self.ppo.clip, True
+            )
+            loss = loss + value_loss(out.values, batch.returns)
+        loss.backward()
+        return torch.cat([p.grad.flatten() for p in policy.parameters() if p.grad is not None])
 
     def batch(
         self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
