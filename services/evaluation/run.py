@@ -113,12 +113,13 @@ def played(
     env: VectorEnv,
     config: EvalConfig,
     recordings: Path | None,
-    play_batch: Callable[[Batch], list[EpisodeRecord]],
+    play_batch: Callable[[Batch, int], list[EpisodeRecord]],
 ) -> list[EpisodeRecord]:
-    """The records of every batch, each played by `play_batch`."""
+    """The records of every batch, each played by `play_batch(batch, episodes played
+    before it)`."""
     records: list[EpisodeRecord] = []
     for batch in batches(env, config, recordings):
-        records += play_batch(batch)
+        records += play_batch(batch, len(records))
         if batch.view is not None:
             batch.view.close()
     return records
@@ -132,23 +133,20 @@ def evaluate_policy(
     worker = worker_for(policy, config, stage)
     skills = config.skills and policy.architecture in SKILL_ARCHITECTURES
     embeddings = Embeddings() if skills else None
-    records: list[EpisodeRecord] = []
 
-    def play_batch(batch: Batch) -> list[EpisodeRecord]:
-        done = play(
+    def play_batch(batch: Batch, before: int) -> list[EpisodeRecord]:
+        return play(
             policy,
             worker,
             batch.started,
             batch.labels,
             config.env_transitions,
-            first_episode=len(records),  # the embeddings' episode ids: lines of the records
+            first_episode=before,  # the embeddings' episode ids: lines of the records
             embeddings=embeddings,
             frame=None if batch.view is None else batch.view.frame,
         )
-        records.extend(done)
-        return done
 
-    played(worker.env, config, recordings, play_batch)
+    records = played(worker.env, config, recordings, play_batch)
     return records, None if embeddings is None else skill_steps(embeddings, records)
 
 
@@ -167,7 +165,7 @@ def evaluate_on_stack(
     ):
         shell = EvalShell(service, env)
 
-        def play_batch(batch: Batch) -> list[EpisodeRecord]:
+        def play_batch(batch: Batch, _: int) -> list[EpisodeRecord]:
             shell.frame = None if batch.view is None else batch.view.frame
             return shell.play(batch.started, batch.labels)
 

@@ -13,6 +13,7 @@ import pytest
 from hamnet.evaluation.cli import main
 from hamnet.evaluation.config import EvalConfig
 from hamnet.evaluation.records import FAILURE_REASONS, read_records
+from hamnet.evaluation.skills import SkillSteps
 from hamnet.policy.registry import build
 from hamnet.policy.weights import save_checkpoint
 
@@ -124,3 +125,36 @@ def test_over_the_services_the_same_episodes_are_played(evaluated, tmp_path: Pat
     )
     assert {p.name for p in (stacked / "logs").iterdir()} == logs
     assert "serving mlp" in (stacked / "logs" / "policy.log").read_text()
+
+
+def test_skills_link_every_counted_step_to_its_episode(tmp_path: Path) -> None:
+    """--skills on a random HAMnet: one embedding per counted step, the episode ids are the
+    records' lines and each episode's steps run 0 .. length - 1; the figure, view and
+    timelines are written."""
+    checkpoint = tmp_path / "hamnet.safetensors"
+    save_checkpoint(checkpoint, build("hamnet", seed=0), 1)
+    out = tmp_path / "out"
+    argv = [
+        "--policy",
+        str(checkpoint),
+        "--quick",
+        "--suites",
+        "procedural",
+        "flat",
+        "--stage",
+        "easy",
+        "--record",
+        "0",
+        "--skills",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    records = read_records(out / "hamnet.records.jsonl")
+    steps = SkillSteps.load(out / "skills" / "steps.npz")
+    assert len(steps.embeddings) == sum(r.length for r in records)
+    for episode, record in enumerate(records):
+        mine = steps.step[steps.episode == episode]
+        assert sorted(mine.tolist()) == list(range(record.length))
+        assert set(steps.suite[steps.episode == episode].tolist()) == {record.suite}
+    assert {p.name for p in (out / "skills").iterdir()} >= {"skills.png", "skills.rrd"}
