@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -77,15 +78,23 @@ def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:
     return worker
 
 
-def batches(env: VectorEnv, config: EvalConfig, recordings: Path | None) -> Iterator[Batch]:
-    """Every suite's episodes, started batch after batch in `env`; with `recordings`, the
+def suite_slots(config: EvalConfig, library_size: int) -> dict[str, list[Slot]]:
+    """Every suite's planned episodes, in `config.suites` order."""
+    return {
+        suite: procedural_slots(config)
+        if suite == PROCEDURAL
+        else domain_slots(config, suite, library_size)
+        for suite in config.suites
+    }
+
+
+def batches(
+    env: VectorEnv, config: EvalConfig, plan: dict[str, list[Slot]], recordings: Path | None
+) -> Iterator[Batch]:
+    """The episodes of `plan`, started batch after batch in `env`; with `recordings`, the
     first `config.record` of each suite drawn into `.rrd` files there."""
     names = [entry.name for entry in env.library.objects]
-    for suite in config.suites:
-        if suite == PROCEDURAL:
-            slots = procedural_slots(config)
-        else:
-            slots = domain_slots(config, suite, len(names))
+    for suite, slots in plan.items():
         for batch, first in enumerate(range(0, len(slots), env.num_envs)):
             chunk = slots[first : first + env.num_envs]
             started = start(env, config, chunk, batch)
@@ -99,7 +108,6 @@ def batches(env: VectorEnv, config: EvalConfig, recordings: Path | None) -> Iter
             paths = [recordings / f"{suite}_{first + k}.rrd" for k in range(shown)]
             view = EpisodeView(env, list(range(shown)), paths) if shown else None
             yield Batch(started, labels, first, view)
-            log.info("%s: %d of %d episodes played", suite, first + len(chunk), len(slots))
 
 
 def start(env: VectorEnv, config: EvalConfig, slots: list[Slot], batch: int) -> Observation:
@@ -116,12 +124,29 @@ def played(
     play_batch: Callable[[Batch, int], list[EpisodeRecord]],
 ) -> list[EpisodeRecord]:
     """The records of every batch, each played by `play_batch(batch, episodes played
-    before it)`."""
+    before it)`, with a progress line after each batch: the suite's and the whole
+    evaluation's episodes, the success rate so far, the rate and the time left."""
+    plan = suite_slots(config, len(env.library.objects))
+    total, started = sum(len(slots) for slots in plan.values()), time.monotonic()
     records: list[EpisodeRecord] = []
-    for batch in batches(env, config, recordings):
+    for batch in batches(env, config, plan, recordings):
         records += play_batch(batch, len(records))
         if batch.view is not None:
             batch.view.close()
+        suite = batch.labels.suite[0]
+        rate = len(records) / (time.monotonic() - started)
+        log.info(
+            "%s: %d of %d episodes; %d of %d in all, success so far %.3f, %.1f episodes/s, "
+            "about %.0f min left",
+            suite,
+            batch.first + len(batch.labels.suite),
+            len(plan[suite]),
+            len(records),
+            total,
+            sum(record.success for record in records) / len(records),
+            rate,
+            (total - len(records)) / rate / 60,
+        )
     return records
 
 
