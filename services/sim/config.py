@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from hamnet.sim.curriculum import CurriculumConfig
 from hamnet.sim.domains import DOMAIN_NAMES
@@ -29,6 +30,13 @@ class SimConfig:
     """Environments stepped together by this worker."""
     nthread: int = 0
     """Physics threads (0: every core)."""
+    backend: Literal["mujoco", "warp"] = "mujoco"
+    """Who integrates the physics: `mujoco` (the C engine's `mujoco.batch`, every core) or
+    `warp` (MuJoCo Warp on `warp_device`: the same model, results and API; first use
+    compiles its kernels for about a minute, cached after). Episodes, rewards and resets
+    are the same code either way (`hamnet.sim.warp_physics`)."""
+    warp_device: str = "cpu"
+    """Warp's device for the `warp` backend: `cpu`, or `cuda` / `cuda:N` where a GPU is."""
     seed: int = 0
     """Seed of every random draw (scenes, objects, placements, starts)."""
     policy_period_s: float = 0.1
@@ -66,6 +74,8 @@ class SimConfig:
             )
         if self.nthread < 0:
             raise ValueError(f"nthread must be >= 0 (0: every core), got {self.nthread}")
+        if self.backend not in ("mujoco", "warp"):
+            raise ValueError(f"backend must be 'mujoco' or 'warp', got {self.backend!r}")
         period = self.physics_steps_per_sample * self.control_samples * TIMESTEP
         if self.physics_steps_per_sample < 1 or abs(period - self.policy_period_s) > 1e-9:
             raise ValueError(

@@ -92,8 +92,16 @@ class VectorEnv:
             [asset.sample_surface(OBJECT_POINTS, points_rng) for asset in sized]
         ).astype(np.float32)
         """(N, P, 3) surface samples of each library entry in its own frame (the object cloud)."""
-        self.world = build_world(sized)
-        self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)
+        if config.backend == "warp":
+            from hamnet.sim.warp_physics import WarpPhysics  # Warp only when asked
+
+            self.world = build_world(sized, scene_body=True)
+            self.physics: BatchPhysics = WarpPhysics(
+                self.world, config.num_envs, config.nthread, config.warp_device
+            )
+        else:
+            self.world = build_world(sized)
+            self.physics = BatchPhysics(self.world, config.num_envs, config.nthread)
         self.kinematics = ArmKinematics()
         self.num_envs = config.num_envs
         self.rng = np.random.default_rng(config.seed)

@@ -45,6 +45,9 @@ base (the world origin), m: the 0.4 m rise of the authors' `base_height: table`.
 _CATALOGUE_ORIGIN = np.array([0.0, 0.0, -50.0])
 """Where catalogue bodies are parked, far from everything (they never collide anyway)."""
 
+SCENE_BODY = "scene"
+"""The mocap body that holds the scene slots in a world built for MuJoCo Warp."""
+
 _LARGE_BOUND = 5.0
 """Half extent, m, of the bounding volumes of bodies whose geoms change per environment."""
 
@@ -172,8 +175,11 @@ def _padded(meshes: list[str]) -> list[str]:
     return meshes + [meshes[0]] * (MAX_PARTS - len(meshes))
 
 
-def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
-    """The world's spec: robot, scene slots, floor, live object and catalogue."""
+def build_spec(objects: ObjectSet, scene_body: bool = False) -> mujoco.MjSpec:
+    """The world's spec: robot, scene slots, floor, live object and catalogue. With
+    `scene_body` the scene slots sit on a mocap body at the origin (`SCENE_BODY`) instead
+    of the world body: MuJoCo Warp computes the frames of the world body's geoms once, so
+    slots moved per environment must belong to a body it poses every step."""
     spec = mujoco.MjSpec.from_file(str(fr3_model.model_path()))
     spec.modelname = "hamnet_world"
     _impedance_actuators(spec)
@@ -187,8 +193,9 @@ def build_spec(objects: ObjectSet) -> mujoco.MjSpec:
         size=[*PEDESTAL_HALF_EXTENT, -FLOOR_Z / 2],
         pos=[-0.05, 0.0, FLOOR_Z / 2],
     )
+    slots = world.add_body(name=SCENE_BODY, mocap=True) if scene_body else world
     for name in CUBOID_NAMES:
-        world.add_geom(name=f"scene/{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01] * 3)
+        slots.add_geom(name=f"scene/{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01] * 3)
     meshes = [_object_meshes(spec, i, asset) for i, asset in enumerate(objects)]
     live = world.add_body(name=OBJECT_BODY, pos=[0.5, 0.0, 0.5])
     live.add_freejoint(name=f"{OBJECT_BODY}/free")
@@ -263,17 +270,18 @@ def _drop_shortcuts(model: mujoco.MjModel, geoms: np.ndarray, body: int, dofs: n
     model.dof_simplenum[dofs] = 0
 
 
-def build_world(objects: ObjectSet) -> World:
-    """Compile the world for an object library."""
+def build_world(objects: ObjectSet, scene_body: bool = False) -> World:
+    """Compile the world for an object library (`scene_body`: see `build_spec`)."""
     if len(objects) == 0:
         raise ValueError("the object library is empty")
-    model = build_spec(objects).compile()
+    model = build_spec(objects, scene_body).compile()
     object_body = model.body(OBJECT_BODY).id
     joint = model.joint(f"{OBJECT_BODY}/free")
     cuboid_geoms = np.array([model.geom(f"scene/{name}").id for name in CUBOID_NAMES])
     object_geoms = np.array([model.geom(f"{OBJECT_BODY}/part{j}").id for j in range(MAX_PARTS)])
     object_dof = np.arange(joint.dofadr[0], joint.dofadr[0] + 6)
-    _loosen_bounding_volumes(model, [0, object_body])
+    moved = [0, object_body] + ([model.body(SCENE_BODY).id] if scene_body else [])
+    _loosen_bounding_volumes(model, moved)
     _drop_shortcuts(model, np.concatenate([cuboid_geoms, object_geoms]), object_body, object_dof)
     return World(
         model=model,
