@@ -2,7 +2,8 @@
 # Run the test suite (12-16 minutes on 2 cores). Extra arguments go to pytest, e.g.
 # `bash scripts/test.sh -m slow` for the long learning runs and soak tests.
 # `bash scripts/test.sh --fast` leaves out the tests that start hamnet processes (marked
-# `stack`) and run the benchmarks (`benchmark`): the loop to run while changing code.
+# `stack`), run the benchmarks (`benchmark`) or step MuJoCo Warp (`warp`): the loop to run
+# while changing code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [[ ! -x .venv/bin/python ]]; then
@@ -11,7 +12,7 @@ if [[ ! -x .venv/bin/python ]]; then
 fi
 selection="not slow"
 if [[ "${1:-}" == "--fast" ]]; then
-  selection="not slow and not stack and not benchmark"
+  selection="not slow and not stack and not benchmark and not warp"
   shift
 fi
 status=0

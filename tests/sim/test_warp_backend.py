@@ -18,6 +18,8 @@ from hamnet.sim.env import StepResult, VectorEnv
 from hamnet.sim.stages import stage_config
 from hamnet.sim.warp_physics import WarpPhysics
 
+pytestmark = pytest.mark.warp
+
 B = 4
 Q_TOLERANCE = 1e-2
 """rad: float32 against float64 over 30 steps of contact (measured: up to 7.7e-3 with the
