@@ -24,6 +24,13 @@ last mix) and every row under `results`.
 
     .venv/bin/python benchmarks/sim.py --quick     # < 1 min on 2 cores
     .venv/bin/python benchmarks/sim.py             # full sweep
+
+With `--backend warp` it measures the MuJoCo Warp backend instead (`--warp-device`, default
+cuda): `VectorEnv.step` at each of `--warp-num-envs` environments, against the C engine's
+`VectorEnv.step` at the same count, as `env_steps_per_s` per count and
+`warp_vs_mujoco_<largest>`. Without a CUDA device for a cuda run, the JSON says so
+(`not_measured`) and the exit status is 0: the backend's results are checked on Warp's CPU
+device by tests/sim/test_warp_backend.py, its speed needs a GPU.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ import platform
 import time
 from dataclasses import dataclass
 from importlib import metadata
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -73,6 +81,12 @@ class SimBenchConfig:
     num_objects: int = 16
     """Procedural objects in the library (the sim's default)."""
     seed: int = 0
+    backend: Literal["mujoco", "warp"] = "mujoco"
+    """`warp`: measure the MuJoCo Warp backend (`hamnet.sim.warp_physics`) instead."""
+    warp_device: str = "cuda"
+    """Warp's device for `--backend warp`."""
+    warp_num_envs: tuple[int, ...] = (1024, 2048, 4096, 8192)
+    """Environment counts of `--backend warp` (quick: the first)."""
     fallback_draws: int = 6
     """Episodes per environment (largest count, every start near) for the fallback rate of
     near starts, per ceiling mix (quick: 2)."""
@@ -88,10 +102,17 @@ class SimBenchConfig:
         return 2 if self.quick else self.fallback_draws
 
 
-def make_env(config: SimBenchConfig, num_envs: int, nthread: int) -> VectorEnv:
+def make_env(
+    config: SimBenchConfig, num_envs: int, nthread: int, backend: str = "mujoco"
+) -> VectorEnv:
     """A reset env whose episodes are at staggered steps of their `timeout`."""
     sim = SimConfig(
-        num_envs=num_envs, nthread=nthread, num_objects=config.num_objects, seed=config.seed
+        num_envs=num_envs,
+        nthread=nthread,
+        num_objects=config.num_objects,
+        seed=config.seed,
+        backend=backend,
+        warp_device=config.warp_device,
     )
     sim = dataclasses.replace(sim, task=dataclasses.replace(sim.task, timeout=config.timeout))
     env = VectorEnv(sim)
@@ -226,8 +247,40 @@ def near_start_fallbacks(config: SimBenchConfig, num_envs: int) -> dict[str, flo
     return figures
 
 
+def warp_main(config: SimBenchConfig) -> dict:
+    """The warp backend's env steps/s against the C engine's at each count."""
+    import warp as wp  # only for this measurement
+
+    figures = {**header("sim", config.quick), "backend": "warp", "device": config.warp_device}
+    if config.warp_device.startswith("cuda") and wp.get_cuda_device_count() == 0:
+        return {**figures, "not_measured": "no CUDA device on this machine"}
+    counts = config.warp_num_envs[:1] if config.quick else config.warp_num_envs
+    steps, rows = max(2, config.measured_steps // 6), {}
+    for num_envs in counts:
+        rates = {}
+        for backend in ("warp", "mujoco"):
+            env = make_env(config, num_envs, 0, backend)
+            time_ours(env, config.warmup, Timings())  # Warp compiles its kernels here
+            timings = Timings()
+            time_ours(env, steps, timings)
+            rates[backend] = round(num_envs * steps / sum(timings.seconds), 1)
+        progress(f"{num_envs} envs: warp {rates['warp']}, mujoco {rates['mujoco']} env steps/s")
+        rows[num_envs] = rates
+    largest = max(rows)
+    return {
+        **figures,
+        f"env_steps_per_s_{largest}": rows[largest]["warp"],
+        f"warp_vs_mujoco_{largest}": round(rows[largest]["warp"] / rows[largest]["mujoco"], 4),
+        "results": {str(count): rates for count, rates in rows.items()},
+        "steps": steps,
+        "cpus": os.cpu_count(),
+    }
+
+
 def main(config: SimBenchConfig) -> dict:
     """Run the sweep; returns the JSON figures."""
+    if config.backend == "warp":
+        return warp_main(config)
     started = time.monotonic()
     rows = []
     for num_envs in config.num_envs:

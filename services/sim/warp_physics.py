@@ -23,6 +23,9 @@ import warp as wp
 from hamnet.sim.physics import BatchPhysics
 from hamnet.sim.world import World
 
+wp.config.quiet = True  # no banner, and no line for every kernel module it loads
+wp.config.log_level = wp.LOG_WARNING
+
 DERIVED = ("body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_acc0")
 """Constants MuJoCo derives from the per-environment fields (`mj_setConst`) that the
 solver reads: taken from each environment's C model after a change."""

@@ -13,10 +13,10 @@ from pathlib import Path
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 
-def run_quick(script: str, timeout: float = 240) -> dict:
-    """Figures printed by `benchmarks/<script> --quick` as its last stdout line."""
+def run_quick(script: str, timeout: float = 240, *args: str) -> dict:
+    """Figures printed by `benchmarks/<script> --quick [args]` as its last stdout line."""
     result = subprocess.run(
-        [sys.executable, str(BENCHMARKS / script), "--quick"],
+        [sys.executable, str(BENCHMARKS / script), "--quick", *args],
         capture_output=True,
         text=True,
         timeout=timeout,

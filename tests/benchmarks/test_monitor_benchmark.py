@@ -13,4 +13,7 @@ def test_quick_run_ends_with_one_json_line_of_figures() -> None:
         for name in ("parse only (baseline)", "skip", "decode", "draw"):
             assert 0 < row[name]["median_ms"] <= row[name]["p99_ms"], name
     assert figures["max_drawn_steps_per_s_4"] == 1e3 / rows[4]["draw"]["median_ms"]
-    assert figures["skip_vs_draw_largest"] == rows[64]["skip"]["median_ms"] / rows[64]["draw"]["median_ms"]
+    assert (
+        figures["skip_vs_draw_largest"]
+        == rows[64]["skip"]["median_ms"] / rows[64]["draw"]["median_ms"]
+    )

@@ -15,7 +15,10 @@ def test_quick_run_ends_with_one_json_line_of_figures() -> None:
     names = [*ARCHITECTURES, "mlp-paper-widths"]
     assert set(rows) == {(name, batch) for name in names for batch in (64, 1024)}
     for row in rows.values():
-        assert 0 < row["infer_ms"] <= row["infer_p99_ms"] and 0 < row["train_ms"] <= row["train_p99_ms"]
+        assert (
+            0 < row["infer_ms"] <= row["infer_p99_ms"]
+            and 0 < row["train_ms"] <= row["train_p99_ms"]
+        )
     assert rows[("mlp", 1024)]["train_vs_mlp"] == 1.0
     assert figures["hamnet_vs_mlp_train"] == rows[("hamnet", 1024)]["train_vs_mlp"]
     assert figures["hamnet_vs_mlp_infer"] == rows[("hamnet", 1024)]["infer_vs_mlp"]

@@ -7,6 +7,7 @@ on disk after)."""
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -20,6 +21,9 @@ from hamnet.sim.warp_physics import WarpPhysics
 
 pytestmark = pytest.mark.warp
 
+DEVICE = os.environ.get("HAMNET_WARP_DEVICE", "cpu")
+"""Warp's device: its CPU device by default, `cuda` in scripts/warp_gpu_check.sh."""
+
 B = 4
 Q_TOLERANCE = 1e-2
 """rad: float32 against float64 over 30 steps of contact (measured: up to 7.7e-3 with the
@@ -30,7 +34,8 @@ POSITION_TOLERANCE = 2e-3
 
 def pair(config: SimConfig, seed: int) -> tuple[VectorEnv, VectorEnv]:
     """The C and the Warp backend on `config`, reset with `seed`."""
-    c, w = VectorEnv(config), VectorEnv(dataclasses.replace(config, backend="warp"))
+    warp = dataclasses.replace(config, backend="warp", warp_device=DEVICE)
+    c, w = VectorEnv(config), VectorEnv(warp)
     assert isinstance(w.physics, WarpPhysics) and not isinstance(c.physics, WarpPhysics)
     c.reset(seed=seed)
     w.reset(seed=seed)
@@ -96,7 +101,9 @@ def test_resets_draw_the_same_episodes_on_procedural_scenes() -> None:
 def test_a_snapshot_restores_on_the_warp_backend() -> None:
     """Steps after a restore repeat the steps after the snapshot."""
     config = dataclasses.replace(
-        stage_config("easy", num_envs=B, num_objects=2, nthread=1), backend="warp"
+        stage_config("easy", num_envs=B, num_objects=2, nthread=1),
+        backend="warp",
+        warp_device=DEVICE,
     )
     env = VectorEnv(config)
     env.reset(seed=0)
