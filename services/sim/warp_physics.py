@@ -30,6 +30,23 @@ DERIVED = ("body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_ac
 """Constants MuJoCo derives from the per-environment fields (`mj_setConst`) that the
 solver reads: taken from each environment's C model after a change."""
 
+GEOMETRY = ("geom_pos", "geom_quat", "geom_size", "geom_rbound", "geom_aabb", "geom_friction")
+"""Fields `set_scene` writes (the object's parts too)."""
+OBJECT = (
+    *GEOMETRY,
+    "geom_dataid",
+    "geom_solref",
+    "body_mass",
+    "body_inertia",
+    "body_ipos",
+    "body_iquat",
+)
+"""Fields `set_object` writes (its contype decides `geom_dataid` here)."""
+JOINTS = ("dof_armature", "dof_damping", "dof_frictionloss")
+"""Fields `set_joint_dynamics` writes."""
+GAINS = ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange")
+"""Fields `set_gains` writes, every step."""
+
 UNBATCHED = ("geom_contype", "geom_conaffinity")
 """Per-environment fields Warp keeps per geom only (see the module docstring)."""
 
@@ -56,16 +73,32 @@ class WarpPhysics(BatchPhysics):
             )
         self._batched: set[str] = set()
         """Model fields already given one row per world."""
+        self._dirty: set[str] = set(self.fields) - set(UNBATCHED)
+        """Model fields written since the last step (only those are copied to Warp)."""
         self._derived_stale = np.ones(num_envs, dtype=bool)
         self._state_stale = True
 
+    def set_scene(self, env_ids, centre, quat, half_extent, friction) -> None:
+        super().set_scene(env_ids, centre, quat, half_extent, friction)
+        self._dirty.update(GEOMETRY)
+
     def set_object(self, env_ids, object_index, mass, friction, solref) -> None:
         super().set_object(env_ids, object_index, mass, friction, solref)
+        self._dirty.update(OBJECT)
         self._derived_stale[env_ids] = True
+
+    def set_robot_friction(self, env_ids, friction) -> None:
+        super().set_robot_friction(env_ids, friction)
+        self._dirty.add("geom_friction")
 
     def set_joint_dynamics(self, env_ids, scale) -> None:
         super().set_joint_dynamics(env_ids, scale)
+        self._dirty.update(JOINTS)
         self._derived_stale[env_ids] = True
+
+    def set_gains(self, kp, kd, tau_limit) -> None:
+        super().set_gains(kp, kd, tau_limit)
+        self._dirty.update(GAINS)
 
     def set_state(self, env_ids, q, object_pos, object_quat) -> None:
         super().set_state(env_ids, q, object_pos, object_quat)
@@ -73,6 +106,7 @@ class WarpPhysics(BatchPhysics):
 
     def restore(self, arrays: dict[str, np.ndarray]) -> None:
         super().restore(arrays)
+        self._dirty = set(self.fields) - set(UNBATCHED)
         self._derived_stale[:] = True
         self._state_stale = True
 
@@ -93,14 +127,15 @@ class WarpPhysics(BatchPhysics):
         self.batch.forward()
 
     def _push_model(self) -> None:
-        """Every per-environment field into Warp's per-world arrays, and the derived
-        constants of the environments whose fields changed them."""
-        fields = dict(self.fields)
-        unused = self.fields["geom_contype"] == 0  # (B, ngeom): parts switched off
-        fields["geom_dataid"] = np.where(unused, -1, self.fields["geom_dataid"])
-        for name, values in fields.items():
-            if name not in UNBATCHED:
-                self._assign(name, values)
+        """The per-environment fields written since the last step into Warp's per-world
+        arrays, and the derived constants of the environments whose fields changed them."""
+        for name in sorted(self._dirty):
+            values = self.fields[name]
+            if name == "geom_dataid":
+                unused = self.fields["geom_contype"] == 0  # (B, ngeom): parts switched off
+                values = np.where(unused, -1, values)
+            self._assign(name, values)
+        self._dirty.clear()
         if self._derived_stale.any():
             derived = {name: self._derived_rows(name) for name in DERIVED}
             for name, values in derived.items():
