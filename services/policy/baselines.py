@@ -16,6 +16,7 @@ Shapes: B batch, M modules, J in, I out, k rank.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -90,7 +91,7 @@ class LowRankBase(nn.Module):
     def __init__(self, dims: Sequence[int], rank: int, embedding: int) -> None:
         super().__init__()
         self.dims, self.rank = tuple(dims), rank
-        self.sizes = [(i + j) * rank + i for j, i in zip(dims[:-1], dims[1:])]  # W_l, W_r, b
+        self.sizes = [(i + j) * rank + i for j, i in itertools.pairwise(dims)]  # W_l, W_r, b
         self.head = nn.Linear(embedding, sum(self.sizes))
 
     def forward(self, x: Tensor, z: Tensor) -> Tensor:
@@ -138,7 +139,7 @@ class RoutedBase(nn.Module):
         self.first = nn.Linear(dims[0], m * hidden[0])  # every module sees the input
         self.weights = nn.ParameterList()
         self.biases = nn.ParameterList()
-        for j, i in zip(hidden[:-1], hidden[1:]):
+        for j, i in itertools.pairwise(hidden):
             bound = 1.0 / math.sqrt(j)
             self.weights.append(nn.Parameter(torch.empty(m, j, i).uniform_(-bound, bound)))
             self.biases.append(nn.Parameter(torch.empty(m, 1, i).uniform_(-bound, bound)))

@@ -9,6 +9,7 @@ Shapes: B batch, N tokens, D token width, M modules, J in, I out.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -28,7 +29,7 @@ class MLP(nn.Module):
 
     def __init__(self, dims: Sequence[int], activate_last: bool = False) -> None:
         super().__init__()
-        self.layers = nn.ModuleList(nn.Linear(i, o) for i, o in zip(dims[:-1], dims[1:]))
+        self.layers = nn.ModuleList(nn.Linear(i, o) for i, o in itertools.pairwise(dims))
         self.activate_last = activate_last
 
     def forward(self, x: Tensor) -> Tensor:
@@ -44,7 +45,7 @@ def gelu_mlp(dims: Sequence[int], activate_last: bool = False) -> nn.Sequential:
     """Linear -> LayerNorm -> GELU between layers: the authors' MLP with use_ln and GELU
     (ham/models/common.py:419-466), used by their cross-attention embeddings."""
     layers: list[nn.Module] = []
-    for index, (i, o) in enumerate(zip(dims[:-1], dims[1:])):
+    for index, (i, o) in enumerate(itertools.pairwise(dims)):
         layers.append(nn.Linear(i, o))
         if activate_last or index < len(dims) - 2:
             layers += [nn.LayerNorm(o), nn.GELU()]
@@ -212,7 +213,7 @@ class ModularMLP(nn.Module):
     def __init__(self, dims: Sequence[int], num_modules: int) -> None:
         super().__init__()
         self.layers = nn.ModuleList(
-            ModularLinear(i, o, num_modules) for i, o in zip(dims[:-1], dims[1:])
+            ModularLinear(i, o, num_modules) for i, o in itertools.pairwise(dims)
         )
 
     @property

@@ -20,6 +20,7 @@ def run_quick(script: str, timeout: float = 240, *args: str) -> dict:
         capture_output=True,
         text=True,
         timeout=timeout,
+        check=False,  # the status is asserted below, with the script's stderr
     )
     assert result.returncode == 0, result.stderr[-3000:]
     return json.loads(result.stdout.strip().splitlines()[-1])
