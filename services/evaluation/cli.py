@@ -42,6 +42,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_card, read_weights, shipped_names
 from hamnet.policy.weights import WeightsError, policy_from
 from hamnet.runtime.cli import parse
+from hamnet.runtime.runs import commit
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +77,7 @@ def main(argv: Sequence[str]) -> int:
     except (WeightsError, OSError) as error:
         print(f"hamnet eval: {error}", file=sys.stderr)
         return 2
-    stage = stage_of(config)
+    stage, code = stage_of(config), commit()  # the commit of the code that evaluates
     played: dict[str, list[EpisodeRecord]] = {}
     for index, (name, policy) in enumerate(policies.items()):
         log.info("evaluating %s (%s) on the %s stage", name, policy.architecture, stage)
@@ -98,10 +99,31 @@ def main(argv: Sequence[str]) -> int:
         if len(played) == 1
         else comparison_report(played)
     )
+    report = {**report, "run": run_fields(config, stage, code)}
     path = write_report(report, config.out / "report.json")
     plot_evaluation(played, config.out / "report.png", f"hamnet eval on the {stage} stage")
     print(json.dumps(last_line(next(iter(played.values())), path)))
     return 0
+
+
+def run_fields(config: EvalConfig, stage: str, code: str) -> dict[str, object]:
+    """How to reproduce a report: the command, the commit, the stage and every count."""
+    return {
+        "command": " ".join(["hamnet", "eval", *sys.argv[2:]])
+        if sys.argv[1:2] == ["eval"]
+        else " ".join(sys.argv),
+        "commit": code,
+        "stage": stage,
+        "seed": config.seed,
+        "policies": list(config.policy),
+        "suites": list(config.suites),
+        "objects": config.objects,
+        "pairs": config.pairs,
+        "inits": config.inits,
+        "safety_profile": config.filter_profile,
+        "stack": config.stack,
+        "env_transitions": config.env_transitions,
+    }
 
 
 def last_line(records: list[EpisodeRecord], report: Path) -> dict[str, object]:

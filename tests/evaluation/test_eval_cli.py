@@ -59,6 +59,14 @@ def test_a_quick_eval_writes_a_well_formed_report(evaluated) -> None:
     assert last["episodes"] == 2 * len(SUITES) and list(last["per_domain"]) == list(SUITES[1:])
     report = json.loads((out / "report.json").read_text())
     assert list(report["per_domain"]) == list(SUITES)
+    run = report["run"]
+    assert (run["stage"], run["pairs"], run["inits"], run["safety_profile"]) == (
+        "easy",
+        1,
+        2,
+        "training",
+    )
+    assert run["suites"] == list(SUITES) and len(run["commit"]) in (0, 40)
     for summary in (*report["per_domain"].values(), report["overall"]):
         assert summary["ci_low"] <= summary["rate"] <= summary["ci_high"]
         assert summary["successes"] + sum(summary["reasons"].values()) == summary["episodes"]
