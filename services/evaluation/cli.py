@@ -42,7 +42,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_card, read_weights, shipped_names
 from hamnet.policy.weights import WeightsError, policy_from
 from hamnet.runtime.cli import parse
-from hamnet.runtime.runs import commit
+from hamnet.runtime.runs import command_line, commit
 
 log = logging.getLogger(__name__)
 
@@ -109,9 +109,7 @@ def main(argv: Sequence[str]) -> int:
 def run_fields(config: EvalConfig, stage: str, code: str) -> dict[str, object]:
     """How to reproduce a report: the command, the commit, the stage and every count."""
     return {
-        "command": " ".join(["hamnet", "eval", *sys.argv[2:]])
-        if sys.argv[1:2] == ["eval"]
-        else " ".join(sys.argv),
+        "command": command_line("eval"),
         "commit": code,
         "stage": stage,
         "seed": config.seed,

@@ -28,6 +28,7 @@ from hamnet.evaluation.outcomes import Labels, Outcomes
 from hamnet.evaluation.play import Frame
 from hamnet.evaluation.records import EpisodeRecord
 from hamnet.messages.safe_command import Command
+from hamnet.perception.config import student_clouds
 from hamnet.policy.policy import Policy
 from hamnet.proto.safety_pb2 import SafetyEvent, SafetyEventKind
 from hamnet.runtime.codec import payload_decoder
@@ -59,9 +60,9 @@ def service_commands(
     checkpoint or shipped name `weights`): a student's perception sees clouds as the
     cameras do, as it is deployed."""
     net = ["--namespace", transport.namespace, "--rendezvous", transport.rendezvous]
-    clouds = [] if policy.config.privileged else ["--clouds.visibility", "cameras"]
-    if not policy.config.privileged:
-        clouds += ["--clouds.noise-std", "0.01", "--clouds.dropout", "0.1"]  # student_clouds()
+    seen = student_clouds()  # as the trainer's DAgger and the in-process evaluation see them
+    flags = {"visibility": seen.visibility, "noise-std": seen.noise_std, "dropout": seen.dropout}
+    clouds = [] if policy.config.privileged else [f"--clouds.{k}={v}" for k, v in flags.items()]
     perception = ["perception", *clouds, *net] if policy.config.clouds else []
     return [
         command

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 
@@ -20,6 +21,14 @@ def commit() -> str:
         check=False,
     )
     return result.stdout.strip()
+
+
+def command_line(subcommand: str) -> str:
+    """The command this process runs as a user typed it: `hamnet <subcommand> ...` when it
+    runs as that `hamnet` command (whatever path the entry point has), else its argv."""
+    if sys.argv[1:2] == [subcommand]:
+        return " ".join(["hamnet", subcommand, *sys.argv[2:]])
+    return " ".join(sys.argv)
 
 
 def read_metrics(run_dir: Path) -> list[dict[str, float]]:

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import sys
 from pathlib import Path
 
-from hamnet.runtime.runs import read_metrics
+from hamnet.runtime.runs import command_line, read_metrics
 from hamnet.trainer.results.evaluate import HeldOut
 from hamnet.trainer.runners.run_config import RunConfig, stage_sim
 
@@ -64,9 +63,7 @@ def write_summary(
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,
         "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
-        "command": " ".join(["hamnet", "trainer", *sys.argv[2:]])
-        if sys.argv[1:2] == ["trainer"]
-        else " ".join(sys.argv),
+        "command": command_line("trainer"),
         "seed": config.seed,
         "commit": code,
         **(extra or {}),
