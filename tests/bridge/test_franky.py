@@ -115,8 +115,10 @@ def test_a_dead_robot_is_a_lost_connection_within_the_link_timeout() -> None:
             time.sleep(0.01)
         assert [e.name for e in core.errors] == [CONNECTION_LOST]
         # the link timeout, or libfranka's own UDP receive timeout once its loop has ended
-        # (a state read then blocks until it), whichever comes first: 1-2 s seen here
-        assert time.monotonic() - started < LINK_TIMEOUT_S + 2.0
+        # (a state read then blocks until it), whichever comes first: 1-2 s seen alone, 4.1 s
+        # once in a loaded full suite (libfranka's timeout is not ours to control), so the
+        # bound is the wait above, not a guess at the machine's load
+        assert time.monotonic() - started < LINK_TIMEOUT_S + 5.5
         # a reset cannot reach it: it says why, and nothing is raised out of the bridge
         assert core.reset() is None and not core.streaming
         assert "cannot reach the robot" in core.reset_failure
