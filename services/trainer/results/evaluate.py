@@ -15,6 +15,7 @@ ones, and successes are short.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +25,9 @@ from hamnet.messages.robot_state import Observation
 from hamnet.perception.config import CloudConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
+from hamnet.sim.env import StepResult
 from hamnet.task.rewards import REWARD_NAMES
+from hamnet.trainer.collection.rollout_worker import RolloutWorker
 from hamnet.trainer.collection.sources import build_workers, frozen_encoder
 from hamnet.trainer.runners.run_config import RunConfig
 
@@ -73,30 +76,53 @@ def evaluate(
         clouds: how perception samples clouds (default: every surface; a DAgger student
             sees them as the cameras do).
     """
-    sim = dataclasses.replace(
-        config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes
+    worker = held_out_worker(
+        dataclasses.replace(config, architecture=policy.architecture), episodes, clouds
     )
-    held_out = dataclasses.replace(config, sim=sim, architecture=policy.architecture)
-    encoder = frozen_encoder(config) if architecture(policy.architecture).config.clouds else None
-    (worker,), _ = build_workers(held_out, groups=1, clouds=clouds, encoder=encoder)
     policy.eval()
-    ended = np.zeros(episodes, dtype=bool)
-    succeeded = np.zeros(episodes, dtype=bool)
-    goal = np.zeros(episodes)
-    start = _distance(worker.observation)
-    final = np.zeros(episodes)
-    column = REWARD_NAMES.index("goal")
-    while not ended.all():
+
+    def step() -> StepResult:
         pending = worker.act(policy, env_transitions, deterministic=True)
         result = worker.env.step(pending.command)
         worker.observe(policy, pending, result)
+        return result
+
+    return play_held_out(worker.observation, step)
+
+
+def held_out_worker(
+    config: RunConfig, episodes: int, clouds: CloudConfig | None = None
+) -> RolloutWorker:
+    """`episodes` environments of `config`'s stage on the held-out seed (the run's seed
+    offset), with perception as `config.architecture` reads it (`clouds`) on the run's
+    frozen encoder, and the training profile's filter."""
+    sim = dataclasses.replace(
+        config.sim, seed=config.seed + HELD_OUT_SEED_OFFSET, num_envs=episodes
+    )
+    held_out = dataclasses.replace(config, sim=sim)
+    encoder = frozen_encoder(config) if architecture(config.architecture).config.clouds else None
+    (worker,), _ = build_workers(held_out, groups=1, clouds=clouds, encoder=encoder)
+    return worker
+
+
+def play_held_out(first: Observation, step: Callable[[], StepResult]) -> HeldOut:
+    """Play each environment's first episode, from its `first` observation, to its end by
+    calling `step` (one step of every environment); the books of those episodes only."""
+    episodes = len(first.episode_ids)
+    ended = np.zeros(episodes, dtype=bool)
+    succeeded = np.zeros(episodes, dtype=bool)
+    goal = np.zeros(episodes)
+    final = np.zeros(episodes)
+    column = REWARD_NAMES.index("goal")
+    while not ended.all():
+        result = step()
         goal += np.where(ended, 0.0, result.reward_terms[:, column])  # the first episodes only
         dones = result.terminated | result.truncated
-        first = dones & ~ended  # (B,) episodes ending for the first time
-        succeeded |= first & result.success
-        final[first] = _distance(result.final_observation)[first]
+        first_end = dones & ~ended  # (B,) episodes ending for the first time
+        succeeded |= first_end & result.success
+        final[first_end] = _distance(result.final_observation)[first_end]
         ended |= dones
-    return HeldOut(float(succeeded.mean()), float(goal.mean()), start, final)
+    return HeldOut(float(succeeded.mean()), float(goal.mean()), _distance(first), final)
 
 
 def _distance(observation: Observation) -> np.ndarray:
