@@ -30,6 +30,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from hamnet.runtime.runs import commit, read_metrics
+from hamnet.trainer.results.summary import repository_path
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,7 +72,7 @@ def run_variant(name: str, flags: tuple[str, ...], args: argparse.Namespace) -> 
     command = [sys.executable, "-m", "hamnet", "trainer", "--inprocess", "--architecture",
                "state-mlp", "--stage", "easy", "--sim.seed", str(args.seed), "--sim.nthread", "1",
                "--learner-threads", "1", "--max-env-transitions", str(args.transitions), "--eval-episodes",
-               str(args.eval_episodes), "--run-dir", str(folder), *flags]  # fmt: skip
+               str(args.eval_episodes), "--run-dir", repository_path(folder), *flags]  # fmt: skip
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
     log = (args.runs / f"{name}.log").open("w")
     return subprocess.Popen(
