@@ -356,6 +356,7 @@ def _figures(stats: UpdateStats) -> dict[str, float]:
         "bound_loss": stats.bound_loss,
         "gradient_steps": stats.gradient_steps,
         "gradient_agreement": stats.gradient_agreement,
+        "explained_variance": stats.explained_variance,
     }
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -11,8 +12,8 @@ from torch import Tensor, nn
 
 from hamnet.runtime.trees import take_rows
 from hamnet.trainer.algorithms.gae import gae
-from hamnet.trainer.algorithms.ppo import Batch, optimizer_for, update
-from hamnet.trainer.algorithms.ppo_losses import approx_kl
+from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
+from hamnet.trainer.algorithms.ppo_losses import approx_kl, explained_variance
 from hamnet.trainer.config import AUTHORS, PPOConfig
 
 B, T, LOG_STD = 64, 4, math.log(0.3)
@@ -186,7 +187,9 @@ def kl_after(model: TinyActorCritic, batch: Batch) -> float:
 
 
 @pytest.mark.parametrize("kl_stop", ["rollback", "before-step"])
-def test_the_update_ends_within_the_kl_bound_only_when_it_undoes_the_step_past_it(kl_stop: str) -> None:
+def test_the_update_ends_within_the_kl_bound_only_when_it_undoes_the_step_past_it(
+    kl_stop: str,
+) -> None:
     """The authors' check before each step keeps the step that overshoots (their updates
     ended at 2-4x the bound); rollback measures each step's KL and undoes one past it."""
     model = TinyActorCritic()
@@ -255,11 +258,15 @@ class SharedTrunk(TinyActorCritic):
 
 
 @pytest.mark.parametrize("kl_stop", ["rollback", "before-step"])
-def test_the_critic_alone_on_features_computed_once_steps_as_on_the_whole_network(kl_stop: str) -> None:
+def test_the_critic_alone_on_features_computed_once_steps_as_on_the_whole_network(
+    kl_stop: str,
+) -> None:
     """Once the actor stops, the critic-only steps read the trunk's features of the whole
     batch, computed once: the same parameters as running the whole network every step, with
     one trunk pass per minibatch chunk instead of one per step."""
-    config = PPOConfig(minibatches=4, lr=0.01, lr_bounds=(1e-6, 0.1), value_lr=1e-3, kl_stop=kl_stop)
+    config = PPOConfig(
+        minibatches=4, lr=0.01, lr_bounds=(1e-6, 0.1), value_lr=1e-3, kl_stop=kl_stop
+    )
     results = []
     for critic in (False, True):
         torch.manual_seed(0)
@@ -279,3 +286,35 @@ def test_the_critic_alone_on_features_computed_once_steps_as_on_the_whole_networ
         torch.testing.assert_close(a, b)
     # Until the stop both run the network on each minibatch; then one pass per chunk.
     assert alone_passes <= whole_passes - whole.value_steps + 1 + config.minibatches
+
+
+def test_explained_variance_says_how_much_of_the_return_targets_the_critic_predicted() -> None:
+    """Advantages are returns - values: zero advantages mean the critic predicted every
+    target (1); advantages equal to the centred targets mean it predicted only their mean
+    (0); twice that, worse than the mean (-3). Terms are summed first; constant targets say
+    nothing (NaN)."""
+    returns = torch.tensor([[1.0, 0.0], [3.0, 0.5], [0.0, -0.5], [2.0, 1.0]])  # (N, R)
+    centred = returns - returns.mean(dim=0)
+    assert explained_variance(torch.zeros_like(returns), returns) == pytest.approx(1.0)
+    assert explained_variance(centred, returns) == pytest.approx(0.0, abs=1e-6)
+    assert explained_variance(2 * centred, returns) == pytest.approx(-3.0)
+    assert math.isnan(explained_variance(torch.zeros(4, 2), torch.ones(4, 2)))
+
+
+def test_every_update_reports_its_critics_explained_variance() -> None:
+    """The figure of the update's own batch, in the stats the metrics rows carry."""
+    model = TinyActorCritic()
+    batch = dataclasses.replace(
+        overshooting_batch(model),
+        returns=torch.randn(
+            overshooting_batch(model).returns.shape, generator=torch.Generator().manual_seed(0)
+        ),
+    )
+    stats = update_tiny(
+        model, torch.optim.Adam(model.parameters()), batch, config=PPOConfig(epochs=1)
+    )
+    assert math.isfinite(stats.explained_variance)
+    assert stats.explained_variance == pytest.approx(
+        explained_variance(batch.advantages, batch.returns)
+    )
+    assert math.isnan(UpdateStats.none(3e-4).explained_variance)

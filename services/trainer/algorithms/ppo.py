@@ -25,6 +25,7 @@ from hamnet.trainer.algorithms.ppo_losses import (
     approx_kl,
     bound_loss,
     clip_fraction,
+    explained_variance,
     normalize_advantages,
     policy_loss,
     value_loss,
@@ -100,12 +101,15 @@ class UpdateStats:
     """Cosine similarity of the actor's loss gradients on the two halves of the first
     minibatch: near 0, sampling noise dominates the gradient and each step spends its KL on
     a random direction (about 0.01-0.03 at 512 samples of the easy stage, 0.1 at 2048)."""
+    explained_variance: float = math.nan
+    """How much of the rollout's summed return targets the acting critic predicted
+    (`ppo_losses.explained_variance`): near 0, the advantages are the returns' noise."""
 
     @classmethod
     def none(cls, learning_rate: float) -> UpdateStats:
         """An iteration that made no update (it only filled the input statistics)."""
         nan = math.nan
-        return cls(nan, nan, nan, nan, nan, learning_rate, 0, False, nan, 0, nan)
+        return cls(nan, nan, nan, nan, nan, learning_rate, 0, False, nan, 0, nan, nan)
 
 
 def optimizer_for(
@@ -265,6 +269,7 @@ def update(
         kept.get("energy", 0.0),
         value_steps,
         agreement,
+        explained_variance(batch.advantages, batch.returns, ranks.moments),
     )
 
 

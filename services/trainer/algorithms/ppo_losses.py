@@ -7,6 +7,7 @@ Where a choice is the authors' rather than textbook PPO, the docstring cites it
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import torch
@@ -20,6 +21,23 @@ from hamnet.safety.stages import affine_range
 def row_moments(x: Tensor) -> tuple[Tensor, Tensor]:
     """Mean and biased variance of `x` over its rows (dim 0)."""
     return x.mean(dim=0), x.var(dim=0, unbiased=False)
+
+
+def explained_variance(
+    advantages: Tensor,
+    returns: Tensor,
+    moments: Callable[[Tensor], tuple[Tensor, Tensor]] = row_moments,
+) -> float:
+    """1 - Var(returns - values) / Var(returns) of the critic's summed value against the
+    summed return targets (N, R) of a rollout, the values being the acting policy's: GAE's
+    returns are advantages + values, so their difference is the advantages. 1: the critic
+    predicts every target; 0: only their mean; below 0: worse than the mean (CleanRL's and
+    Stable-Baselines3's diagnostic). The actor's advantages are as noisy as the critic is
+    blind: near 0 they are the returns' own noise. NaN when the targets do not vary.
+    `moments` as in `normalize_advantages`."""
+    _, residual = moments(advantages.sum(dim=-1, keepdim=True))
+    _, spread = moments(returns.sum(dim=-1, keepdim=True))
+    return float(1.0 - residual / spread) if float(spread) > 0.0 else math.nan
 
 
 def normalize_advantages(

@@ -13,7 +13,8 @@ def ppo_line(row: dict[str, float]) -> str:
         f"{_budget(row)} | success {row['success_rate']:.2f} over "
         f"{row['episodes']} episodes | return {row.get('return/total', math.nan):.3f} | "
         f"kl {row['approx_kl']:.4f} | clip {row['clip_fraction']:.2f} | grad agreement "
-        f"{row['gradient_agreement']:.3f} | lr {row['learning_rate']:.1e} | "
+        f"{row['gradient_agreement']:.3f} | value ev {row.get('explained_variance', math.nan):.2f} | "
+        f"lr {row['learning_rate']:.1e} | "
         f"log std {row['log_std']:.2f}{workers_part(row)}"
     )
 
