@@ -35,6 +35,7 @@ from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.fr3.model import load_pinocchio
 from hamnet.safety.cartesian import ee_jacobians
 from hamnet.safety.schedule import per_joint, xi_at
+from hamnet.sim.env import StepResult
 from hamnet.trainer.results.evaluate import HeldOut, held_out_worker, play_held_out
 from hamnet.trainer.runners.run_config import RunConfig
 
@@ -156,7 +157,7 @@ def scripted_held_out(
     xi = per_joint(*xi_at(env_transitions, magnitude), magnitude.num_large_joints)  # (J,)
     radius_of = np.abs(env.library.bbox[:, :, :2]).max(axis=(1, 2))  # (N,) per library entry
 
-    def step():
+    def step() -> StepResult:
         obs = worker.observation
         state = PushState(
             tip=obs.ee_pos_rot6d[:, :3].astype(np.float64),
