@@ -51,7 +51,7 @@ from common import header, median_p99, print_header, progress, report, timer
 
 from hamnet.fr3.limits import Q_HOME
 from hamnet.safety import stages
-from hamnet.safety.cartesian import cartesian_clip
+from hamnet.safety.cartesian import JACOBIAN_ROWS, cartesian_clip
 from hamnet.safety.config import SafetyConfig, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.safety.pipeline import target_bounds, tau_limit
@@ -179,7 +179,8 @@ def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
     raw, _ = stages.nonfinite_guard(sim.action, num_envs)  # (B, 21)
     dq_step, kp, rho, _ = stages.action_magnitude(raw, xi, magnitude)  # (B, J) each
     q, dq = sim.q, sim.dq  # (B, J)
-    dq_clipped = cartesian_clip(dq_step, core.jacobians(q), values.eps_x, 0.01)[0]
+    rows = JACOBIAN_ROWS[safety.cartesian_clip.rows]
+    dq_clipped = cartesian_clip(dq_step, core.jacobians(q)[:, rows], values.eps_x, 0.01)[0]
     lo, hi = target_bounds(safety)
     q_target = np.clip(q + dq_clipped, lo, hi)  # (B, J)
     limit = np.tile(tau_limit(safety), (num_envs, 1))  # (B, J)
@@ -192,7 +193,11 @@ def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
 
     def stage_3() -> object:
         return cartesian_clip(
-            dq_step, core.jacobians(q), values.eps_x, cartesian.damping, cartesian.iterations
+            dq_step,
+            core.jacobians(q)[:, rows],
+            values.eps_x,
+            cartesian.damping,
+            cartesian.iterations,
         )
 
     def copy() -> object:

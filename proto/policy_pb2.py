@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from hamnet.proto import common_pb2 as hamnet_dot_proto_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19hamnet/proto/policy.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\xf4\x01\n\x0cPolicyAction\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12#\n\x0b\x65pisode_ids\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x1e\n\x06\x61\x63tion\x18\x03 \x01(\x0b\x32\x0e.hamnet.Tensor\x12 \n\x08log_prob\x18\x04 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x1e\n\x06values\x18\x05 \x01(\x0b\x32\x0e.hamnet.Tensor\x12&\n\x0emodule_weights\x18\x06 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x15\n\rdeterministic\x18\x07 \x01(\x08\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x19hamnet/proto/policy.proto\x12\x06hamnet\x1a\x19hamnet/proto/common.proto\"\x8a\x02\n\x0cPolicyAction\x12\x1e\n\x06header\x18\x01 \x01(\x0b\x32\x0e.hamnet.Header\x12#\n\x0b\x65pisode_ids\x18\x02 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x1e\n\x06\x61\x63tion\x18\x03 \x01(\x0b\x32\x0e.hamnet.Tensor\x12 \n\x08log_prob\x18\x04 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x1e\n\x06values\x18\x05 \x01(\x0b\x32\x0e.hamnet.Tensor\x12&\n\x0emodule_weights\x18\x06 \x01(\x0b\x32\x0e.hamnet.Tensor\x12\x15\n\rdeterministic\x18\x07 \x01(\x08\x12\x14\n\x0c\x61\x63tion_space\x18\x08 \x01(\tb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,5 +33,5 @@ _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'hamnet.proto.policy_pb2', _
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_POLICYACTION']._serialized_start=65
-  _globals['_POLICYACTION']._serialized_end=309
+  _globals['_POLICYACTION']._serialized_end=331
 # @@protoc_insertion_point(module_scope)

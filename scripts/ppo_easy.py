@@ -34,6 +34,7 @@ import matplotlib.pyplot as plt
 from hamnet.policy.weights import policy_from, read_checkpoint
 from hamnet.runtime.runs import commit, read_metrics
 from hamnet.runtime.transport import free_port
+from hamnet.safety.config import ACTION_SPACES
 from hamnet.trainer.results.evaluate import evaluate
 from hamnet.trainer.results.summary import repository_path, run_of
 
@@ -51,9 +52,9 @@ def hamnet(*args: str, log: Path) -> subprocess.Popen:
                             start_new_session=True, cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
 
 
-def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
+def train(budget_s: float, runs: Path, seed: int, lag: int, space: str) -> None:
     """Run HAMnet (trainer + one rollout worker, policy lag up to `lag`) and the baseline
-    side by side."""
+    side by side, both acting in the action space `space`."""
     network = [
         "--namespace",
         f"ppoeasy{os.getpid()}",
@@ -62,7 +63,7 @@ def train(budget_s: float, runs: Path, seed: int, lag: int) -> None:
     ]
     # One torch thread each: the two learners share the two cores.
     common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s),
-              "--learner-threads", "1"]  # fmt: skip
+              "--learner-threads", "1", "--action-space", space]  # fmt: skip
     dirs = {"hamnet": runs / "hamnet", "baseline": runs / "state-mlp"}
     for folder in dirs.values():
         folder.mkdir(parents=True, exist_ok=True)  # names as in main()
@@ -94,7 +95,7 @@ TIGHT_RADIUS = 0.05
 is reported beside the stage's 0.1 m success."""
 
 
-def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dict[str, float]:
+def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dict[str, object]:
     """A run's final checkpoint on `episodes` held-out episodes (deterministic, as the trainer
     evaluates): more episodes than the trainer's 64 narrow the estimate, which varies from
     process to process (float rounding follows memory placement and grows through the
@@ -108,6 +109,7 @@ def evaluate_again(folder: Path, summary: dict, seed: int, episodes: int) -> dic
         "within_tight_radius": held_out.within(TIGHT_RADIUS),
         "median_final_distance_m": float(np.median(held_out.final_distance)),
         "median_start_distance_m": float(np.median(held_out.start_distance)),
+        "action_space": policy.config.action_space,
     }
 
 
@@ -149,6 +151,9 @@ def main() -> int:
                         help="result path without suffix (.json and .png are written)")  # fmt: skip
     parser.add_argument("--eval-episodes", type=int, default=256,
                         help="held-out episodes of both final policies, evaluated again at the end")  # fmt: skip
+    parser.add_argument("--action-space", choices=ACTION_SPACES, default="joint",
+                        help="what both policies' residuals ask for: joint residuals (the paper's) "
+                        "or the paddle's twist (hamnet trainer --action-space)")  # fmt: skip
     parser.add_argument(
         "--from-runs", action="store_true", help="no training: summarise the runs in --runs"
     )
@@ -156,7 +161,7 @@ def main() -> int:
     code = commit()  # the code that trains is the one checked out now
     dirs = {"hamnet": args.runs / "hamnet", "baseline": args.runs / "state-mlp"}
     if not args.from_runs:
-        train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag)
+        train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag, args.action_space)
     summaries = {
         name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
     }
@@ -180,6 +185,7 @@ def main() -> int:
             "hamnet": ours["final_success_rate"],
             "baseline": baseline["final_success_rate"],
         },
+        "action_space": again["hamnet"]["action_space"],
         "stage": ours["stage"],
         "stage_definition": ours["stage_definition"],
         "encoder_checkpoint": ours.get("encoder_checkpoint"),

@@ -63,7 +63,12 @@ def run_config(policy: Policy, config: EvalConfig, stage: str) -> RunConfig:
     most = max(config.episodes_per_domain, config.procedural_episodes)  # in one suite
     envs = min(config.num_envs, most)  # no environment stepped for nothing
     sim = dataclasses.replace(stage_sim(stage), num_envs=envs, seed=seed_of(config.seed))
-    return RunConfig(stage=stage, sim=sim, architecture=policy.architecture)
+    return RunConfig(
+        stage=stage,
+        sim=sim,
+        architecture=policy.architecture,
+        action_space=policy.config.action_space,
+    )
 
 
 def worker_for(policy: Policy, config: EvalConfig, stage: str) -> RolloutWorker:

@@ -51,6 +51,9 @@ class ActionIn:
     """`Header.policy_version`: the weights that computed it."""
     stamp_ns: int = 0
     """`Header.stamp_ns`."""
+    action_space: str = "joint"
+    """What the residual components ask for (`ModelConfig.action_space`; "joint" when the
+    message leaves it empty)."""
 
     def stale(self, state: StateIn) -> np.ndarray | None:
         """(B,) rows computed for another episode than the state's, or None (unchecked: no
@@ -79,17 +82,28 @@ def decode(message: PolicyAction, required: Iterable[str] = ()) -> ActionIn:
     header = message.header
     decoded = arrays(message, _FIELDS, None, required)
     return ActionIn(
-        header.step, policy_version=header.policy_version, stamp_ns=header.stamp_ns, **decoded
+        header.step,
+        policy_version=header.policy_version,
+        stamp_ns=header.stamp_ns,
+        action_space=message.action_space or "joint",
+        **decoded,
     )
 
 
 def encode(
-    step: int, version: int, episode_ids: np.ndarray, answer: Answer, deterministic: bool
+    step: int,
+    version: int,
+    episode_ids: np.ndarray,
+    answer: Answer,
+    deterministic: bool,
+    action_space: str = "joint",
 ) -> PolicyAction:
-    """PolicyAction k: action (B, 21), and the log_prob (B,), values (B, R) and module
-    weights (B, L, M) that `answer` has, as float32."""
+    """PolicyAction k: action (B, 21) in `action_space`, and the log_prob (B,), values
+    (B, R) and module weights (B, L, M) that `answer` has, as float32."""
     message = PolicyAction(
-        header=Header(step=step, policy_version=version), deterministic=deterministic
+        header=Header(step=step, policy_version=version),
+        deterministic=deterministic,
+        action_space=action_space,
     )
     to_tensor(np.asarray(episode_ids, dtype=np.int64), message.episode_ids)
     for name in ("action", "log_prob", "values", "module_weights"):

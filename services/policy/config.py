@@ -17,6 +17,7 @@ from typing import Any, Literal, TypeVar, get_args
 from hamnet.fr3.limits import ACTION_DIM
 from hamnet.policy.observation import ObservationSpec
 from hamnet.runtime.counter import from_vectorized_steps
+from hamnet.safety.config import ACTION_SPACES, ActionSpace
 from hamnet.task.rewards import REWARD_NAMES
 
 SceneInput = Literal["tokens", "env_code"]
@@ -156,6 +157,10 @@ class ModelConfig:
     spent on moves the policy loss did not ask for. The forward pass is the same either way."""
     action_dim: int = ACTION_DIM
     """Raw action: joint residual (J), kp (J), damping ratio (J)."""
+    action_space: ActionSpace = "joint"
+    """What the residual components ask for, and so how every safety filter serving these
+    weights reads them (`ActionMagnitudeConfig.space`): "joint" (the paper's) or "paddle"
+    (the paddle's twist). Weights written before the field read "joint"."""
     num_values: int = len(REWARD_NAMES)
     """R, critic heads: one per reward term (REWARD_NAMES)."""
     log_std: LogStdConfig = field(default_factory=LogStdConfig)
@@ -168,6 +173,10 @@ class ModelConfig:
     def __post_init__(self) -> None:
         if self.init not in get_args(Initialization):
             raise ValueError(f"init must be one of {get_args(Initialization)}, got {self.init!r}")
+        if self.action_space not in ACTION_SPACES:
+            raise ValueError(
+                f"action_space must be one of {ACTION_SPACES}, got {self.action_space!r}"
+            )
         if self.scene_input not in get_args(SceneInput):
             raise ValueError(
                 f"scene_input must be one of {get_args(SceneInput)}, got {self.scene_input!r}"

@@ -177,7 +177,12 @@ class PolicyShell:
             return
         inputs, action = acted
         message = encode_action(
-            state.step, self.version, state.episode_ids, action, self.config.deterministic
+            state.step,
+            self.version,
+            state.episode_ids,
+            action,
+            self.config.deterministic,
+            self.policy.config.action_space,
         )
         self.action.put(message)
         self.answered.answer(state.step, message)

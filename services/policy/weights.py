@@ -137,6 +137,17 @@ def from_announcement(message: WeightsAnnouncement) -> Weights:
     return weights
 
 
+def check_action_space(weights: Weights, space: str) -> None:
+    """WeightsError unless `weights` act in `space`, the space a filter reads
+    (`ModelConfig.action_space`): a policy trained on paddle twists read as joint
+    residuals would move the arm somewhere else."""
+    if weights.config.action_space != space:
+        raise WeightsError(
+            f"they act in the {weights.config.action_space!r} action space, the filter "
+            f"reads {space!r} (--action-space)"
+        )
+
+
 def check_fits(policy: Policy, weights: Weights) -> None:
     """Raise WeightsError unless `weights` can replace `policy`'s parameters as they are."""
     if weights.architecture != policy.architecture:

@@ -39,7 +39,8 @@ class PayloadError(ValueError):
     def __init__(self, reason: str, detail: str) -> None:
         super().__init__(f"{reason}: {detail}")
         self.reason = reason
-        """One of: decode, dtype, shape, nonfinite, missing."""
+        """One of: decode, dtype, shape, nonfinite, missing, or a consumer's own (the
+        safety service's `space`)."""
         self.detail = detail
 
 

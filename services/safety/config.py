@@ -20,6 +20,12 @@ Squash = Literal["clip", "tanh"]
 MagnitudeMode = Literal["scale", "clip"]
 """How the bound xi acts on the residual (see `ActionMagnitudeConfig.mode`)."""
 
+ActionSpace = Literal["joint", "paddle"]
+"""What the residual's components ask for (see `ActionMagnitudeConfig.space`)."""
+
+ACTION_SPACES: tuple[ActionSpace, ...] = ("joint", "paddle")
+"""Every action space, the paper's first."""
+
 CartesianRows = Literal["linear", "full"]
 """Which rows of the end-effector Jacobian define Delta x (see `CartesianClipConfig.rows`)."""
 
@@ -94,7 +100,25 @@ class ActionMagnitudeConfig:
     keeps a Gaussian policy's mean linear inside [-1, 1]."""
     mode: MagnitudeMode = "scale"
     """"scale": dq = xi*u, the policy's whole output range shrinks with xi (the bound on what
-    the policy can output, line 755); "clip": dq = clip(xi_max*u, -xi, xi)."""
+    the policy can output, line 755); "clip": dq = clip(xi_max*u, -xi, xi). Joint space only."""
+    space: ActionSpace = "joint"
+    """"joint" (the paper's): the first 7 components are joint residuals. "paddle": the first
+    6 are the paddle's twist per policy step, [linear | angular] in the world frame scaled by
+    `twist_linear` and `twist_angular`, turned into the joint residual by damped least
+    squares on the paddle's Jacobian at the measured posture, then clipped to +-xi; the 7th
+    is unused (the minimum-norm solution leaves the null space alone). A push is nearly a
+    constant twist but a precise function of the posture in joints (docs/trainer-history.md,
+    "A scripted reference"). A policy's weights say which space it was trained in
+    (`ModelConfig.action_space`)."""
+    twist_linear: float = 0.03
+    """Paddle translation per policy step at u = 1, m ("paddle" space): 1.5x the scripted
+    pusher's 2 cm push step (`hamnet.evaluation.scripted_pusher`), so a policy can push at
+    the script's speed inside its range (the measured A/B, docs/trainer-history.md)."""
+    twist_angular: float = 0.1
+    """Paddle rotation per policy step at u = 1, rad ("paddle" space; the same A/B)."""
+    twist_damping: float = 1e-3
+    """lambda of the damped least squares from twist to joints ("paddle" space): the scripted
+    pusher's (`PusherConfig.damping`)."""
     xi_max_large: float = 0.26
     """xi_max for the large joints 1-4, rad per policy step."""
     xi_star_large: float = 0.16
@@ -121,6 +145,9 @@ class ActionMagnitudeConfig:
             raise ValueError(f"squash must be 'clip' or 'tanh', got {self.squash!r}")
         if self.mode not in ("scale", "clip"):
             raise ValueError(f"mode must be 'scale' or 'clip', got {self.mode!r}")
+        if self.space not in ACTION_SPACES:
+            raise ValueError(f"space must be one of {ACTION_SPACES}, got {self.space!r}")
+        _positive(self, "twist_linear", "twist_angular", "twist_damping")
         _positive(self, "xi_max_large", "xi_star_large", "xi_max_small", "xi_star_small")
         _positive(self, "kp_min", "rho_min")
         if not 0 <= self.num_large_joints <= 7:
@@ -264,3 +291,9 @@ def with_profile(profile: Profile, config: SafetyConfig | None = None) -> Safety
         torque_preclip=replace(config.torque_preclip, enabled=False, margin=0.0),
         references="target",
     )
+
+
+def in_action_space(config: SafetyConfig, space: ActionSpace) -> SafetyConfig:
+    """`config` reading actions in `space`: the filter of a policy trained in that space
+    (`ModelConfig.action_space`)."""
+    return replace(config, action_magnitude=replace(config.action_magnitude, space=space))

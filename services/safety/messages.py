@@ -20,6 +20,8 @@ from hamnet.messages.safety_event import encode as encode_event
 from hamnet.proto.policy_pb2 import PolicyAction
 from hamnet.proto.safety_pb2 import CommandMode, SafeCommand, SafetyEvent, SafetyEventKind
 from hamnet.proto.sim_pb2 import RobotState
+from hamnet.runtime.tensor import PayloadError
+from hamnet.safety.config import ActionSpace
 from hamnet.safety.filter import SafeOutput
 from hamnet.safety.pipeline import FilterResult
 from hamnet.safety.reports import Notice, rejections
@@ -40,14 +42,24 @@ def decode_state(message: RobotState, num_envs: int | None) -> StateIn:
     return replace(state, q=state.q.astype(np.float64), dq=state.dq.astype(np.float64))
 
 
-def decode_action(message: PolicyAction) -> ActionIn:
-    """The step, raw action and episode ids of a PolicyAction. NaN, Inf and any shape of
-    the action pass: stage 1 of the core rejects them and the rejection becomes an event.
+def decode_action(message: PolicyAction, space: ActionSpace = "joint") -> ActionIn:
+    """The step, raw action and episode ids of a PolicyAction for a filter reading actions
+    in `space`. NaN, Inf and any shape of the action pass: stage 1 of the core rejects them
+    and the rejection becomes an event.
 
     Raises:
-        PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape).
+        PayloadError: `missing`, `dtype` (not float32), `shape` (bytes differ from the shape),
+            `space` (the policy acts in another action space: executed as this filter reads
+            it, its residuals would move the arm elsewhere).
     """
-    return action.decode(message, required=("action",))
+    decoded = action.decode(message, required=("action",))
+    if decoded.action_space != space:
+        raise PayloadError(
+            "space",
+            f"the policy acts in the {decoded.action_space!r} action space, this filter "
+            f"reads {space!r} (--safety.action-magnitude.space)",
+        )
+    return decoded
 
 
 def command_mode(output: SafeOutput) -> CommandMode.ValueType:

@@ -26,13 +26,14 @@ import numpy as np
 from hamnet.fr3.limits import FR3, NUM_JOINTS, Q_HOME
 from hamnet.fr3.model import load_pinocchio
 from hamnet.safety import stages
-from hamnet.safety.cartesian import cartesian_clip, ee_jacobians
+from hamnet.safety.cartesian import JACOBIAN_ROWS, cartesian_clip, ee_jacobians
 from hamnet.safety.config import SafetyConfig
 from hamnet.safety.schedule import ScheduleValues, per_joint, schedule_values
 from hamnet.safety.stats import StageReport, StageStats, StatsAccumulator, stage_report, summarize
 
 Jacobians = Callable[[np.ndarray], np.ndarray]
-"""q (N, J) -> end-effector Jacobians (N, R, J) at those configurations."""
+"""q (N, J) -> the paddle's world-aligned Jacobians (N, 6, J) [linear; angular] at those
+configurations (`cartesian.ee_jacobians(..., "full")`)."""
 
 
 @dataclass(frozen=True)
@@ -158,7 +159,8 @@ def filter_action(
         q, dq: (B, J) measured joint positions (rad) and velocities (rad/s); rows with NaN/Inf
             are rejected (reason STATE); a wrong shape raises ValueError (a caller's bug).
         step: env_transitions (hamnet.runtime.counter) from the trainer (drives xi, eps_x).
-        jacobians: q (N, J) -> (N, R, J) end-effector Jacobians (`cartesian.ee_jacobians`).
+        jacobians: q (N, J) -> (N, 6, J) paddle Jacobians (`Jacobians`), called once per
+            batch where stage 2 ("paddle" space) or stage 3 needs them.
         episode_start: (B,) bool, envs starting an episode with this action (EMA cleared, hold
             target reset to q), or None.
         stale: (B,) bool, envs whose action was computed for another episode (rejected,
@@ -185,11 +187,13 @@ def filter_action(
     values = schedule_values(step, config.action_magnitude, config.cartesian_clip)
     magnitude = config.action_magnitude
     xi = per_joint(values.xi_large, values.xi_small, magnitude.num_large_joints)  # (J,)
-    dq_step, kp, rho, excess = stages.action_magnitude(raw, xi, magnitude)  # (B, J) x3
+    needs_jacobian = magnitude.space == "paddle" or config.cartesian_clip.enabled
+    jacobian = jacobians(q_now) if needs_jacobian else None  # (B, 6, J)
+    dq_step, kp, rho, excess = stages.action_magnitude(raw, xi, magnitude, jacobian)  # (B, J) x3
     reports.append(stage_report("action_magnitude", accepted & magnitude.enabled, excess))
 
     # Stage 3.
-    dq_step, report = _run_cartesian(config, dq_step, q_now, accepted, values.eps_x, jacobians)
+    dq_step, report = _run_cartesian(config, dq_step, accepted, values.eps_x, jacobian)
     reports.append(report)
 
     # Stage 4: EMA of the residual, memory kept per env.
@@ -258,19 +262,20 @@ def _run_guard(
 def _run_cartesian(
     config: SafetyConfig,
     dq: np.ndarray,
-    q: np.ndarray,
     accepted: np.ndarray,
     eps_x: float,
-    jacobians: Jacobians,
+    jacobian: np.ndarray | None,
 ) -> tuple[np.ndarray, StageReport]:
-    """Stage 3 on the accepted envs only."""
+    """Stage 3 on the accepted envs only; `jacobian` (B, 6, J) at the measured posture, set
+    when the stage is enabled."""
     cartesian = config.cartesian_clip
     applied = accepted & cartesian.enabled  # (B,)
     excess = np.zeros(dq.shape[0])
     if applied.any():
         dq = dq.copy()
+        rows = jacobian[applied][:, JACOBIAN_ROWS[cartesian.rows]]  # (N, R, J)
         dq[applied], excess[applied] = cartesian_clip(
-            dq[applied], jacobians(q[applied]), eps_x, cartesian.damping, cartesian.iterations
+            dq[applied], rows, eps_x, cartesian.damping, cartesian.iterations
         )
     return dq, stage_report("cartesian_clip", applied, excess)
 
@@ -328,8 +333,8 @@ class SafetyCore:
         self._model, self._data = load_pinocchio()
 
     def jacobians(self, q: np.ndarray) -> np.ndarray:
-        """(N, R, J) end-effector Jacobians at q (N, J), rows per the config."""
-        return ee_jacobians(self._model, self._data, q, self.config.cartesian_clip.rows)
+        """(N, 6, J) paddle Jacobians at q (N, J) (`Jacobians`)."""
+        return ee_jacobians(self._model, self._data, q, "full")
 
     def reset(self, q: np.ndarray, env_ids: np.ndarray | None = None) -> None:
         """Start episodes in `env_ids` (all if None) at joint positions q (B, J)."""

@@ -70,9 +70,9 @@ class SafetyShell:
         inbox = service.inbox
         state = payload_decoder(RobotState, lambda m: decode_state(m, self.core.num_envs))
         inbox.subscribe("state", port["state"], decoder=state)
-        inbox.subscribe(
-            "action", port["action"], decoder=payload_decoder(PolicyAction, decode_action)
-        )
+        space = self.core.safety.action_magnitude.space
+        actions = payload_decoder(PolicyAction, lambda m: decode_action(m, space))
+        inbox.subscribe("action", port["action"], decoder=actions)
         inbox.subscribe(
             "schedule", port["schedule"], decoder=payload_decoder(Schedule, decode_schedule)
         )

@@ -7,6 +7,7 @@ stage's unit (see `stats`). Stage 3 (Cartesian clipping) lives in `cartesian`, s
 Raw action layout (B, 21) = [dq | kp | rho], 7 columns each in joint order. A raw component a
 becomes u = squash(a) in [-1, 1] (`ActionMagnitudeConfig.squash`), then
     dq  = xi*u                       ("scale", default) or clip(xi_max*u, -xi, xi) ("clip")
+    dq  = clip(DLS(J, s*u[:6]), -xi, xi)   in "paddle" space: u[:6] the paddle's twist
     kp  = kp_min + (u+1)/2*(kp_max - kp_min)       in [10, 200] N m/rad
     rho = rho_min + (u+1)/2*(rho_max - rho_min)    in [0.3, 2.0]
     kd  = rho*sqrt(kp)                              (paper line 241)
@@ -21,6 +22,7 @@ from enum import IntEnum
 import numpy as np
 
 from hamnet.fr3.limits import ACTION_DIM, FR3, NUM_JOINTS
+from hamnet.safety.cartesian import damped_least_squares
 from hamnet.safety.config import ActionMagnitudeConfig
 
 
@@ -88,24 +90,43 @@ def affine_range(u: np.ndarray, low: float, high: float) -> np.ndarray:
     return low + 0.5 * (u + 1.0) * (high - low)
 
 
+def twist_scale(config: ActionMagnitudeConfig) -> np.ndarray:
+    """(6,) the paddle twist at u = 1 in "paddle" space: [linear m | angular rad] per step."""
+    return np.repeat([config.twist_linear, config.twist_angular], 3)
+
+
 def action_magnitude(
-    action: np.ndarray, xi: np.ndarray, config: ActionMagnitudeConfig
+    action: np.ndarray,
+    xi: np.ndarray,
+    config: ActionMagnitudeConfig,
+    jacobian: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Stage 2: raw action to joint residual, stiffness and damping ratio, dq bounded by xi.
 
     Args:
         action: (B, 21) finite raw action [dq | kp | rho].
         xi: (J,) action-magnitude bound per joint for this step, rad (`schedule.xi_at`).
-        config: ranges, squash and mode.
+        config: ranges, squash, mode and action space.
+        jacobian: (B, 6, J) the paddle's world-aligned Jacobians at the measured postures
+            (`cartesian.ee_jacobians(..., "full")`); needed in "paddle" space only.
     Returns:
         dq (B, J) rad with |dq| <= xi, kp (B, J) N m/rad, rho (B, J), and excess (B,): the
         largest |dq_nominal - dq| over the joints, rad, where dq_nominal reads the raw
         residual linearly (s*raw for "clip" squash, s*tanh(raw) for "tanh"; s = xi in
-        "scale" mode, xi_max in "clip" mode).
+        "scale" mode, xi_max in "clip" mode; in "paddle" space the joint motion of the
+        unsquashed twist).
     """
     u = SQUASHES[config.squash](action)  # (B, 21) in [-1, 1]
     raw_dq, u_dq = action[:, :NUM_JOINTS], u[:, :NUM_JOINTS]  # (B, J)
-    if config.mode == "scale":
+    if config.space == "paddle":
+        if jacobian is None:
+            raise ValueError("the paddle action space needs the paddle's Jacobians")
+        scale, damping = twist_scale(config), config.twist_damping  # (6,)
+        nominal = damped_least_squares(
+            jacobian, _unsquashed(raw_dq[:, :6], config.squash) * scale, damping
+        )
+        dq = np.clip(damped_least_squares(jacobian, u_dq[:, :6] * scale, damping), -xi, xi)
+    elif config.mode == "scale":
         dq = xi * u_dq  # (B, J)
         nominal = xi * _unsquashed(raw_dq, config.squash)
     else:

@@ -11,7 +11,7 @@ import torch
 from hamnet.policy.messages import decode_state, decode_tokens, robot_observation
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import assemble
-from hamnet.policy.registry import build
+from hamnet.policy.registry import build, with_changes
 from hamnet.policy.serving import PolicyLoopConfig
 from hamnet.policy.shell import PolicyShell
 from hamnet.policy.weights import to_bytes
@@ -104,8 +104,17 @@ def test_pairs_by_step_in_any_order_and_a_lost_half_blocks_nothing() -> None:
         torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
         previous = got
         assert message.deterministic and tuple(message.module_weights.shape) == (B, 10, 8)
+        assert message.action_space == "joint"
         assert tuple(message.values.shape) == (B, 3) and tuple(message.log_prob.shape) == (B,)
     assert shell.pairing.dropped["superseded"] == 1 and shell.counts["stale"] == 1
+
+
+def test_actions_say_the_action_space_of_the_weights() -> None:
+    """A policy trained on paddle twists says so in every action, so that a safety filter
+    reading joint residuals drops them (`hamnet.safety.messages.decode_action`)."""
+    policy = build("hamnet", with_changes("hamnet", action_space="paddle"), seed=0)
+    actions, _ = run(policy, [("state", state_message(0, B)), ("tokens", tokens_message(0, B))])
+    assert [a.action_space for a in actions] == ["paddle"]
 
 
 def test_a_restarted_sim_is_followed_at_once_and_a_far_future_step_is_refused() -> None:

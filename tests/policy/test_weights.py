@@ -3,6 +3,8 @@ are refused (the model they were meant for stays untouched)."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 import torch
 from safetensors.torch import save as save_tensors
@@ -10,6 +12,7 @@ from safetensors.torch import save as save_tensors
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import (
     WeightsError,
+    check_action_space,
     check_fits,
     from_bytes,
     load_into,
@@ -30,6 +33,21 @@ def test_round_trip_rebuilds_the_same_policy_from_metadata() -> None:
     inputs = random_inputs(policy)
     torch.testing.assert_close(rebuilt.act(inputs, True).action, policy.act(inputs, True).action)
     torch.testing.assert_close(rebuilt.log_std, policy.log_std)
+
+
+def test_the_action_space_travels_with_the_weights_and_is_checked() -> None:
+    """Weights trained on paddle twists say so in their metadata; a filter of the other
+    space refuses them. Weights written before the field (no `action_space` in their
+    config JSON, as the shipped ones of issue 28) read "joint"."""
+    paddle = build("state-mlp", with_changes("state-mlp", action_space="paddle"), seed=0)
+    weights = from_bytes(to_bytes(paddle, version=1))
+    assert weights.config.action_space == "paddle"
+    check_action_space(weights, "paddle")
+    with pytest.raises(WeightsError, match="'paddle' action space"):
+        check_action_space(weights, "joint")
+    older = json.loads(build("state-mlp", seed=0).config.to_json())
+    del older["action_space"]
+    assert type(paddle.config).from_json(json.dumps(older)).action_space == "joint"
 
 
 def test_checkpoint_file_holds_what_an_announcement_carries(tmp_path) -> None:

@@ -267,6 +267,26 @@ def test_loop_answers_each_state_and_rejects_a_nan_action() -> None:
     assert dict(service.drops.counts) == {("hamnet/t/policy/0/action", "decode"): 1}
 
 
+def test_an_action_of_another_action_space_is_dropped() -> None:
+    """A policy trained on paddle twists must never run as joint residuals: the joint-space
+    filter drops its action (counted under `space`) and answers the state with the next
+    action of its own space; a paddle-space decoder takes it and refuses a joint one."""
+    twist = policy_action(1, np.zeros((B, 21)))
+    twist.action_space = "paddle"
+    with pytest.raises(PayloadError) as error:
+        decode_action(parse(PolicyAction, encode(twist)))
+    assert error.value.reason == "space" and "paddle" in str(error.value)
+    assert decode_action(twist, "paddle").action_space == "paddle"
+    with pytest.raises(PayloadError):
+        decode_action(policy_action(1, np.zeros((B, 21))), "paddle")
+    hooks = {1: lambda: [("state", encode(robot_state(1))), ("action", encode(twist))]}
+    service = scripted(sim_script(lambda step: np.zeros((B, 21)), last=3, hooks=hooks))
+    shell = SafetyShell(service, SafetyLoopConfig(num_envs=B, watchdog_s=5.0))
+    assert shell.run() == 0
+    assert [c.header.step for c in of(service.published, "command")] == [0, 1, 2, 3]
+    assert dict(service.drops.counts) == {("hamnet/t/policy/0/action", "space"): 1}
+
+
 def test_a_restarted_sim_starts_every_episode_afresh() -> None:
     """A new run of the sim at step 0 with the old episode ids and episode steps (a sim
     restarted with the same seed): its command is a fresh filter's, not one that smooths on

@@ -126,6 +126,30 @@ def test_action_magnitude_bounds_huge_raw_values() -> None:
     assert kp[0, 0] == 200.0 and kp[1, 0] == 10.0 and rho[0, 0] == 2.0 and rho[1, 0] == 0.3
 
 
+def test_paddle_space_asks_the_twist_through_the_jacobian() -> None:
+    """ "paddle" space on a Jacobian with a known pseudo-inverse (the first six joints move
+    the six twist axes, scaled by 2, the seventh nothing): dq = twist/2 up to the damping,
+    the 7th raw component ignored, and a twist whose joint motion passes xi clipped to it
+    (the cut reported as excess)."""
+    config = ActionMagnitudeConfig(space="paddle", twist_damping=1e-6)
+    jacobian = np.zeros((B, 6, J))
+    jacobian[:, np.arange(6), np.arange(6)] = 2.0
+    action = np.zeros((B, 21))
+    action[0, :7] = [0.5, -1.0, 0.0, 1.0, 0.0, -0.5, 9.0]
+    action[1, :6] = [40.0, 0, 0, 0, 0, 0]  # 1.2 m asked: 0.03 m kept, 0.6 rad cut to xi
+    xi = per_joint(2.0, 2.0, 4)
+    dq, kp, _, excess = stages.action_magnitude(action, xi, config, jacobian)
+    np.testing.assert_allclose(dq[0], [0.0075, -0.015, 0.0, 0.05, 0.0, -0.025, 0.0], atol=1e-9)
+    np.testing.assert_allclose(dq[1], [0.015, 0, 0, 0, 0, 0, 0], atol=1e-9)
+    assert excess[1] == pytest.approx(0.6 - 0.015) and excess[0] == pytest.approx(0.0, abs=1e-9)
+    small = per_joint(0.01, 0.01, 4)
+    dq, _, _, excess = stages.action_magnitude(action, small, config, jacobian)
+    assert np.abs(dq).max() <= 0.01 and excess[0] == pytest.approx(0.05 - 0.01)
+    np.testing.assert_allclose(kp, np.full((B, J), 105.0))
+    with pytest.raises(ValueError, match="Jacobians"):
+        stages.action_magnitude(action, xi, config)
+
+
 # --- schedule ---------------------------------------------------------------------------
 
 
@@ -298,6 +322,9 @@ def test_stats_stay_finite_for_huge_excesses() -> None:
         lambda: AnnealingConfig(start_step=-1),
         lambda: ActionMagnitudeConfig(squash="sigmoid"),
         lambda: ActionMagnitudeConfig(mode="wrap"),
+        lambda: ActionMagnitudeConfig(space="task"),
+        lambda: ActionMagnitudeConfig(twist_linear=0.0),
+        lambda: ActionMagnitudeConfig(twist_damping=-1e-3),
         lambda: ActionMagnitudeConfig(xi_star_small=0.0),
         lambda: ActionMagnitudeConfig(kp_min=300.0),
         lambda: CartesianClipConfig(eps_x=-0.1),

@@ -24,6 +24,7 @@ from hamnet.sim.stages import stage_config
 from hamnet.sim.task_config import TaskConfig
 from hamnet.trainer.algorithms import ppo_learner
 from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
+from hamnet.trainer.results import evaluate as evaluate_module
 from hamnet.trainer.results.evaluate import evaluate, success_rate
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
@@ -125,6 +126,33 @@ def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
     assert (
         read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors").architecture == "state-mlp"
     )
+
+
+def test_a_paddle_space_run_carries_its_space_to_filters_weights_and_evaluation(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """`--action-space paddle`: the policy's config, every worker's filter and the
+    checkpoint say "paddle", and the held-out evaluation of those weights acts through a
+    paddle-space filter whatever run config it is given."""
+    config = RunConfig(architecture="state-mlp", action_space="paddle", sim=tiny_sim(),
+                       steps_per_rollout=2, run_dir=tmp_path, max_env_transitions=4)  # fmt: skip
+    runner = Runner(config)
+    assert runner.policy.config.action_space == "paddle"
+    spaces = {w.safety.config.action_magnitude.space for w in runner.source.workers}
+    assert spaces == {"paddle"}
+    runner.run()
+    weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
+    assert weights.config.action_space == "paddle"
+    built = []
+    original = evaluate_module.held_out_worker
+
+    def spy(*args, **kwargs) -> RolloutWorker:
+        built.append(original(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(evaluate_module, "held_out_worker", spy)
+    evaluate(runner.policy, dataclasses.replace(config, action_space="joint"), 2, 0)
+    assert [w.safety.config.action_magnitude.space for w in built] == ["paddle"]
 
 
 def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:

@@ -70,9 +70,11 @@ class Dagger:
         """Outcomes of the last episodes the student acted (the episode tracker's window)."""
 
     def prepare(self, config: RunConfig) -> RunConfig:
-        """DaggerError unless the run's architecture is a student; one group of environments."""
+        """DaggerError unless the run's architecture is a student; one group of environments,
+        acting in the teacher's action space (the student learns the teacher's outputs)."""
         check_student(config.architecture)
-        return dataclasses.replace(config, overlap=False)
+        space = self.teacher.policy.config.action_space
+        return dataclasses.replace(config, overlap=False, action_space=space)
 
     def in_process(self, config: RunConfig) -> RolloutSource:
         return InProcessDagger(config, self.teacher.policy, self.dagger)

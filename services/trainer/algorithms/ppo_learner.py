@@ -59,6 +59,10 @@ class PPO:
         """The energy loss of an action mean, read as the workers' safety profile reads it."""
 
     def prepare(self, config: RunConfig) -> RunConfig:
+        """ValueError for the energy loss in the paddle space: it reads the action's first
+        components as joint residuals."""
+        if config.ppo.energy_coef and config.action_space != "joint":
+            raise ValueError("--ppo.energy-coef reads joint residuals: use --action-space joint")
         return config
 
     def in_process(self, config: RunConfig) -> RolloutSource:

@@ -33,7 +33,7 @@ from hamnet.policy import inputs as builder
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.policy.rollout_record import cat_rows
-from hamnet.safety.config import with_profile
+from hamnet.safety.config import in_action_space, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.algorithms.dagger import Demonstrations, beta_at
@@ -163,7 +163,8 @@ draws are not the teacher's perception's."""
 def build_dagger_worker(config: RunConfig, teacher: Policy) -> DaggerWorker:
     """The run's `config.num_envs` environments in one group, with the teacher's perception
     (every surface) and the student's (`config.architecture`'s, `student_clouds()`) on one
-    frozen encoder (the run's: it must be the one the teacher was trained with)."""
+    frozen encoder (the run's: it must be the one the teacher was trained with), and the
+    training filter reading actions in the teacher's space."""
     b, seed = config.num_envs, config.seed
     student = architecture(config.architecture).config
     needs = {"teacher": teacher.config.clouds, "student": student.clouds}
@@ -177,7 +178,8 @@ def build_dagger_worker(config: RunConfig, teacher: Policy) -> DaggerWorker:
         for role in ROLES
     }
     env = VectorEnv(dataclasses.replace(config.sim, num_envs=b, seed=seed))
-    safety = SafetyFilter(np.zeros((b, NUM_JOINTS)), with_profile("training"))
+    training = in_action_space(with_profile("training"), teacher.config.action_space)
+    safety = SafetyFilter(np.zeros((b, NUM_JOINTS)), training)
     return DaggerWorker(env, perceptions, safety, seed)
 
 

@@ -23,7 +23,7 @@ from hamnet.perception.unicorn import UniCORN
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.policy.rollout_record import Rollout
-from hamnet.safety.config import SafetyConfig, with_profile
+from hamnet.safety.config import SafetyConfig, in_action_space, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
@@ -56,13 +56,15 @@ def build_workers(
     perception at all for a policy without clouds). The groups share one frozen encoder:
     `encoder` when given, else `frozen_encoder(config)`; perception samples `clouds`
     (default: every surface, noise-free); the safety filter is `safety` (default: the
-    training profile)."""
+    training profile) reading actions in the run's `action_space`."""
     size = config.num_envs // groups
     frozen, version = None, 0
     if architecture(config.architecture).config.clouds:
         frozen, version = frozen_encoder(config) if encoder is None else encoder
     threads = 1 if groups > 1 else config.sim.nthread  # the other core runs the networks
-    safety = with_profile("training") if safety is None else safety
+    safety = in_action_space(
+        with_profile("training") if safety is None else safety, config.action_space
+    )
     workers = []
     for group in range(groups):
         seed = config.seed + group

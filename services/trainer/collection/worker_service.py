@@ -30,7 +30,13 @@ import logging
 import time
 
 from hamnet.policy.policy import Policy
-from hamnet.policy.weights import WeightsError, from_announcement, load_into, policy_from
+from hamnet.policy.weights import (
+    WeightsError,
+    check_action_space,
+    from_announcement,
+    load_into,
+    policy_from,
+)
 from hamnet.proto.trainer_pb2 import RolloutChunk, WeightsAnnouncement
 from hamnet.runtime.loop_report import LoopReport, Window
 from hamnet.runtime.service import Service
@@ -168,6 +174,7 @@ class RolloutService:
     def _load(self, message: WeightsAnnouncement) -> None:
         try:
             weights = from_announcement(message)
+            check_action_space(weights, self.config.action_space)
             if self.policy is None:
                 self.policy = policy_from(weights)
             else:

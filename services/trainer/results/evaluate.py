@@ -76,9 +76,10 @@ def evaluate(
         clouds: how perception samples clouds (default: every surface; a DAgger student
             sees them as the cameras do).
     """
-    worker = held_out_worker(
-        dataclasses.replace(config, architecture=policy.architecture), episodes, clouds
+    acting = dataclasses.replace(
+        config, architecture=policy.architecture, action_space=policy.config.action_space
     )
+    worker = held_out_worker(acting, episodes, clouds)
     policy.eval()
 
     def step() -> StepResult:

@@ -12,6 +12,7 @@ from pathlib import Path
 from hamnet.perception.checkpoint import SHIPPED_ENCODER
 from hamnet.policy.config import Initialization, LogStdConfig
 from hamnet.policy.registry import architecture
+from hamnet.safety.config import ActionSpace
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import STAGES, StageName, stage_config
 from hamnet.trainer.config import PPOConfig
@@ -38,6 +39,11 @@ class RunConfig:
     (`--sim.nthread`), scenes, placement, task and curriculum: the stage's, with any change."""
     architecture: str = "hamnet"
     """Policy architecture (`hamnet policy --print-params` lists them)."""
+    action_space: ActionSpace = "joint"
+    """What the policy's residual components ask for (`ActionMagnitudeConfig.space`):
+    "joint" residuals (the paper's) or "paddle", the paddle's twist. The weights carry it
+    (`ModelConfig.action_space`), so every filter that serves them reads them the same way;
+    rollout workers take the same flag. DAgger's student acts in its teacher's space."""
     workers: int = 1
     """Rollout workers (`hamnet rollout`) whose chunks make one update, `--sim.num-envs`
     environments each (1 in-process). A trainer's own: its workers act as many steps as its
@@ -125,6 +131,7 @@ class RunConfig:
         environments and the rollout length (the PPO settings and budgets may change)."""
         return {
             "architecture": self.architecture,
+            "action_space": self.action_space,
             "sim": self.sim,
             "steps_per_rollout": self.rollout_steps,
             "overlapped": self.overlapped,

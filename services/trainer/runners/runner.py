@@ -75,6 +75,7 @@ class Runner:
                 log_std=config.log_std,
                 init=config.init,
                 shared_value_gradient=config.shared_value_gradient,
+                action_space=config.action_space,
             ),
             config.seed,
         )
