@@ -5,6 +5,9 @@ anchor the issue measured (a CleanRL-style PPO on the same stage), at equal tran
     python scripts/ppo_small_scale.py                  # 2 M transitions per variant (about 1 h)
     python scripts/ppo_small_scale.py --transitions 300000 --out runs/ppo-small-scale-short
     python scripts/ppo_small_scale.py --from-runs      # rewrite the result from finished runs
+    python scripts/ppo_small_scale.py --variants defaults paddle --no-anchor --seed 1 \
+        --transitions 1200000 --runs runs/action-space-s1 --out docs/results/action-space-s1
+                                                       # the action spaces (issue 28)
 
 Two variants run side by side (one core each, one torch thread), each as
 `hamnet trainer --inprocess --architecture state-mlp` on the easy stage; the script writes
@@ -29,6 +32,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from hamnet.evaluation.metrics import wilson_interval
 from hamnet.runtime.runs import commit, read_metrics
 from hamnet.trainer.results.summary import repository_path
 
@@ -46,8 +50,10 @@ samples, PyTorch's initialization and the authors' log-std schedule."""
 VARIANTS: dict[str, tuple[str, ...]] = {
     "defaults": (),
     "authors": AUTHORS_FLAGS,
+    "paddle": ("--action-space", "paddle"),
 }
-"""Variant name -> the trainer flags that make it (beyond the shared ones)."""
+"""Variant name -> the trainer flags that make it (beyond the shared ones): the defaults, the
+authors' update, and the defaults acting in the paddle-twist action space."""
 
 ANCHOR = {
     "source": "issue 27, 'On the easy stage': a CleanRL-style PPO on privileged state (MLP 2x256 "
@@ -81,8 +87,8 @@ def run_variant(name: str, flags: tuple[str, ...], args: argparse.Namespace) -> 
 
 
 def train(args: argparse.Namespace) -> None:
-    """Every variant, two at a time."""
-    names = list(VARIANTS)
+    """Every variant asked for, two at a time."""
+    names = args.variants
     for start in range(0, len(names), 2):
         running = [run_variant(name, VARIANTS[name], args) for name in names[start : start + 2]]
         for process in running:
@@ -108,8 +114,13 @@ DIAGNOSTICS = ("approx_kl", "clip_fraction", "gradient_agreement", "gradient_ste
 def summarise(rows: list[dict], summary: dict) -> dict:
     """A variant's curve, diagnostics per bucket and held-out result."""
     x, success = bucketed(rows, "success_rate")
+    episodes = summary["eval_episodes"]
+    successes = round(summary["final_success_rate"] * episodes)
     return {
         "held_out_success_rate": summary["final_success_rate"],
+        "held_out_wilson_95": wilson_interval(successes, episodes),
+        "held_out_episodes": episodes,
+        "held_out_goal_return": summary["final_goal_return"],
         "env_transitions": x,
         "success_rate": success,
         "diagnostics": {key: bucketed(rows, key)[1] for key in DIAGNOSTICS},
@@ -117,12 +128,14 @@ def summarise(rows: list[dict], summary: dict) -> dict:
     }
 
 
-def plot(variants: dict[str, dict], out: Path) -> None:
-    """Success against transitions next to the anchor, and the diagnostics below."""
+def plot(variants: dict[str, dict], anchor: bool, out: Path) -> None:
+    """Success against transitions (next to the anchor with `anchor`), and the diagnostics
+    below."""
     figure, axes = plt.subplots(2, 3, figsize=(15, 8))
     success = axes[0, 0]
-    success.plot([x / 1e6 for x in ANCHOR["env_transitions"]], ANCHOR["success_rate"], "k--o",
-                 label="anchor (CleanRL-style, issue 27)")  # fmt: skip
+    if anchor:
+        success.plot([x / 1e6 for x in ANCHOR["env_transitions"]], ANCHOR["success_rate"],
+                     "k--o", label="anchor (CleanRL-style, issue 27)")  # fmt: skip
     for name, variant in variants.items():
         xs = [x / 1e6 for x in variant["env_transitions"]]
         success.plot(xs, variant["success_rate"],
@@ -135,8 +148,8 @@ def plot(variants: dict[str, dict], out: Path) -> None:
         axis.set_xlabel("env transitions (millions)")
         axis.grid(alpha=0.3)
         axis.legend(fontsize=8)
-    figure.suptitle("state MLP on the easy stage: the trainer's defaults, the authors' update, "
-                    "the outside anchor")  # fmt: skip
+    shown = ", ".join(variants) + (", the outside anchor" if anchor else "")
+    figure.suptitle(f"state MLP on the easy stage: {shown}")
     figure.tight_layout()
     figure.savefig(out, dpi=90)
     plt.close(figure)
@@ -146,6 +159,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--transitions", type=int, default=2_000_000, help="budget per variant")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=["defaults", "authors"],
+                        help="which variants to run, two side by side at a time")  # fmt: skip
+    parser.add_argument("--no-anchor", action="store_true",
+                        help="leave the anchor out (it was measured on the 0.05 m easy stage)")  # fmt: skip
     parser.add_argument("--eval-episodes", type=int, default=256,
                         help="held-out episodes of each final policy (deterministic)")  # fmt: skip
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "ppo-small-scale")
@@ -159,27 +176,27 @@ def main() -> int:
     variants = {
         name: summarise(read_metrics(args.runs / name),
                         json.loads((args.runs / name / "summary.json").read_text()))
-        for name in VARIANTS
+        for name in args.variants
     }  # fmt: skip
     result = {
         "stage": "easy",
         "architecture": "state-mlp",
         "env_transitions": args.transitions,
         "variants": variants,
-        "anchor": ANCHOR,
+        "anchor": None if args.no_anchor else ANCHOR,
         "command": " ".join(
             [
                 "python",
                 "scripts/ppo_small_scale.py",
                 *(a for a in sys.argv[1:] if a != "--from-runs"),
             ]
-        ),  # fmt: skip
+        ),
         "seed": args.seed,
         "commit": code,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
-    plot(variants, args.out.with_suffix(".png"))
+    plot(variants, not args.no_anchor, args.out.with_suffix(".png"))
     print(json.dumps({f"{name}_held_out_success_rate": v["held_out_success_rate"]
                       for name, v in variants.items()}))  # fmt: skip
     return 0
