@@ -45,6 +45,7 @@ def main() -> int:
     card = {
         "name": args.name,
         "architecture": checkpoint.architecture,
+        "action_space": checkpoint.config.action_space,
         "stage": summary["stage"],
         "version": checkpoint.version,
         "weights_sha256": sha256(data),

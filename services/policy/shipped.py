@@ -2,7 +2,8 @@
 
 Each is two files under `hamnet/policy/shipped/`: `<name>.safetensors`, a checkpoint like
 any other (`hamnet.policy.weights`; its network stored in float16 to keep the package small)
-and `<name>.json`, its card: architecture, stage, the sha256 of the weights file and of the
+and `<name>.json`, its card: architecture, action space (absent: "joint", the cards written
+before it), stage, the sha256 of the weights file and of the
 UniCORN encoder whose tokens it was trained on, the commit and command that trained it, and
 the result file that reports it. `read_weights(NAME_OR_PATH)` takes either a checkpoint path
 or a shipped name (`hamnet policy --checkpoint easy-teacher`); a shipped policy is checked
@@ -82,6 +83,11 @@ def read_shipped(name: str) -> Weights:
     if weights.architecture != card.get("architecture"):
         raise WeightsError(
             f"shipped policy {name!r}: weights of {weights.architecture!r}, its card says {card.get('architecture')!r}"
+        )
+    if weights.config.action_space != card.get("action_space", "joint"):
+        raise WeightsError(
+            f"shipped policy {name!r}: weights of the {weights.config.action_space!r} action "
+            f"space, its card says {card.get('action_space', 'joint')!r}"
         )
     if weights.config.clouds and card.get("encoder_sha256") != encoder_sha256():
         raise WeightsError(

@@ -69,6 +69,9 @@ def test_a_file_that_is_not_its_cards_is_refused(shelf: Path) -> None:
     (shelf / "pusher.json").write_text(json.dumps({**card, "architecture": "hamnet"}))
     with pytest.raises(WeightsError, match="its card says 'hamnet'"):
         shipped.read_weights("pusher")
+    (shelf / "pusher.json").write_text(json.dumps({**card, "action_space": "paddle"}))
+    with pytest.raises(WeightsError, match="'joint' action space, its card says 'paddle'"):
+        shipped.read_weights("pusher")
 
 
 def test_a_policy_of_another_encoder_is_refused_where_it_reads_tokens(shelf: Path) -> None:
@@ -86,6 +89,7 @@ def test_every_policy_shipped_in_the_package_loads_and_matches_its_card(name: st
     card = shipped.read_card(name)
     policy = policy_from(shipped.read_shipped(name))
     assert policy.architecture == card["architecture"]
+    assert policy.config.action_space == card.get("action_space", "joint")
     for key in ("stage", "commit", "result", "trained_by", "shipped_success_rate"):
         assert card.get(key) is not None, key
     assert not Path(card["result"]).is_absolute()
