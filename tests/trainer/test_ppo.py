@@ -13,8 +13,10 @@ from torch import Tensor, nn
 from hamnet.runtime.trees import take_rows
 from hamnet.trainer.algorithms.gae import gae
 from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, optimizer_for, update
+from hamnet.trainer.algorithms.ppo_learner import PPO
 from hamnet.trainer.algorithms.ppo_losses import approx_kl, explained_variance
 from hamnet.trainer.config import AUTHORS, PPOConfig
+from hamnet.trainer.runners.run_config import RunConfig
 
 B, T, LOG_STD = 64, 4, math.log(0.3)
 
@@ -318,3 +320,13 @@ def test_every_update_reports_its_critics_explained_variance() -> None:
         explained_variance(batch.advantages, batch.returns)
     )
     assert math.isnan(UpdateStats.none(3e-4).explained_variance)
+
+
+def test_the_energy_loss_is_refused_in_the_paddle_action_space() -> None:
+    """The energy loss reads the action's first components as joint residuals: a paddle
+    twist run that asks for it is refused before anything is built."""
+    energetic = RunConfig(action_space="paddle", ppo=PPOConfig(energy_coef=0.1))
+    with pytest.raises(ValueError, match="--action-space joint"):
+        PPO(energetic).prepare(energetic)
+    plain = dataclasses.replace(energetic, ppo=PPOConfig())
+    assert PPO(plain).prepare(plain) == plain
