@@ -179,8 +179,8 @@ def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
     raw, _ = stages.nonfinite_guard(sim.action, num_envs)  # (B, 21)
     dq_step, kp, rho, _ = stages.action_magnitude(raw, xi, magnitude)  # (B, J) each
     q, dq = sim.q, sim.dq  # (B, J)
-    rows = JACOBIAN_ROWS[safety.cartesian_clip.rows]
-    dq_clipped = cartesian_clip(dq_step, core.jacobians(q)[:, rows], values.eps_x, 0.01)[0]
+    jacobian_rows = JACOBIAN_ROWS[safety.cartesian_clip.rows]
+    dq_clipped = cartesian_clip(dq_step, core.jacobians(q)[:, jacobian_rows], values.eps_x, 0.01)[0]
     lo, hi = target_bounds(safety)
     q_target = np.clip(q + dq_clipped, lo, hi)  # (B, J)
     limit = np.tile(tau_limit(safety), (num_envs, 1))  # (B, J)
@@ -194,7 +194,7 @@ def make_rows(num_envs: int, config: SafetyBenchConfig) -> list[Row]:
     def stage_3() -> object:
         return cartesian_clip(
             dq_step,
-            core.jacobians(q)[:, rows],
+            core.jacobians(q)[:, jacobian_rows],
             values.eps_x,
             cartesian.damping,
             cartesian.iterations,
