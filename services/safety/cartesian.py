@@ -49,16 +49,19 @@ def excess_motion(dx: np.ndarray, eps_x: float) -> np.ndarray:
 
 
 def damped_least_squares(jacobian: np.ndarray, dx: np.ndarray, damping: float) -> np.ndarray:
-    """Line 5: J^T (J J^T + lambda^2 I)^-1 dx, batched; (B, J) from J (B, R, J), dx (B, R).
+    """Line 5: J^T (J J^T + lambda^2 I)^-1 dx, batched; (B, J) from J (B, R, J), dx (B, R),
+    or (B, J, K) from K motions per environment dx (B, R, K), solved together.
 
     With lambda = 0 the pseudo-inverse replaces the inverse, so a singular J stays defined."""
     rows = jacobian.shape[1]
     gram = jacobian @ jacobian.transpose(0, 2, 1) + damping**2 * np.eye(rows)  # (B, R, R)
+    columns = dx if dx.ndim == 3 else dx[:, :, None]  # (B, R, K)
     if damping > 0.0:
-        y = np.linalg.solve(gram, dx[:, :, None])[:, :, 0]  # (B, R)
+        y = np.linalg.solve(gram, columns)  # (B, R, K)
     else:
-        y = np.einsum("brs,bs->br", np.linalg.pinv(gram), dx)
-    return np.einsum("brj,br->bj", jacobian, y)
+        y = np.linalg.pinv(gram) @ columns
+    joints = jacobian.transpose(0, 2, 1) @ y  # (B, J, K)
+    return joints if dx.ndim == 3 else joints[:, :, 0]
 
 
 def cartesian_clip(

@@ -121,11 +121,10 @@ def action_magnitude(
     if config.space == "paddle":
         if jacobian is None:
             raise ValueError("the paddle action space needs the paddle's Jacobians")
-        scale, damping = twist_scale(config), config.twist_damping  # (6,)
-        nominal = damped_least_squares(
-            jacobian, _unsquashed(raw_dq[:, :6], config.squash) * scale, damping
-        )
-        dq = np.clip(damped_least_squares(jacobian, u_dq[:, :6] * scale, damping), -xi, xi)
+        twists = np.stack([_unsquashed(raw_dq[:, :6], config.squash), u_dq[:, :6]], axis=2)
+        scale = twist_scale(config)[:, None]  # (6, 1)
+        joints = damped_least_squares(jacobian, twists * scale, config.twist_damping)  # (B, J, 2)
+        nominal, dq = joints[:, :, 0], np.clip(joints[:, :, 1], -xi, xi)
     elif config.mode == "scale":
         dq = xi * u_dq  # (B, J)
         nominal = xi * _unsquashed(raw_dq, config.squash)

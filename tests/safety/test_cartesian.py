@@ -59,6 +59,8 @@ def test_dls_matches_the_formula_on_a_random_jacobian() -> None:
         jac = jacobian[env]
         want = jac.T @ np.linalg.inv(jac @ jac.T + 0.01 * np.eye(3)) @ dx[env]
         np.testing.assert_allclose(got[env], want, rtol=1e-10, atol=1e-12)
+    both = damped_least_squares(jacobian, np.stack([dx, -2.0 * dx], axis=2), 0.1)  # (B, J, 2)
+    np.testing.assert_allclose(both, np.stack([got, -2.0 * got], axis=2), rtol=1e-10, atol=1e-12)
 
 
 def test_zero_damping_survives_a_singular_jacobian() -> None:
