@@ -4,6 +4,7 @@ the plain state-based PPO baseline, on the same stage for the same wall-clock bu
     python scripts/ppo_easy.py                       # an hour: docs/results/ppo-easy.json + .png
     python scripts/ppo_easy.py --minutes 10 --out runs/ppo-easy-short   # a shorter try
     python scripts/ppo_easy.py --from-runs           # rewrite the result from finished runs
+    python scripts/ppo_easy.py --minutes 180 --resume  # continue both finished runs to 3 hours each
 
 Both runs go side by side, so each has about one of the machine's two cores (the baseline in
 one process; HAMnet as `hamnet trainer` plus one `hamnet rollout` worker over Zenoh on
@@ -52,9 +53,10 @@ def hamnet(*args: str, log: Path) -> subprocess.Popen:
                             start_new_session=True, cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
 
 
-def train(budget_s: float, runs: Path, seed: int, lag: int, space: str) -> None:
+def train(budget_s: float, runs: Path, seed: int, lag: int, space: str, resume: bool) -> None:
     """Run HAMnet (trainer + one rollout worker, policy lag up to `lag`) and the baseline
-    side by side, both acting in the action space `space`."""
+    side by side, both acting in the action space `space`; with `resume`, both continue from
+    their runs' snapshots (`hamnet trainer --resume`) until `budget_s` over every resume."""
     network = [
         "--namespace",
         f"ppoeasy{os.getpid()}",
@@ -68,15 +70,18 @@ def train(budget_s: float, runs: Path, seed: int, lag: int, space: str) -> None:
     for folder in dirs.values():
         folder.mkdir(parents=True, exist_ok=True)  # names as in main()
     streaming = ["--max-policy-lag", str(lag), *network]
-    worker = hamnet("rollout", "--worker", "0", *common, *streaming, log=runs / "rollout.log")
-    monitor = hamnet(
-        "monitor", "--save", str(runs / "monitor.rrd"), *network, log=runs / "monitor.log"
+    suffix = "-resumed" if resume else ""  # the first hour's logs and view stay beside
+    worker = hamnet(
+        "rollout", "--worker", "0", *common, *streaming, log=runs / f"rollout{suffix}.log"
     )
+    monitor = hamnet("monitor", "--save", str(runs / f"monitor{suffix}.rrd"), *network,
+                     log=runs / f"monitor{suffix}.log")  # fmt: skip
+    folder = "--resume" if resume else "--run-dir"
     trainers = [
-        hamnet("trainer", "--workers", "1", *common, "--run-dir", repository_path(dirs["hamnet"]), *streaming,
-               log=runs / "hamnet.log"),
+        hamnet("trainer", "--workers", "1", *common, folder, repository_path(dirs["hamnet"]), *streaming,
+               log=runs / f"hamnet{suffix}.log"),
         hamnet("trainer", "--inprocess", "--architecture", "state-mlp", *common,
-               "--run-dir", repository_path(dirs["baseline"]), log=runs / "state-mlp.log"),
+               folder, repository_path(dirs["baseline"]), log=runs / f"state-mlp{suffix}.log"),
     ]  # fmt: skip
     try:
         for process in trainers:
@@ -157,11 +162,15 @@ def main() -> int:
     parser.add_argument(
         "--from-runs", action="store_true", help="no training: summarise the runs in --runs"
     )
+    parser.add_argument("--resume", action="store_true",
+                        help="continue both runs in --runs from their snapshots until --minutes in all "
+                        "(the same --seed and --action-space as they started with)")  # fmt: skip
     args = parser.parse_args()
     code = commit()  # the code that trains is the one checked out now
     dirs = {"hamnet": args.runs / "hamnet", "baseline": args.runs / "state-mlp"}
     if not args.from_runs:
-        train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag, args.action_space)
+        train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag, args.action_space,
+              args.resume)  # fmt: skip
     summaries = {
         name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
     }

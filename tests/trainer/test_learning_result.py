@@ -43,3 +43,25 @@ def test_a_short_easy_stage_result_is_written_and_the_baseline_learns(tmp_path: 
     assert window, "the baseline did not reach 400 k transitions in 10 minutes"
     assert statistics.mean(window) >= 0.05
     assert result["median_start_distance_m"] >= 0.15  # the stage's pushes
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_both_runs_continue_from_their_snapshots_with_resume(tmp_path: Path) -> None:
+    """`--resume` continues both runs (HAMnet through its rollout worker, the baseline in
+    process) where they stopped, until `--minutes` over both starts: their transitions go on
+    from the first run's instead of starting again."""
+    script = [sys.executable, str(ROOT / "scripts" / "ppo_easy.py"), "--eval-episodes", "4",
+              "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "result")]  # fmt: skip
+    subprocess.run([*script, "--minutes", "1.5"], check=True, timeout=400)
+    first = json.loads((tmp_path / "result.json").read_text())
+    subprocess.run([*script, "--minutes", "3", "--resume"], check=True, timeout=400)
+    second = json.loads((tmp_path / "result.json").read_text())
+    assert second["env_steps"] > first["env_steps"] > 0
+    assert second["baseline_env_steps"] > first["baseline_env_steps"] > 0
+    assert second["command"].endswith("--resume")
+    for name in ("hamnet", "state-mlp"):
+        rows = [json.loads(line) for line in (tmp_path / "runs" / name / "metrics.jsonl").open()]
+        transitions = [row["env_transitions"] for row in rows]
+        assert all(a < b for a, b in zip(transitions, transitions[1:])), name
+        assert (tmp_path / "runs" / f"{name}-resumed.log").exists()
