@@ -191,7 +191,12 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
         return 2
     if not ranks.main:
         return 0
-    held_out, extra = None, {**algorithm.summary_fields(), "stopped_by_signal": stopped}
+    held_out = None
+    extra = {
+        **algorithm.summary_fields(),
+        "stopped_by_signal": stopped,
+        "commands": runner.commands,
+    }
     if stopped:  # the launcher's grace period leaves no time for the evaluation
         log.info(
             "stopped: checkpoint, metrics and summary written without the held-out "

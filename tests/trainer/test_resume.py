@@ -91,15 +91,21 @@ def test_a_snapshot_of_another_run_is_refused(tmp_path: Path) -> None:
 
 
 def test_hamnet_trainer_resume_continues_the_folder_or_refuses_in_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """`--resume RUN_DIR` appends to RUN_DIR's metrics; other flags than the snapshot's exit
-    with status 2 and one line on stderr instead of a traceback."""
+    """`--resume RUN_DIR` appends to RUN_DIR's metrics and the summary names both commands
+    that made the run; other flags than the snapshot's exit with status 2 and one line on
+    stderr instead of a traceback."""
     tiny = ["--inprocess", "--architecture", "state-mlp", "--sim.num-envs", "2", "--sim.num-objects",
             "2", "--sim.nthread", "1", "--steps-per-rollout", "2", "--eval-episodes", "0"]  # fmt: skip
-    assert main([*tiny, "--max-env-transitions", "4", "--run-dir", str(tmp_path)]) == 0
-    assert main([*tiny, "--max-env-transitions", "8", "--resume", str(tmp_path)]) == 0
+    start = [*tiny, "--max-env-transitions", "4", "--run-dir", str(tmp_path)]
+    resume = [*tiny, "--max-env-transitions", "8", "--resume", str(tmp_path)]
+    for argv in (start, resume):
+        monkeypatch.setattr(sys, "argv", ["hamnet", "trainer", *argv])  # as a user types them
+        assert main(argv) == 0
     assert [row["env_transitions"] for row in rows(tmp_path)] == [4, 8]
+    commands = json.loads((tmp_path / "summary.json").read_text())["commands"]
+    assert commands == [" ".join(["hamnet", "trainer", *argv]) for argv in (start, resume)]
     capsys.readouterr()
     changed = [*tiny, "--sim.num-envs", "4", "--resume", str(tmp_path)]
     assert main(changed) == 2

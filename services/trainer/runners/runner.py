@@ -31,6 +31,7 @@ import torch
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import load_into, read_checkpoint, save_checkpoint
+from hamnet.runtime.runs import command_line
 from hamnet.task.rewards import REWARD_NAMES
 from hamnet.trainer.algorithms.algorithm import Algorithm
 from hamnet.trainer.algorithms.ppo_learner import PPO
@@ -100,6 +101,9 @@ class Runner:
         self.interrupted = False
         """The last `run` was stopped in the middle of an iteration (and went back to its
         start) or while waiting for workers."""
+        self.commands = [command_line("trainer")]
+        """The command lines that made the run: its start, then each resume (a snapshot
+        carries them, so a resumed run's summary says how to repeat all of it)."""
         config.run_dir.mkdir(parents=True, exist_ok=True)
         self.metrics_path = config.run_dir / "metrics.jsonl"
         if saved is not None:
@@ -188,6 +192,7 @@ class Runner:
             "counters": counters,
             "run": snapshots.as_json(self.config.identity),
             "algo": self.algorithm.name,
+            "commands": self.commands,
         }
 
     def state(self) -> Snapshot:
@@ -233,6 +238,8 @@ class Runner:
         except ValueError as error:
             raise ResumeError(f"cannot resume {self.config.run_dir}: {error}") from None
         self.restore_parts(arrays, meta)
+        # Snapshots written before the commands were recorded carry none.
+        self.commands = [*meta.get("commands", []), *self.commands[-1:]]
         if self.ranks.main:
             snapshots.trim_metrics(self.metrics_path, self.iteration)
 
