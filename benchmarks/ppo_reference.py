@@ -182,8 +182,9 @@ def curve(episodes: list[tuple[int, float]], env_steps: int, bins: int) -> list[
 
 
 def diagnostics(updates: list[dict[str, float]]) -> dict[str, float]:
-    """Means over the updates of the figures both implementations log."""
-    keys = ("approx_kl", "clip_fraction", "value_loss", "explained_variance")
+    """Means over the updates of the figures both implementations log, and of ours alone
+    the agreement of two independent half-minibatches' actor gradients (SB3 has none)."""
+    keys = ("approx_kl", "clip_fraction", "value_loss", "explained_variance", "gradient_agreement")
     return {
         k: float(np.nanmean([u[k] for u in updates])) for k in keys if updates and k in updates[0]
     }
