@@ -207,7 +207,11 @@ def main() -> int:
         "command": " ".join(
             ["python", "scripts/ppo_easy.py", *(a for a in sys.argv[1:] if a != "--from-runs")]
         ),
-        "run_commands": {"hamnet": ours["command"], "baseline": baseline["command"]},
+        # Every command that made each run (its start and resumes; older summaries: the last).
+        "run_commands": {
+            name: summary.get("commands", [summary["command"]])
+            for name, summary in summaries.items()
+        },
         "setup": "both runs side by side on the 2-core machine (about one core each); HAMnet as "
         f"hamnet trainer + one hamnet rollout worker over Zenoh on loopback, policy lag up to {args.max_policy_lag}",
         "seed": args.seed,
