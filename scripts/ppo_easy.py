@@ -137,7 +137,7 @@ def plot(curves: dict[str, list[dict]], finals: dict[str, float], out: Path) -> 
         axis.grid(alpha=0.3)
         axis.legend()
     figure.suptitle(
-        "PPO on the easy stage: HAMnet through a rollout worker vs state-based MLP, same hour"
+        "PPO on the easy stage: HAMnet through a rollout worker vs state-based MLP, same wall clock"
     )
     figure.tight_layout()
     figure.savefig(out, dpi=100)
