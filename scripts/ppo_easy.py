@@ -76,12 +76,12 @@ def train(budget_s: float, runs: Path, seed: int, lag: int, space: str, resume: 
     )
     monitor = hamnet("monitor", "--save", str(runs / f"monitor{suffix}.rrd"), *network,
                      log=runs / f"monitor{suffix}.log")  # fmt: skip
-    folder = "--resume" if resume else "--run-dir"
+    run_flag = "--resume" if resume else "--run-dir"
     trainers = [
-        hamnet("trainer", "--workers", "1", *common, folder, repository_path(dirs["hamnet"]), *streaming,
+        hamnet("trainer", "--workers", "1", *common, run_flag, repository_path(dirs["hamnet"]), *streaming,
                log=runs / f"hamnet{suffix}.log"),
         hamnet("trainer", "--inprocess", "--architecture", "state-mlp", *common,
-               folder, repository_path(dirs["baseline"]), log=runs / f"state-mlp{suffix}.log"),
+               run_flag, repository_path(dirs["baseline"]), log=runs / f"state-mlp{suffix}.log"),
     ]  # fmt: skip
     try:
         for process in trainers:

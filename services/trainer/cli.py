@@ -191,12 +191,7 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
         return 2
     if not ranks.main:
         return 0
-    held_out = None
-    extra = {
-        **algorithm.summary_fields(),
-        "stopped_by_signal": stopped,
-        "commands": runner.commands,
-    }
+    held_out, extra = None, {**algorithm.summary_fields(), "stopped_by_signal": stopped}
     if stopped:  # the launcher's grace period leaves no time for the evaluation
         log.info(
             "stopped: checkpoint, metrics and summary written without the held-out "
@@ -213,7 +208,7 @@ def learn(config: TrainerConfig, identity: ServiceIdentity, code: str, ranks: Ra
             held_out.success_rate,
             held_out.goal_return,
         )
-    print(write_summary(runner.config, held_out, code, extra))
+    print(write_summary(runner.config, held_out, code, runner.commands, extra))
     return 0
 
 

@@ -5,7 +5,7 @@ arm), a constant twist of 1.5 cm per policy step upwards (free motion, no contac
 paddle lags the first step (0.3 of the asked motion at the largest stiffness) and settles by
 the fourth at 0.72 of it at kp_u = +1, 0.51 at kp_u = 0 and 0.09 at kp_u = -1 (medians over
 32 environments; the target is the measured posture plus the residual, so a steady twist
-is tracked at a steady fraction). The policy's stiffness components therefore decide
+is tracked at a steady fraction; the test plays 16). The policy's stiffness components therefore decide
 whether its twist moves the arm at all: at the smallest stiffness it barely does.
 """
 

@@ -10,7 +10,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from hamnet.runtime.runs import command_line, read_metrics
+from hamnet.runtime.runs import read_metrics
 from hamnet.trainer.results.evaluate import HeldOut
 from hamnet.trainer.runners.run_config import RunConfig, stage_sim
 
@@ -34,11 +34,16 @@ DAGGER_KEYS = ("beta", "student_share", "imitation_loss", "student_episode_succe
 
 
 def write_summary(
-    config: RunConfig, held_out: HeldOut | None, code: str, extra: dict[str, object] | None = None
+    config: RunConfig,
+    held_out: HeldOut | None,
+    code: str,
+    commands: list[str],
+    extra: dict[str, object] | None = None,
 ) -> Path:
     """Write `<run_dir>/summary.json` from the run's metrics, trained by the code of commit
-    `code` (taken when the run started: the checkout may move while it runs); `extra` adds
-    fields (a DAgger run's teacher and both held-out success rates)."""
+    `code` (taken when the run started: the checkout may move while it runs) and made by
+    `commands` (its start, then each resume: `Runner.commands`); `extra` adds fields (a
+    DAgger run's teacher and both held-out success rates)."""
     rows = read_metrics(config.run_dir)
     stride = max(1, len(rows) // CURVE_POINTS)
     keys = ("env_transitions", "wall_clock_s", "success_rate", "return/total", "episode_length")
@@ -63,7 +68,8 @@ def write_summary(
         "env_steps": rows[-1]["env_transitions"] if rows else 0,
         "wall_clock_s": rows[-1]["wall_clock_s"] if rows else 0.0,
         "curve": [{key: row.get(key) for key in keys} for row in rows[::stride]],
-        "command": command_line("trainer"),
+        "command": commands[-1],
+        "commands": commands,
         "seed": config.seed,
         "commit": code,
         **(extra or {}),
