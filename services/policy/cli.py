@@ -43,8 +43,9 @@ class PolicyServiceConfig:
     checkpoint: Annotated[Path | None, tyro.conf.arg(aliases=("--weights",))] = None
     """safetensors checkpoint written by the trainer (architecture, config and version are
     in its metadata), or the name of a policy shipped in the package (easy-teacher: PPO on
-    the easy stage; easy-student: distilled from it, deployable inputs; see
-    docs/results/). Required unless --random-init or --print-params."""
+    the easy stage; easy-student: distilled from it, deployable inputs; easy-paddle: PPO in
+    the paddle-twist action space; easy-paddle-student: distilled from it; see
+    docs/policy.md). Required unless --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and
     demos only: one of hamnet, hamnet-paper, hamnet-nogate, hamnet-envcode, mlp, hyper, sm,

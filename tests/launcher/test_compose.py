@@ -20,6 +20,7 @@ from hamnet.launcher.argv import service_argv
 from hamnet.launcher.cli import main
 from hamnet.launcher.stack import load
 from hamnet.perception.config import student_clouds
+from hamnet.policy.shipped import read_card
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE = ROOT / "compose"
@@ -56,10 +57,13 @@ def test_real_differs_from_eval_only_where_the_real_robot_needs_it() -> None:
 @pytest.mark.parametrize("name", ["eval.yaml", "real.yaml"])
 def test_evaluation_stacks_serve_the_student(name: str) -> None:
     """The deployable student is the default (issue 15), shipped in the package so that a
-    fresh clone serves it (issue 28), by its mean."""
+    fresh clone serves it (issue 28), by its mean, through a safety filter reading its
+    action space (a filter in another space drops every action)."""
     services = load(COMPOSE / name).services
-    assert services["policy"].args["weights"] == "easy-student"
+    assert services["policy"].args["weights"] == "easy-paddle-student"
     assert services["policy"].args["deterministic"] is True
+    space = services["safety"].args["safety.action-magnitude.space"]
+    assert space == read_card("easy-paddle-student")["action_space"]
 
 
 def test_the_simulated_evaluation_gives_the_student_the_clouds_it_was_distilled_on() -> None:

@@ -14,6 +14,7 @@ import torch
 from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
 from hamnet.perception.core import Perception
 from hamnet.perception.unicorn import UniCORN
+from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.registry import build
 from hamnet.policy.rollout_record import merge_environments
 from hamnet.policy.weights import read_checkpoint
@@ -235,7 +236,9 @@ def test_the_runner_learns_the_critic_at_its_own_rate(tmp_path: Path) -> None:
     assert any(p is runner.policy.log_std for p in groups[0]["params"])  # learned by default
 
 
-def test_the_update_takes_every_core_while_the_environments_wait(tmp_path: Path, monkeypatch) -> None:
+def test_the_update_takes_every_core_while_the_environments_wait(
+    tmp_path: Path, monkeypatch
+) -> None:
     """In process the environments stand still while the trainer learns: the update runs on
     every core (`learner_threads` 0), then acting goes back to one thread; a number given
     is kept."""
@@ -255,3 +258,23 @@ def test_the_update_takes_every_core_while_the_environments_wait(tmp_path: Path,
         runner.iterate()  # fills the input statistics
         runner.iterate()
         assert seen.pop() == expected and torch.get_num_threads() == 1
+
+
+def test_a_held_out_student_reads_the_pose_estimate_error_it_is_given(monkeypatch) -> None:
+    """`evaluate(pose_noise=...)` replaces the worker's estimate error (scripts/
+    student_inputs.py measures what the error costs a student); without it the student
+    reads the error it was trained with."""
+    built = []
+    original = evaluate_module.held_out_worker
+
+    def spy(*args, **kwargs) -> RolloutWorker:
+        built.append(original(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(evaluate_module, "held_out_worker", spy)
+    policy = build("student", seed=0)
+    config = RunConfig(architecture="student", sim=tiny_sim(), steps_per_rollout=4)
+    exact = PoseNoiseConfig(position_std=0.0, rotation_std=0.0)
+    evaluate(policy, config, episodes=2, env_transitions=0, pose_noise=exact)
+    evaluate(policy, config, episodes=2, env_transitions=0)
+    assert [w.pose_noise for w in built] == [exact, PoseNoiseConfig()]

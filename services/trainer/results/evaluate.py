@@ -23,6 +23,7 @@ import torch
 
 from hamnet.messages.robot_state import Observation
 from hamnet.perception.config import CloudConfig
+from hamnet.policy.observation import PoseNoiseConfig
 from hamnet.policy.policy import Policy
 from hamnet.policy.registry import architecture
 from hamnet.sim.env import StepResult
@@ -64,6 +65,7 @@ def evaluate(
     episodes: int,
     env_transitions: int,
     clouds: CloudConfig | None = None,
+    pose_noise: PoseNoiseConfig | None = None,
 ) -> HeldOut:
     """Success rate and goal return of `episodes` held-out episodes, one per environment.
 
@@ -75,11 +77,15 @@ def evaluate(
         env_transitions: the schedule counter of the policy (safety's xi annealing).
         clouds: how perception samples clouds (default: every surface; a DAgger student
             sees them as the cameras do).
+        pose_noise: the error of a student's object pose estimate (default: the worker's,
+            as it was trained; zero stds measure what the estimate's error costs).
     """
     acting = dataclasses.replace(
         config, architecture=policy.architecture, action_space=policy.config.action_space
     )
     worker = held_out_worker(acting, episodes, clouds)
+    if pose_noise is not None:
+        worker.pose_noise = pose_noise
     policy.eval()
 
     def step() -> StepResult:
