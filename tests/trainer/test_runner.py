@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from hamnet.perception.checkpoint import SHIPPED_ENCODER, load_checkpoint
@@ -129,8 +130,22 @@ def test_the_state_baseline_trains_without_perception(tmp_path: Path) -> None:
     )
 
 
+@pytest.fixture
+def held_out_workers(monkeypatch) -> list[RolloutWorker]:
+    """The workers `evaluate` builds from now on, in order."""
+    built: list[RolloutWorker] = []
+    original = evaluate_module.held_out_worker
+
+    def spy(*args, **kwargs) -> RolloutWorker:
+        built.append(original(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(evaluate_module, "held_out_worker", spy)
+    return built
+
+
 def test_a_paddle_space_run_carries_its_space_to_filters_weights_and_evaluation(
-    tmp_path: Path, monkeypatch
+    tmp_path: Path, held_out_workers: list[RolloutWorker]
 ) -> None:
     """`--action-space paddle`: the policy's config, every worker's filter and the
     checkpoint say "paddle", and the held-out evaluation of those weights acts through a
@@ -144,16 +159,8 @@ def test_a_paddle_space_run_carries_its_space_to_filters_weights_and_evaluation(
     runner.run()
     weights = read_checkpoint(tmp_path / "checkpoints" / "latest.safetensors")
     assert weights.config.action_space == "paddle"
-    built = []
-    original = evaluate_module.held_out_worker
-
-    def spy(*args, **kwargs) -> RolloutWorker:
-        built.append(original(*args, **kwargs))
-        return built[-1]
-
-    monkeypatch.setattr(evaluate_module, "held_out_worker", spy)
     evaluate(runner.policy, dataclasses.replace(config, action_space="joint"), 2, 0)
-    assert [w.safety.config.action_magnitude.space for w in built] == ["paddle"]
+    assert [w.safety.config.action_magnitude.space for w in held_out_workers] == ["paddle"]
 
 
 def test_overlapped_collection_equals_each_worker_collecting_alone() -> None:
@@ -260,21 +267,15 @@ def test_the_update_takes_every_core_while_the_environments_wait(
         assert seen.pop() == expected and torch.get_num_threads() == 1
 
 
-def test_a_held_out_student_reads_the_pose_estimate_error_it_is_given(monkeypatch) -> None:
+def test_a_held_out_student_reads_the_pose_estimate_error_it_is_given(
+    held_out_workers: list[RolloutWorker],
+) -> None:
     """`evaluate(pose_noise=...)` replaces the worker's estimate error (scripts/
     student_inputs.py measures what the error costs a student); without it the student
     reads the error it was trained with."""
-    built = []
-    original = evaluate_module.held_out_worker
-
-    def spy(*args, **kwargs) -> RolloutWorker:
-        built.append(original(*args, **kwargs))
-        return built[-1]
-
-    monkeypatch.setattr(evaluate_module, "held_out_worker", spy)
     policy = build("student", seed=0)
     config = RunConfig(architecture="student", sim=tiny_sim(), steps_per_rollout=4)
     exact = PoseNoiseConfig(position_std=0.0, rotation_std=0.0)
     evaluate(policy, config, episodes=2, env_transitions=0, pose_noise=exact)
     evaluate(policy, config, episodes=2, env_transitions=0)
-    assert [w.pose_noise for w in built] == [exact, PoseNoiseConfig()]
+    assert [w.pose_noise for w in held_out_workers] == [exact, PoseNoiseConfig()]
