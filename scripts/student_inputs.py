@@ -1,9 +1,9 @@
 """What a shipped student's deployable inputs cost it: its held-out success on its result's
 episodes with the clouds and the object pose as deployed (the cameras' view with noise and
 dropout; the estimate's error) and with either or both exact (every surface without noise;
-the true pose). Equal rates mean the student's distance from its teacher comes from what
-it cannot observe at all (the teacher's privileged physics and object velocity), not from
-the sensors' error.
+the true pose). Equal rates mean the sensors' error is not what keeps the student from its
+teacher: the rest is its own fit, chiefly of what it cannot observe at all (the teacher's
+privileged physics and object velocity).
 
     python scripts/student_inputs.py easy-paddle-student
 

@@ -19,6 +19,7 @@ import yaml
 
 from hamnet.fr3.limits import FR3
 from hamnet.launcher.certs_cli import main as certs
+from hamnet.launcher.stack import load
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import save_checkpoint
 from hamnet.proto.common_pb2 import Header
@@ -40,15 +41,9 @@ brake takes depends on how fast franky-sim steps on the loaded machine, so the t
 for them rather than a fixed time (test_franky_stack.py times the watchdog's stop)."""
 
 
-def action_space(document: dict) -> str:
-    """The action space the stack's safety filter reads (it drops actions of another)."""
-    return (
-        document["services"]["safety"].get("args", {}).get("safety.action-magnitude.space", "joint")
-    )
-
-
-SPACE = action_space(yaml.safe_load((COMPOSE / "real.yaml").read_text()))
-"""The action space of real.yaml's policy: the broken policy's NaN action is in it too."""
+SPACE = load(COMPOSE / "real.yaml").services["safety"].args["safety.action-magnitude.space"]
+"""The action space real.yaml's safety filter reads (it drops actions of another): the test's
+student acts in it, and so does the broken policy's NaN action."""
 
 
 def real_stack(folder: Path, host: str) -> tuple[Path, str]:
@@ -64,9 +59,8 @@ def real_stack(folder: Path, host: str) -> tuple[Path, str]:
     services["camera"]["args"] = {"source": "sim"}
     services["perception"]["args"].update(segmenter="mask")
     # Random weights at PyTorch's initialization, whose mean drives the arm (an orthogonal
-    # output layer, the default, starts it near 0 and the test must see the arm follow), in
-    # the action space the stack's safety filter reads (it drops actions of another).
-    config = with_changes("student", init="torch", action_space=action_space(document))
+    # output layer, the default, starts it near 0 and the test must see the arm follow).
+    config = with_changes("student", init="torch", action_space=SPACE)
     weights = folder / "student.safetensors"
     save_checkpoint(weights, build("student", config, seed=0), 1)
     services["policy"]["args"] = {"weights": str(weights), "deterministic": True}
