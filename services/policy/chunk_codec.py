@@ -21,6 +21,7 @@ import torch
 from torch import Tensor
 
 from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import VELOCITY_WIDTH
 from hamnet.policy.policy import Policy
 from hamnet.policy.rollout_record import RolloutLike
 from hamnet.proto.common_pb2 import Header
@@ -115,14 +116,15 @@ def decode_batch(
     policy: Policy,
 ) -> RolloutLike:
     """The `kind` in `chunk`, checked for `policy` as `decode_rollout` says; `shapes`: its
-    fields other than the inputs by their dimensions' letters (T, B, A, R; one (T, B, A)
-    field, which the policy's check evaluates), `flags`: those that are bool."""
+    fields other than the inputs by their dimensions' letters (T, B, A, R, V the object's
+    velocity; one (T, B, A) field, which the policy's check evaluates), `flags`: those that
+    are bool."""
     steps, terms, action_dim = chunk.horizon, len(REWARD_NAMES), policy.config.action_dim
     missing = [name for name in shapes if name not in chunk.tensors]
     if missing or steps < 1:
         raise PayloadError("missing", f"RolloutChunk lacks {missing} (horizon {steps})")
     batch = int(chunk.tensors["dones"].shape[-1]) if chunk.tensors["dones"].shape else 0
-    sizes = {"T": steps, "B": batch, "A": action_dim, "R": terms}
+    sizes = {"T": steps, "B": batch, "A": action_dim, "R": terms, "V": VELOCITY_WIDTH}
     fields = {
         name: _array(
             chunk, name, bool if name in flags else np.float32, tuple(sizes[d] for d in dims)

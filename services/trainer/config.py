@@ -166,6 +166,12 @@ class DaggerConfig:
     """Weight of the value loss (0.5 x squared error to the teacher's values per reward
     term); 0: off. The deployed student needs no critic; on, it gives the student a critic
     for fine-tuning by PPO later."""
+    velocity_coef: float = 0.0
+    """Weight of the velocity loss (`dagger.VelocityReadout`: the object's true velocity
+    read linearly from the student's memory, squared error in the teacher's standardised
+    units); 0: off, no read-out. The teacher relies on the object's velocity and the student
+    must infer it from pose estimates (`scripts/teacher_privileged.py`); on, the loss asks
+    its memory to hold it."""
 
     def __post_init__(self) -> None:
         for name in ("beta_initial", "beta_final"):
@@ -173,8 +179,10 @@ class DaggerConfig:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         if self.beta_decay_transitions < 0 or self.epochs < 1:
             raise ValueError("beta_decay_transitions must be >= 0 and epochs >= 1")
-        if not (self.lr > 0 and self.max_grad_norm > 0 and self.value_coef >= 0):
-            raise ValueError("lr and max_grad_norm must be > 0, value_coef >= 0")
+        if not (self.lr > 0 and self.max_grad_norm > 0):
+            raise ValueError("lr and max_grad_norm must be > 0")
+        if not (self.value_coef >= 0 and self.velocity_coef >= 0):
+            raise ValueError("value_coef and velocity_coef must be >= 0")
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -15,7 +16,12 @@ import torch
 from hamnet.policy.registry import build, with_changes
 from hamnet.policy.weights import policy_from, read_checkpoint, save_checkpoint
 from hamnet.sim.stages import stage_config
-from hamnet.trainer.algorithms.dagger import beta_at, imitation_loss, update_student
+from hamnet.trainer.algorithms.dagger import (
+    VelocityReadout,
+    beta_at,
+    imitation_loss,
+    update_student,
+)
 from hamnet.trainer.algorithms.dagger_learner import Dagger
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from hamnet.trainer.algorithms.teacher import load_teacher
@@ -24,9 +30,11 @@ from hamnet.trainer.collection.dagger_worker import build_dagger_worker
 from hamnet.trainer.collection.sources import build_workers
 from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.rollout_cli import main as rollout_main
+from hamnet.trainer.runners.progress import dagger_line
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
 from hamnet.trainer.runners.snapshots import ResumeError
+from tests.policy.inputs import informed
 
 B = 4
 STEPS = 4
@@ -67,7 +75,11 @@ def test_labels_are_the_teachers_mean_where_it_acts_and_where_the_student_does(
     teacher, student = load_teacher(teacher_file).policy, build("student", seed=0).eval()
     config = tiny_run(tmp_path)
     always = DaggerConfig(beta_initial=1.0, beta_final=1.0)
-    demos = build_dagger_worker(config, teacher).collect(teacher, student, STEPS, 0, always)
+    worker = build_dagger_worker(config, teacher)
+    first_velocity = torch.as_tensor(worker.observation.object_velocity).clone()
+    demos = worker.collect(teacher, student, STEPS, 0, always)
+    assert demos.object_velocity.shape == (STEPS, B, 6)
+    torch.testing.assert_close(demos.object_velocity[0], first_velocity)
     (plain,), _ = build_workers(dataclasses.replace(config, architecture="hamnet"), groups=1)
     reference = plain.collect(teacher, STEPS, 0, deterministic=True)
     assert demos.teacher_acted.all()
@@ -113,6 +125,56 @@ def test_the_imitation_loss_falls_on_a_fixed_batch_and_on_held_states(
     assert held_loss() < 0.5 * before
 
 
+def test_the_velocity_loss_is_in_the_teachers_standardised_units() -> None:
+    """A read-out that gives the teacher's mean velocity scores the velocities' spread in the
+    teacher's units (1 where they spread as the teacher's statistics say), an exact one 0."""
+    teacher = informed("hamnet")
+    readout = VelocityReadout(8, teacher)
+    assert readout.mean.shape == readout.std.shape == (6,)
+    memories = torch.randn(64, 32, 8)
+    as_the_teacher_saw = readout.mean + readout.std * torch.randn(64, 32, 6)
+    with torch.no_grad():
+        readout.linear.weight.zero_()
+        readout.linear.bias.zero_()
+        assert readout.loss(memories, as_the_teacher_saw).item() == pytest.approx(1.0, abs=0.05)
+        twice_the_spread = 2 * as_the_teacher_saw - readout.mean
+        assert readout.loss(memories, twice_the_spread).item() == pytest.approx(4.0, abs=0.3)
+        readout.linear.weight.normal_(std=0.1)  # within the clip
+        exact = readout.mean + readout.std * readout.linear(memories)
+        assert readout.loss(memories, exact).item() < 1e-10
+
+
+def test_the_velocity_loss_teaches_the_students_memory(tmp_path: Path, teacher_file: Path) -> None:
+    """Its gradient reaches the student's recurrent layers, and updates with it on lower it
+    on their batch; without a read-out the update reports NaN. (A random teacher hardly
+    moves the objects in 4 steps: the targets are a linear function of the student's first
+    memories, spread as the teacher's statistics say, which a read-out can learn.)"""
+    teacher, student = informed("hamnet"), build("student", seed=0)
+    config = DaggerConfig(beta_initial=0.5, beta_final=0.5, epochs=30, lr=1e-3, velocity_coef=1.0)
+    batch = build_dagger_worker(tiny_run(tmp_path, timeout=3), teacher).collect(
+        teacher, student.eval(), STEPS, 0, config
+    )
+    readout = VelocityReadout(student.memory_width, teacher)
+    starts = episode_starts(batch.dones, batch.first)
+    with torch.no_grad():
+        memories = evaluate_sequence(student, batch.inputs, batch.labels, starts).memories
+        drawn = torch.nn.Linear(student.memory_width, 6)(memories)
+        drawn = (drawn - drawn.mean((0, 1))) / drawn.std((0, 1))
+    batch = dataclasses.replace(batch, object_velocity=readout.mean + readout.std * drawn)
+
+    def loss() -> torch.Tensor:
+        out = evaluate_sequence(student, batch.inputs, batch.labels, starts)
+        return readout.loss(out.memories, batch.object_velocity)
+
+    recurrent = [p for name, p in student.named_parameters() if "gru" in name]
+    assert recurrent and any(g.abs().sum() > 0 for g in torch.autograd.grad(loss(), recurrent))
+    before = loss().item()
+    optimizer = torch.optim.Adam([*student.parameters(), *readout.parameters()], lr=1e-3)
+    update_student(student, optimizer, batch, config, readout)
+    assert loss().item() < 0.5 * before
+    assert math.isnan(update_student(student, optimizer, batch, DaggerConfig()).velocity_loss)
+
+
 def rows(run_dir: Path) -> list[dict[str, float]]:
     return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
 
@@ -122,9 +184,9 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
 ) -> None:
     """4 iterations in one go vs 2, a snapshot, 2 more in a new runner: equal metrics and
     student weights. A 3-step timeout and a beta that falls within the run make episodes end
-    and who acts them be drawn on both sides of the snapshot. PPO and another teacher are
-    refused."""
-    dagger = DaggerConfig(beta_decay_transitions=3 * B * STEPS)
+    and who acts them be drawn on both sides of the snapshot; the velocity loss's read-out
+    is resumed too. PPO, another teacher and another velocity loss are refused."""
+    dagger = DaggerConfig(beta_decay_transitions=3 * B * STEPS, velocity_coef=0.5)
     teacher = load_teacher(teacher_file)
     whole = Runner(tiny_run(tmp_path / "whole", 4, timeout=3), algorithm=Dagger(teacher, dagger))
     whole.run()
@@ -140,7 +202,7 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
     for want, have in zip(expected, got, strict=True):
         for key in ("env_transitions", "beta", "student_share", "imitation_loss",
                     "imitation_loss_after", "episodes", "success_rate", "return/total",
-                    "student_episodes"):  # fmt: skip
+                    "student_episodes", "velocity_loss"):  # fmt: skip
             assert have[key] == want[key], key
     for name, tensor in whole.policy.state_dict().items():
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
@@ -154,6 +216,12 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
             tiny_run(tmp_path / "split", 4, timeout=3),
             resume=True,
             algorithm=Dagger(load_teacher(other), dagger),
+        )
+    with pytest.raises(ResumeError, match="with a velocity loss"):
+        Runner(
+            tiny_run(tmp_path / "split", 4, timeout=3),
+            resume=True,
+            algorithm=Dagger(teacher, dataclasses.replace(dagger, velocity_coef=0.0)),
         )
 
 
@@ -213,3 +281,13 @@ def test_a_dagger_worker_without_a_usable_teacher_is_one_line_and_status_2(
         assert rollout_main([*TINY, *args]) == 2, message
         error = capsys.readouterr().err
         assert error.count("\n") == 1 and message in error, error
+
+
+def test_the_progress_line_shows_the_velocity_loss_only_when_it_is_on() -> None:
+    row = {"iteration": 3, "env_transitions": 1536, "env_steps_per_s": 150.0, "beta": 0.5,
+           "student_share": 0.5, "imitation_loss": 0.004, "success_rate": 0.1, "episodes": 20,
+           "velocity_loss": math.nan}  # fmt: skip
+    assert "velocity" not in dagger_line(row)
+    assert "imitation 0.0040 | velocity 0.250 | success" in dagger_line(
+        {**row, "velocity_loss": 0.25}
+    )

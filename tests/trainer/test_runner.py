@@ -30,6 +30,7 @@ from hamnet.trainer.results import evaluate as evaluate_module
 from hamnet.trainer.results.evaluate import evaluate, success_rate
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
+from tests.policy.inputs import informed
 
 B = 2
 
@@ -279,3 +280,23 @@ def test_a_held_out_student_reads_the_pose_estimate_error_it_is_given(
     evaluate(policy, config, episodes=2, env_transitions=0, pose_noise=exact)
     evaluate(policy, config, episodes=2, env_transitions=0)
     assert [w.pose_noise for w in held_out_workers] == [exact, PoseNoiseConfig()]
+
+
+def test_a_held_out_policy_reads_every_observation_as_edited() -> None:
+    """`evaluate(edit=...)` changes each observation before the policy reads it (scripts/
+    teacher_privileged.py measures what a teacher's inputs are worth): a teacher whose
+    object velocity is replaced acts differently on the same episodes, and the edit sees
+    the first observation and every one after a step."""
+    policy = informed("state-mlp")
+    config = RunConfig(architecture="state-mlp", sim=tiny_sim(), steps_per_rollout=4)
+    read = []
+
+    def edit(observation) -> None:
+        read.append(observation.episode_step.copy())
+        observation.object_velocity[...] = 100.0
+
+    edited = evaluate(policy, config, episodes=2, env_transitions=0, edit=edit)
+    plain = evaluate(policy, config, episodes=2, env_transitions=0)
+    np.testing.assert_array_equal(read[0], 0)
+    assert len(read) >= 2 and (read[1] == 1).all()
+    assert not np.allclose(edited.final_distance, plain.final_distance)

@@ -64,7 +64,9 @@ def test_sequence_evaluation_equals_the_step_by_step_rollout():
     torch.testing.assert_close(
         seq.log_prob, torch.stack([o.log_prob for o in acted]), rtol=1e-5, atol=1e-4
     )
-    torch.testing.assert_close(seq.memory, acted[-1].memory, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(
+        seq.memories, torch.stack([o.memory for o in acted]), rtol=1e-5, atol=1e-5
+    )
 
 
 def test_a_missing_reset_changes_the_outputs():

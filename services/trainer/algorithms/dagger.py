@@ -16,6 +16,7 @@ import torch
 from torch import Tensor
 
 from hamnet.policy.networks import PolicyInputs
+from hamnet.policy.observation import VELOCITY_WIDTH
 from hamnet.policy.policy import Policy
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from hamnet.trainer.config import DaggerConfig
@@ -50,6 +51,9 @@ class Demonstrations:
     """(T, B) bool: the episode ended at this step."""
     success: Tensor
     """(T, B) bool: the episode ended in success at this step."""
+    object_velocity: Tensor
+    """(T, B, 6) the object's true velocity in every visited state (linear m/s, angular
+    rad/s; the teacher's privileged input, the optional velocity loss's target)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +69,9 @@ class ImitationStats:
     """The value loss at the last step (computed even when its weight is 0)."""
     gradient_norm: float
     """Global gradient norm before clipping, at the last step."""
+    velocity_loss: float
+    """The velocity read-out's loss at the last step (`VelocityReadout.loss`; NaN without
+    one)."""
 
 
 def imitation_loss(mean: Tensor, labels: Tensor) -> Tensor:
@@ -80,16 +87,45 @@ def value_loss(values: Tensor, targets: Tensor) -> Tensor:
     return 0.5 * (values - targets).square().sum(-1).mean()
 
 
+class VelocityReadout(torch.nn.Module):
+    """A linear read-out of the object's velocity from the student's memory, for the
+    velocity loss: the teacher relies on the object's velocity, which the student must infer
+    from its history of pose estimates (docs/trainer.md, "What a teacher's privileged inputs
+    are worth"); the loss's gradient asks the student's memory to hold it. Training only:
+    the student's checkpoint does not carry it."""
+
+    def __init__(self, memory_width: int, teacher: Policy) -> None:
+        """`teacher`'s input statistics of the velocity (fixed from now on) set the loss's
+        units: the velocity as the teacher reads it."""
+        super().__init__()
+        self.linear = torch.nn.Linear(memory_width, VELOCITY_WIDTH)
+        normalizer, spec = teacher.normalizer, teacher.config.observation
+        state = spec.columns("base", "object_state")
+        columns = slice(state.stop - VELOCITY_WIDTH, state.stop)  # the pose, then the velocity
+        self.register_buffer("mean", normalizer.base_mean[columns].clone())
+        self.register_buffer("std", (normalizer.base_var[columns] + normalizer.eps).sqrt())
+        self.clip = normalizer.clip
+
+    def loss(self, memories: Tensor, velocity: Tensor) -> Tensor:
+        """Mean squared error of the read-out of (T, B, H) `memories` against the (T, B, 6)
+        true `velocity`, both standardised (and clipped) as the teacher standardises its
+        input: about 1 for a read-out no better than the teacher's mean velocity, 0 exact."""
+        target = ((velocity - self.mean) / self.std).clamp(-self.clip, self.clip)
+        return (self.linear(memories) - target).square().mean()
+
+
 def update_student(
     student: Policy,
     optimizer: torch.optim.Optimizer,
     batch: Demonstrations,
     config: DaggerConfig,
+    readout: VelocityReadout | None = None,
 ) -> ImitationStats:
     """`config.epochs` Adam steps on the whole window, each unrolling the student's GRUs over
-    the T steps with their memory reset where an episode starts (`evaluate_sequence`)."""
+    the T steps with their memory reset where an episode starts (`evaluate_sequence`);
+    with `readout` (in `optimizer`), the velocity loss at `config.velocity_coef` too."""
     starts = episode_starts(batch.dones, batch.first)
-    parameters = list(student.parameters())
+    parameters = list(student.parameters()) + (list(readout.parameters()) if readout else [])
     for group in optimizer.param_groups:
         group["lr"] = config.lr
     student.train()
@@ -98,9 +134,15 @@ def update_student(
         out = evaluate_sequence(student, batch.inputs, batch.labels, starts)
         actions = imitation_loss(out.mean, batch.labels)
         values = value_loss(out.values, batch.label_values)
+        velocity = (
+            readout.loss(out.memories, batch.object_velocity)
+            if readout is not None
+            else torch.tensor(torch.nan)
+        )
         first = actions.item() if first is None else first
         optimizer.zero_grad(set_to_none=True)
-        (actions + config.value_coef * values).backward()
+        loss = actions + config.value_coef * values
+        (loss + config.velocity_coef * velocity if readout is not None else loss).backward()
         norm = torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
         optimizer.step()
-    return ImitationStats(first, actions.item(), values.item(), float(norm))
+    return ImitationStats(first, actions.item(), values.item(), float(norm), velocity.item())

@@ -29,7 +29,12 @@ from hamnet.policy.policy import Policy
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime import contract
 from hamnet.runtime.compute import torch_threads
-from hamnet.trainer.algorithms.dagger import Demonstrations, beta_at, update_student
+from hamnet.trainer.algorithms.dagger import (
+    Demonstrations,
+    VelocityReadout,
+    beta_at,
+    update_student,
+)
 from hamnet.trainer.algorithms.teacher import Teacher, check_student
 from hamnet.trainer.collection.dagger_worker import InProcessDagger
 from hamnet.trainer.collection.sources import Collected, RolloutSource
@@ -91,9 +96,19 @@ class Dagger:
         return demonstrations_decoder(self.teacher.sha256)(policy)
 
     def start(self, policy: Policy, envs: int, ranks: Ranks = ONE, threads: int = 1) -> None:
-        """The student is `policy`; DAgger learns from one rank."""
+        """The student is `policy`; DAgger learns from one rank. With a velocity loss, its
+        linear read-out of the student's memory learns beside it (training only: the
+        checkpoint is the student's)."""
         self.student, self.threads = policy, threads
-        self.optimizer = torch.optim.Adam(policy.parameters(), lr=self.dagger.lr)
+        self.readout = (
+            VelocityReadout(policy.memory_width, self.teacher.policy)
+            if self.dagger.velocity_coef > 0
+            else None
+        )
+        learned = list(policy.parameters()) + (
+            list(self.readout.parameters()) if self.readout is not None else []
+        )
+        self.optimizer = torch.optim.Adam(learned, lr=self.dagger.lr)
 
     def learn(
         self,
@@ -108,7 +123,7 @@ class Dagger:
         ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
         self.student_episodes.extend(demos.success[ended].tolist())
         with torch_threads(self.threads):
-            stats = update_student(self.student, self.optimizer, demos, self.dagger)
+            stats = update_student(self.student, self.optimizer, demos, self.dagger, self.readout)
         return {
             "beta": beta_at(env_transitions, self.dagger),
             "student_share": 1.0 - float(demos.teacher_acted.float().mean()),
@@ -124,9 +139,13 @@ class Dagger:
         return dagger_line(row)
 
     def snapshot(self) -> Snapshot:
-        """Adam's state, the student's last outcomes and the teacher's identity."""
+        """Adam's state, the velocity read-out's weights, the student's last outcomes and
+        the teacher's identity."""
         outcomes = np.array(self.student_episodes, dtype=bool)
-        arrays, meta = nest({"optimizer": optimizer_snapshot(self.optimizer)})
+        readout = dict(self.readout.state_dict()) if self.readout is not None else {}
+        arrays, meta = nest(
+            {"optimizer": optimizer_snapshot(self.optimizer), "readout": (readout, {})}
+        )
         teacher = {"path": str(self.teacher.path), "sha256": self.teacher.sha256}
         return {**arrays, "student_episodes": outcomes}, {**meta, "teacher": teacher}
 
@@ -140,6 +159,14 @@ class Dagger:
                 f"it distils the teacher {saved['path']} (sha256 {saved['sha256'][:12]}), "
                 f"not {self.teacher.path} ({self.teacher.sha256[:12]})"
             )
+        readout = part(arrays, meta, "readout")[0] if "readout" in meta else {}
+        if bool(readout) != (self.readout is not None):
+            raise ResumeError(
+                f"it was run {'with' if readout else 'without'} a velocity loss: give it "
+                "the --dagger.velocity-coef it was run with"
+            )
+        if self.readout is not None:
+            self.readout.load_state_dict({k: torch.tensor(v) for k, v in readout.items()})
         restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
         self.student_episodes.clear()
         self.student_episodes.extend(np.asarray(arrays["student_episodes"]).tolist())

@@ -36,8 +36,8 @@ class SequenceEvaluation:
     """(T, B, R) value per reward term."""
     mean: Tensor
     """(T, B, A) mean of the action distribution."""
-    memory: Tensor
-    """(B, H) memory after the last step."""
+    memories: Tensor
+    """(T, B, H) memory after each step (it has read that step's observation)."""
 
 
 def episode_starts(dones: Tensor, first: Tensor) -> Tensor:
@@ -84,5 +84,5 @@ def evaluate_sequence(
         memory = out.memory
     stack = lambda name: torch.stack([getattr(out, name) for out in outputs])
     return SequenceEvaluation(
-        stack("log_prob"), stack("entropy"), stack("values"), stack("mean"), memory
+        stack("log_prob"), stack("entropy"), stack("values"), stack("mean"), stack("memory")
     )

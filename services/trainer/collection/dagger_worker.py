@@ -96,6 +96,7 @@ class DaggerWorker(Worker):
                     "rewards",
                     "dones",
                     "success",
+                    "object_velocity",
                 )
             },
         )
@@ -137,6 +138,7 @@ class DaggerWorker(Worker):
             "rewards": torch.as_tensor(result.reward_terms, dtype=torch.float32),
             "dones": torch.as_tensor(result.terminated | result.truncated),
             "success": torch.as_tensor(result.success),
+            "object_velocity": torch.as_tensor(obs.object_velocity),
         }
 
     def snapshot(self) -> Snapshot:

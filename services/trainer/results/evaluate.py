@@ -66,6 +66,7 @@ def evaluate(
     env_transitions: int,
     clouds: CloudConfig | None = None,
     pose_noise: PoseNoiseConfig | None = None,
+    edit: Callable[[Observation], None] | None = None,
 ) -> HeldOut:
     """Success rate and goal return of `episodes` held-out episodes, one per environment.
 
@@ -79,6 +80,8 @@ def evaluate(
             sees them as the cameras do).
         pose_noise: the error of a student's object pose estimate (default: the worker's,
             as it was trained; zero stds measure what the estimate's error costs).
+        edit: changes each observation in place before the policy reads it (a measurement
+            of what an input is worth, e.g. a teacher's privileged block replaced).
     """
     acting = dataclasses.replace(
         config, architecture=policy.architecture, action_space=policy.config.action_space
@@ -86,11 +89,14 @@ def evaluate(
     worker = held_out_worker(acting, episodes, clouds)
     if pose_noise is not None:
         worker.pose_noise = pose_noise
+    edit = edit or (lambda observation: None)
+    edit(worker.observation)
     policy.eval()
 
     def step() -> StepResult:
         pending = worker.act(policy, env_transitions, deterministic=True)
         result = worker.env.step(pending.command)
+        edit(result.observation)
         worker.observe(policy, pending, result)
         return result
 

@@ -20,10 +20,13 @@ def ppo_line(row: dict[str, float]) -> str:
 
 
 def dagger_line(row: dict[str, float]) -> str:
-    """A DAgger iteration: budget, rate, who acted, the imitation loss and success."""
+    """A DAgger iteration: budget, rate, who acted, the imitation loss (and the velocity
+    loss, when on) and success."""
+    velocity = row.get("velocity_loss", math.nan)
     return (
         f"{_budget(row)} | beta {row['beta']:.2f} | student acts "
-        f"{row['student_share']:.2f} | imitation {row['imitation_loss']:.4f} | success "
+        f"{row['student_share']:.2f} | imitation {row['imitation_loss']:.4f}"
+        f"{'' if math.isnan(velocity) else f' | velocity {velocity:.3f}'} | success "
         f"{row['success_rate']:.2f} over {row['episodes']} episodes | return "
         f"{row.get('return/total', math.nan):.3f}{workers_part(row)}"
     )

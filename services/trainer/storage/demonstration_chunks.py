@@ -1,14 +1,15 @@
 """DAgger's `Demonstrations` <-> a RolloutChunk, as `hamnet rollout --algo dagger` workers
 stream them to `hamnet trainer --algo dagger` on `trainer/<w>/demonstrations`.
 
-A chunk carries what the student's update needs and nothing of the teacher's inputs: the
-student's inputs per step (`inputs.*`, per-episode tokens once per distinct row, as PPO's
-chunks, `hamnet.trainer.storage.rollout_chunks`), the teacher's labels (`labels`, `label_values`), whose
-action was executed (`teacher_acted`), which environments begin an episode at step 0
-(`first`; with `dones` the GRU's memory resets), reward terms, dones and successes (the
-episode statistics), and the SHA-256 of the teacher checkpoint that labelled it
+A chunk carries what the student's update needs and nothing else of the teacher's inputs:
+the student's inputs per step (`inputs.*`, per-episode tokens once per distinct row, as
+PPO's chunks, `hamnet.trainer.storage.rollout_chunks`), the teacher's labels (`labels`,
+`label_values`), whose action was executed (`teacher_acted`), which environments begin an
+episode at step 0 (`first`; with `dones` the GRU's memory resets), reward terms, dones and
+successes (the episode statistics), the object's true velocity (`object_velocity`, the
+optional velocity loss's target) and the SHA-256 of the teacher checkpoint that labelled it
 (`teacher_sha256`): the trainer refuses, counts and drops another teacher's chunks.
-Shapes: T steps, B environments, A action components, R reward terms.
+Shapes: T steps, B environments, A action components, R reward terms, V the velocity's 6.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ _SHAPES = {
     "rewards": "TBR",
     "dones": "TB",
     "success": "TB",
+    "object_velocity": "TBV",
 }
 """The demonstrations' fields other than the student's inputs, by their dimensions' letters."""
 

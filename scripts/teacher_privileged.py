@@ -1,0 +1,148 @@
+"""What a teacher's privileged block is worth to it: its held-out success on a student's
+result's episodes with the block as trained and with parts of it replaced by what no sensor
+needs to give (the physics parameters by their mean over the episodes; the object's
+velocity by zeros, or by the finite difference of its last two poses, which a student's
+history holds). A teacher that does as well without them leaves the student nothing to
+infer: its shortfall is then its fit of the teacher's actions, not what it cannot observe.
+
+    python scripts/teacher_privileged.py easy-paddle-student
+
+The last line printed is one JSON object: the teacher's success rate under each setting.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+
+import numpy as np
+import torch
+
+from hamnet.messages.robot_state import Observation
+from hamnet.policy.observation import PoseNoiseConfig, estimated_pose
+from hamnet.policy.shipped import read_card
+from hamnet.sim import quaternion
+from hamnet.trainer.algorithms.teacher import load_teacher
+from hamnet.trainer.results.evaluate import evaluate
+from hamnet.trainer.results.summary import CHECKOUT, run_of
+
+Edit = Callable[[Observation], None]
+
+
+def mean_physics() -> Edit:
+    """Every episode's physics parameters replaced by their mean over the first batch."""
+    mean: list[np.ndarray] = []
+
+    def edit(observation: Observation) -> None:
+        if not mean:
+            mean.append(observation.physics_params.mean(axis=0))
+        observation.physics_params[...] = mean[0]
+
+    return edit
+
+
+def zero_velocity(observation: Observation) -> None:
+    """The object's velocity replaced by zeros."""
+    observation.object_velocity[...] = 0.0
+
+
+def difference_velocity(
+    period_s: float, span: int = 1, noise: PoseNoiseConfig | None = None, seed: int = 0
+) -> Edit:
+    """The object's velocity replaced by the difference of its poses `span` steps apart (or
+    as many as its episode has had; zero at its first step) over their time: linear in m/s,
+    angular from the relative rotation (twice the vector part of q_t q_{t-span}^-1, its
+    small-angle form), world frame. With `noise`, of the poses a student's estimator reads
+    (`estimated_pose`, a new error every step), the pose itself left true."""
+    history: list[np.ndarray] = []  # the last span + 1 poses, oldest first
+    generator = torch.Generator().manual_seed(seed)
+    age = np.zeros(0, dtype=np.int64)  # steps of history each environment's episode has
+
+    def edit(observation: Observation) -> None:
+        nonlocal age
+        pose = torch.from_numpy(observation.object_pose)
+        if noise is not None:
+            pose = estimated_pose(pose, noise, generator)
+        pose = pose.numpy().astype(np.float64)
+        age = np.zeros(len(pose), np.int64) if not history else age + 1
+        age[observation.episode_step == 0] = 0
+        history.append(pose)
+        del history[: -span - 1]
+        back = np.minimum(age, len(history) - 1)  # (B,) steps to the pose compared
+        rows = np.arange(len(pose))
+        previous = np.stack(history)[len(history) - 1 - back, rows]  # (B, 7)
+        inverse = previous[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0])
+        turn = quaternion.multiply(pose[:, 3:], inverse)
+        turn *= np.sign(turn[:, :1] + (turn[:, :1] == 0))  # the short way round
+        velocity = np.concatenate([pose[:, :3] - previous[:, :3], 2.0 * turn[:, 1:]], 1)
+        seconds = np.maximum(back, 1)[:, None] * period_s
+        observation.object_velocity[...] = np.where(back[:, None] > 0, velocity / seconds, 0.0)
+
+    return edit
+
+
+def pose_estimate(noise: PoseNoiseConfig, seed: int) -> Edit:
+    """The object's pose replaced by a student's estimate of it (`estimated_pose`, a new
+    error every step). The teacher's object cloud follows the estimate, where a student's
+    comes from the cameras: an upper bound on what the estimate costs."""
+    generator = torch.Generator().manual_seed(seed)
+
+    def edit(observation: Observation) -> None:
+        pose = torch.from_numpy(observation.object_pose)
+        observation.object_pose[...] = estimated_pose(pose, noise, generator).numpy()
+
+    return edit
+
+
+def both(*edits: Edit) -> Edit:
+    """The edits applied in turn."""
+
+    def edit(observation: Observation) -> None:
+        for each in edits:
+            each(observation)
+
+    return edit
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("student", help="a shipped student's name (its card names its result)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the result's evaluation")
+    args = parser.parse_args()
+    card = read_card(args.student)
+    result = json.loads((CHECKOUT / card["result"]).read_text())  # the run's summary fields
+    teacher = load_teacher(result["teacher"]).policy
+    config = run_of(result, args.seed)  # evaluate acts in the teacher's architecture
+    episodes, period = card["eval_episodes"], config.sim.policy_period_s
+    estimate = PoseNoiseConfig()  # the student's estimator's error
+    settings: dict[str, Callable[[], Edit | None]] = {
+        "as_trained": lambda: None,
+        "mean_physics": mean_physics,
+        "zero_velocity": lambda: zero_velocity,
+        "difference_velocity": lambda: difference_velocity(period),
+        "mean_physics_difference_velocity": lambda: both(
+            mean_physics(), difference_velocity(period)
+        ),
+        "estimated_pose": lambda: pose_estimate(estimate, args.seed),
+        "estimate_difference_velocity": lambda: difference_velocity(
+            period, noise=estimate, seed=args.seed
+        ),
+        "estimate_difference_velocity_span_4": lambda: difference_velocity(
+            period, 4, estimate, args.seed
+        ),
+        "estimated_pose_difference_velocity": lambda: both(
+            mean_physics(), pose_estimate(estimate, args.seed), difference_velocity(period)
+        ),
+    }
+    rates = {}
+    for name, make in settings.items():
+        held_out = evaluate(teacher, config, episodes, result["env_steps"], edit=make())
+        rates[name] = held_out.success_rate
+        print(f"{name}: {held_out.success_rate:.3f} on {episodes} held-out episodes", flush=True)
+    print(json.dumps({"teacher": result["teacher"], "episodes": episodes, **rates}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
