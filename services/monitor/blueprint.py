@@ -41,10 +41,11 @@ DAGGER_METRICS = (
     "beta",
     "student_share",
     "student_episode_success",
+    "velocity_loss",
 )
 """Trainer metrics of a DAgger run (`hamnet trainer --algo dagger --publish`), one plot each:
-the loss on windows before and after they are fitted, who acts, and the student's own
-success."""
+the loss on windows before and after they are fitted, who acts, the student's own success
+and the velocity read-out's loss (`--dagger.velocity-coef`; empty when off)."""
 THROUGHPUT_METRICS = ("env_steps_per_s", "policy_lag", "episode_length")
 """Trainer metrics of the run's pace, one plot each."""
 

@@ -137,6 +137,7 @@ def dagger_metrics(iteration: int, rng: np.random.Generator) -> Metrics:
         "episode_length": 90.0,
         "student_episodes": 32,
         "student_episode_success": success / 2,
+        "velocity_loss": 0.5 / iteration,
     }
     return encode_metrics(row, iteration)
 
