@@ -13,8 +13,16 @@ never cross a window's start), so a gain that stops at that length points at the
     python scripts/student_memory.py easy-paddle-student --steps 256
     python scripts/student_memory.py runs/dagger-paddle-t32 --steps 256   # a finished run
 
+How much of the object's velocity (the one privileged input the teacher relies on,
+`scripts/teacher_privileged.py`) the student's memory holds: a linear read-out of the memory
+after each step, fitted by least squares on the first half of the environments, scored on
+the other half (`dagger.VelocityReadout.loss`: squared error in the teacher's standardised
+units, about 1 for no better than the teacher's mean velocity), with the memory kept and
+reset.
+
 The last line printed is one JSON object: per bin of episode steps, the mean squared error
-with memory and without, and the labels' mean square (the error's scale).
+with memory and without, and the labels' mean square (the error's scale); the velocity
+read-out's held-out loss with memory and without.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_card, read_shipped, read_weights
 from hamnet.policy.weights import policy_from
 from hamnet.runtime.trees import take_rows
+from hamnet.trainer.algorithms.dagger import VelocityReadout
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts
 from hamnet.trainer.collection.dagger_worker import InProcessDagger
 from hamnet.trainer.config import DaggerConfig
@@ -63,6 +72,24 @@ def student_and_result(value: str) -> tuple[Policy, dict]:
     return policy_from(read_shipped(value)), json.loads((CHECKOUT / card["result"]).read_text())
 
 
+def held_out_velocity_loss(
+    memories: torch.Tensor, velocity: torch.Tensor, student: Policy, teacher: Policy
+) -> float:
+    """The loss of a linear read-out of the object's (T, B, 6) `velocity` from (T, B, H)
+    `memories`, fitted by least squares (with a bias) on the first half of the environments
+    and scored on the other half, in the teacher's standardised units."""
+    readout = VelocityReadout(student.memory_width, teacher)
+    half = memories.shape[1] // 2
+    target = ((velocity - readout.mean) / readout.std).clamp(-readout.clip, readout.clip)
+    rows = lambda x: x[:, :half].flatten(0, 1)
+    features = torch.cat([rows(memories), torch.ones(len(rows(memories)), 1)], 1)
+    solution = torch.linalg.lstsq(features.double(), rows(target).double()).solution.float()
+    with torch.no_grad():
+        readout.linear.weight.copy_(solution[:-1].T)
+        readout.linear.bias.copy_(solution[-1])
+        return readout.loss(memories[:, half:], velocity[:, half:]).item()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -83,13 +110,15 @@ def main() -> int:
     steps, b = demos.dones.shape
     index = episode_step(episode_starts(demos.dones, demos.first))
     errors = {"memory": torch.zeros(steps, b), "reset": torch.zeros(steps, b)}
+    memories = {name: torch.zeros(steps, b, student.memory_width) for name in errors}
     with torch.no_grad():
         for t in range(steps):
             rows = take_rows(demos.inputs, torch.arange(t * b, (t + 1) * b))
             blank = dataclasses.replace(rows, memory=student.initial_memory(b))
             for name, inputs in (("memory", rows), ("reset", blank)):
-                mean = student.act(inputs, deterministic=True).action
-                errors[name][t] = (mean - demos.labels[t]).square().mean(-1)
+                out = student.act(inputs, deterministic=True)
+                errors[name][t] = (out.action - demos.labels[t]).square().mean(-1)
+                memories[name][t] = out.memory
     scale = demos.labels.square().mean(-1)
     bins = []
     for low, high in itertools.pairwise(BIN_EDGES):
@@ -110,6 +139,15 @@ def main() -> int:
             f"(labels' mean square {row['label_mean_square']:.4f})",
             flush=True,
         )
+    velocity = {
+        name: held_out_velocity_loss(memory, demos.object_velocity, student, teacher)
+        for name, memory in memories.items()
+    }
+    print(
+        f"velocity read from the memory, held-out loss: kept {velocity['memory']:.3f}, "
+        f"reset {velocity['reset']:.3f} (1: no better than the teacher's mean)",
+        flush=True,
+    )
     episodes = int(demos.dones.sum())
     success = float(demos.success.sum()) / max(1, episodes)
     print(
@@ -119,6 +157,8 @@ def main() -> int:
                 "episodes_ended": episodes,
                 "student_success": success,
                 "bins": bins,
+                "velocity_loss_memory": velocity["memory"],
+                "velocity_loss_reset": velocity["reset"],
             }
         )
     )

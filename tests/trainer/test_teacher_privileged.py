@@ -4,16 +4,13 @@ diagnosis): the velocity it derives from poses must be the motion they show."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "teacher_privileged.py"
-spec = importlib.util.spec_from_file_location("teacher_privileged", SCRIPT)
-teacher_privileged = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(teacher_privileged)
+from tests.script_modules import load
+
+teacher_privileged = load("scripts/teacher_privileged.py")
 
 PERIOD = 0.05
 LINEAR = np.array([0.2, -0.1, 0.0])  # m/s

@@ -3,18 +3,13 @@ cores: if a core's interface changes, the example breaks here, not in a reader's
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples/train_loop.py"
+from tests.script_modules import load
 
 
 def test_the_one_page_loop_collects_and_updates() -> None:
-    spec = importlib.util.spec_from_file_location("train_loop", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    rows = module.train(iterations=2, num_envs=4, steps=8)
+    rows = load("examples/train_loop.py").train(iterations=2, num_envs=4, steps=8)
     assert [row["env_transitions"] for row in rows] == [32, 64]
     assert all(math.isfinite(row["value_loss"]) for row in rows)
     assert all(row["approx_kl"] > 0.0 for row in rows), "each update moved the policy"
