@@ -49,6 +49,11 @@ BIN_EDGES = (0, 1, 4, 8, 16, 32, 64, 1_000_000)
 """Episode steps [edge, next edge): the first step (no history), the window's length (8,
 the shipped student's), and beyond."""
 
+RIDGE = 1e-2
+"""The read-out's ridge penalty, relative to the features' mean square: plain least squares
+on a few thousand correlated steps of 385 features overfits the fitted half (held-out losses
+of 9-14 on 128 steps of the shipped students)."""
+
 STUDENT_ACTS = DaggerConfig(beta_initial=0.0, beta_final=0.0, beta_decay_transitions=0)
 
 
@@ -76,14 +81,16 @@ def held_out_velocity_loss(
     memories: torch.Tensor, velocity: torch.Tensor, student: Policy, teacher: Policy
 ) -> float:
     """The loss of a linear read-out of the object's (T, B, 6) `velocity` from (T, B, H)
-    `memories`, fitted by least squares (with a bias) on the first half of the environments
-    and scored on the other half, in the teacher's standardised units."""
+    `memories`, fitted by ridge regression (with a bias) on the first half of the
+    environments and scored on the other half, in the teacher's standardised units."""
     readout = VelocityReadout(student.memory_width, teacher)
     half = memories.shape[1] // 2
     target = ((velocity - readout.mean) / readout.std).clamp(-readout.clip, readout.clip)
     rows = lambda x: x[:, :half].flatten(0, 1)
-    features = torch.cat([rows(memories), torch.ones(len(rows(memories)), 1)], 1)
-    solution = torch.linalg.lstsq(features.double(), rows(target).double()).solution.float()
+    features = torch.cat([rows(memories), torch.ones(len(rows(memories)), 1)], 1).double()
+    gram = features.T @ features
+    ridge = RIDGE * gram.diagonal().mean() * torch.eye(len(gram), dtype=gram.dtype)
+    solution = torch.linalg.solve(gram + ridge, features.T @ rows(target).double()).float()
     with torch.no_grad():
         readout.linear.weight.copy_(solution[:-1].T)
         readout.linear.bias.copy_(solution[-1])
