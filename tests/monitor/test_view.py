@@ -198,7 +198,7 @@ def test_every_view_of_the_layout_shows_logged_entities(run) -> None:
     """The blueprint in the file names views by entity path: a path renamed in the view but
     not in the blueprint (an empty panel) fails here."""
     rrd, _ = run
-    assert len(rrd.view_origins) == 28
+    assert len(rrd.view_origins) == 29
     for origin in rrd.view_origins:
         assert any(e == origin or e.startswith(origin.rstrip("/") + "/") for e in rrd.entities), (
             origin
