@@ -85,7 +85,7 @@ def held_out_velocity_loss(
     environments and scored on the other half, in the teacher's standardised units."""
     readout = VelocityReadout(student.memory_width, teacher)
     half = memories.shape[1] // 2
-    target = ((velocity - readout.mean) / readout.std).clamp(-readout.clip, readout.clip)
+    target = readout.target(velocity)
     rows = lambda x: x[:, :half].flatten(0, 1)
     features = torch.cat([rows(memories), torch.ones(len(rows(memories)), 1)], 1).double()
     gram = features.T @ features

@@ -10,6 +10,7 @@ components, R reward terms.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -106,12 +107,16 @@ class VelocityReadout(torch.nn.Module):
         self.register_buffer("std", (normalizer.base_var[columns] + normalizer.eps).sqrt())
         self.clip = normalizer.clip
 
+    def target(self, velocity: Tensor) -> Tensor:
+        """The (..., 6) true `velocity` standardised (and clipped) as the teacher standardises
+        its input: what the read-out learns to give."""
+        return ((velocity - self.mean) / self.std).clamp(-self.clip, self.clip)
+
     def loss(self, memories: Tensor, velocity: Tensor) -> Tensor:
         """Mean squared error of the read-out of (T, B, H) `memories` against the (T, B, 6)
-        true `velocity`, both standardised (and clipped) as the teacher standardises its
-        input: about 1 for a read-out no better than the teacher's mean velocity, 0 exact."""
-        target = ((velocity - self.mean) / self.std).clamp(-self.clip, self.clip)
-        return (self.linear(memories) - target).square().mean()
+        true `velocity`, in the teacher's standardised units (`target`): about 1 for a
+        read-out no better than the teacher's mean velocity, 0 exact."""
+        return (self.linear(memories) - self.target(velocity)).square().mean()
 
 
 def update_student(
@@ -123,9 +128,10 @@ def update_student(
 ) -> ImitationStats:
     """`config.epochs` Adam steps on the whole window, each unrolling the student's GRUs over
     the T steps with their memory reset where an episode starts (`evaluate_sequence`);
-    with `readout` (in `optimizer`), the velocity loss at `config.velocity_coef` too."""
+    with `readout` (in `optimizer`), the velocity loss at `config.velocity_coef` too. The
+    gradient is clipped over every parameter `optimizer` steps."""
     starts = episode_starts(batch.dones, batch.first)
-    parameters = list(student.parameters()) + (list(readout.parameters()) if readout else [])
+    parameters = [p for group in optimizer.param_groups for p in group["params"]]
     for group in optimizer.param_groups:
         group["lr"] = config.lr
     student.train()
@@ -134,15 +140,13 @@ def update_student(
         out = evaluate_sequence(student, batch.inputs, batch.labels, starts)
         actions = imitation_loss(out.mean, batch.labels)
         values = value_loss(out.values, batch.label_values)
-        velocity = (
-            readout.loss(out.memories, batch.object_velocity)
-            if readout is not None
-            else torch.tensor(torch.nan)
-        )
+        loss, velocity = actions + config.value_coef * values, math.nan
+        if readout is not None:
+            read = readout.loss(out.memories, batch.object_velocity)
+            loss, velocity = loss + config.velocity_coef * read, read.item()
         first = actions.item() if first is None else first
         optimizer.zero_grad(set_to_none=True)
-        loss = actions + config.value_coef * values
-        (loss + config.velocity_coef * velocity if readout is not None else loss).backward()
+        loss.backward()
         norm = torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
         optimizer.step()
-    return ImitationStats(first, actions.item(), values.item(), float(norm), velocity.item())
+    return ImitationStats(first, actions.item(), values.item(), float(norm), velocity)
