@@ -15,10 +15,19 @@ optimizer state, on a second rollout, with the same minibatch order:
 - bfloat16: the default under bfloat16 autocast (`PPOConfig.bfloat16`), with how the
   whole batch's gradient at the start state agrees with float32's (cosine).
 
+And, on one minibatch of the batch (one thread), the global scene cross-attention's forward
+and backward with every sample's tokens embedded (`repeated=False`) against each distinct
+token set embedded once (`repeated=True`, what HAMnet does: a scene's tokens are constant
+through an episode), next to a whole-network step (`Policy.evaluate`, forward and
+backward) of the same minibatch.
+
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `update_s` per setup, `critic_speedup` (baseline / critic), `threads_speedup`
 (critic / default), `update_speedup` (baseline / default), `bfloat16_speedup` (default /
-bfloat16), `bfloat16_gradient_cosine`, and the steps each update took.
+bfloat16), `bfloat16_gradient_cosine`, the steps each update took, `scene_embedding_s`
+(per sample, distinct), `scene_embedding_speedup`, `distinct_scenes` (of the minibatch's
+samples), `whole_step_s` and `whole_step_speedup` (the whole step with the per-sample
+embedding against it as run).
 
     .venv/bin/python benchmarks/learner.py --quick   # 16 envs, 2048 samples: about 40 s
     .venv/bin/python benchmarks/learner.py           # 64 envs, 8192 samples (the run's): 2-3 min
@@ -30,15 +39,19 @@ import argparse
 import copy
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
 import torch
 from common import header, progress, report
 
+from hamnet.policy.layers import distinct_rows
+from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_shipped
 from hamnet.policy.weights import load_into
 from hamnet.runtime.compute import torch_threads
+from hamnet.runtime.trees import take_rows
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, update
 from hamnet.trainer.runners.run_config import RunConfig
@@ -72,6 +85,50 @@ def timed_update(
         return time.perf_counter() - started, stats
 
 
+def best_of(run: Callable[[], None], repeats: int = 3) -> float:
+    """The shortest wall time of `repeats` calls of `run` (after one unmeasured call)."""
+    run()
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - started)
+    return min(times)
+
+
+def scene_embedding(policy: Policy, batch: Batch, samples: int) -> dict:
+    """Seconds of the global scene cross-attention's forward and backward on the first
+    `samples` of a shuffled `batch`, each sample's tokens embedded and each distinct token
+    set once, and of the whole network's step on the same rows (one thread)."""
+    rows = torch.randperm(len(batch.actions), generator=torch.Generator().manual_seed(0))
+    inputs = take_rows(batch.inputs, rows[:samples])
+    actions = batch.actions[rows[:samples]]
+    query = policy.normalizer(inputs.observation).scene_query
+    attention = policy.network.context.global_attention
+    policy.train()
+
+    def attend(repeated: bool) -> Callable[[], None]:
+        return lambda: attention(query, inputs.global_tokens, repeated).sum().backward()
+
+    def step() -> None:
+        evaluation = policy.evaluate(inputs, actions)
+        (evaluation.log_prob.mean() + evaluation.values.mean()).backward()
+
+    with torch_threads(1):
+        seconds = {"per_sample": best_of(attend(False)), "distinct": best_of(attend(True))}
+        whole = best_of(step)
+    policy.zero_grad(set_to_none=True)
+    return {
+        "scene_embedding_s": {name: round(value, 4) for name, value in seconds.items()},
+        "scene_embedding_speedup": round(seconds["per_sample"] / seconds["distinct"], 3),
+        "distinct_scenes": len(distinct_rows(inputs.global_tokens)[0]),
+        "whole_step_s": round(whole, 4),
+        "whole_step_speedup": round(
+            (whole + seconds["per_sample"] - seconds["distinct"]) / whole, 3
+        ),
+    }
+
+
 def main() -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="16 environments, 2048 samples")
@@ -99,6 +156,9 @@ def main() -> dict:
             seconds[name], stats = timed_update(runner, batch, threads, cached, bfloat16)
             steps[name] = {"actor": stats.gradient_steps, "critic_alone": stats.value_steps}
             progress(f"{name}: {seconds[name]:.2f} s, {threads} thread(s), {steps[name]}")
+        runner.policy.load_state_dict(start[0])
+        embedding = scene_embedding(runner.policy, batch, samples // config.ppo.minibatches)
+        progress(f"global scene embedding of a minibatch: {embedding}")
     return {
         **header("learner", args.quick),
         "policy": TEACHER,
@@ -111,6 +171,7 @@ def main() -> dict:
         "update_speedup": round(seconds["baseline"] / seconds["default"], 3),
         "bfloat16_speedup": round(seconds["default"] / seconds["bfloat16"], 3),
         "bfloat16_gradient_cosine": round(cosine, 4),
+        **embedding,
         "threads": CORES,
         "cpus": os.cpu_count(),
     }

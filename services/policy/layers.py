@@ -96,11 +96,21 @@ class CrossAttention(nn.Module):
         nn.init.uniform_(self.key, -bound, bound)
         nn.init.uniform_(self.value, -bound, bound)
 
-    def forward(self, query: Tensor, tokens: Tensor) -> Tensor:
-        """(B, Q) queries over (B, N, D) tokens -> (B, out_dims[-1]) summaries."""
+    def forward(self, query: Tensor, tokens: Tensor, repeated: bool = False) -> Tensor:
+        """(B, Q) queries over (B, N, D) tokens -> (B, out_dims[-1]) summaries.
+
+        `repeated`: many samples share their tokens (a scene's, constant through an
+        episode, in a minibatch of many steps of few episodes), so each distinct token set
+        is embedded once (`distinct_rows`): the same result, at 2048 samples of a rollout
+        of 64 environments a 15-20th of the embedding's work.
+        """
         b = query.shape[0]
         if self.embed is not None:
-            tokens = self.embed(tokens)  # (B, N, E)
+            if repeated:
+                distinct, index = distinct_rows(tokens)
+                tokens = self.embed(distinct)[index]  # (B, N, E)
+            else:
+                tokens = self.embed(tokens)  # (B, N, E)
         q = self.query(query).view(b, self.heads, self.head_dim).transpose(0, 1)  # (H, B, E/H)
         # Batched over heads, not broadcast over samples: broadcasting would copy the
         # projections B times.
@@ -109,6 +119,31 @@ class CrossAttention(nn.Module):
         mixed = (attention @ tokens).transpose(0, 1)  # (H, B, D')
         heads = (mixed @ self.value.transpose(1, 2)).transpose(0, 1).reshape(b, -1)  # (B, E)
         return self.out(heads)
+
+
+def distinct_rows(x: Tensor) -> tuple[Tensor, Tensor]:
+    """The distinct rows of x (B, ...) and where each row of x is among them: (U, ...) and
+    (B,) long, x == distinct[index] exactly.
+
+    Rows are matched by one random projection of their values, then checked element for
+    element; if two different rows ever shared a projection, every row counts as
+    distinct. Costs one (B, prod(...)) product and one comparison.
+    """
+    b = len(x)
+    rows = torch.arange(b, device=x.device)
+    if b == 0:
+        return x, rows
+    flat = x.reshape(b, -1)
+    probe = torch.rand(flat.shape[1], generator=torch.Generator().manual_seed(0))
+    with torch.autocast(x.device.type, enabled=False):  # keys in float32 under autocast too
+        keys = flat.float() @ probe.to(x.device)  # (B,)
+    _, index = torch.unique(keys, return_inverse=True)  # (B,) into the U sorted keys
+    first = torch.full((int(index.max()) + 1,), b, device=x.device).scatter_reduce(
+        0, index, rows, "amin"
+    )  # (U,) a row of x with each key
+    if not torch.equal(flat[first[index]], flat):
+        return x, rows
+    return x[first], index
 
 
 MIXTURE_CHUNK = 1024

@@ -99,7 +99,9 @@ class ContextEncoder(nn.Module):
         query = inputs.observation.scene_query  # (B, Q1)
         if self.tokens:
             local = self.local_attention(query, require(inputs.local_tokens, "local tokens"))
-            whole = self.global_attention(query, require(inputs.global_tokens, "global tokens"))
+            whole = self.global_attention(
+                query, require(inputs.global_tokens, "global tokens"), repeated=True
+            )
             scene = torch.cat((local, whole), dim=-1)  # (B, 2 E_out)
         else:
             scene = require(inputs.env_code, "the EnvCode")  # (B, 25)

@@ -1,6 +1,7 @@
 """Policy networks: every architecture's shapes, the module contraction against a naive
 per-sample reference, the M = 1 reduction to an MLP, gradients into every module, the
-absorbed cross-attention against a standard one, and the Gaussian actor's maths."""
+absorbed cross-attention against a standard one, the embedding of repeated token sets once,
+and the Gaussian actor's maths."""
 
 from __future__ import annotations
 
@@ -13,7 +14,13 @@ from torch.nn import functional as F
 
 from hamnet.policy import layers
 from hamnet.policy.config import LOG_STD_AUTHORS
-from hamnet.policy.layers import MLP, CrossAttention, ModularLinear, hidden_activation
+from hamnet.policy.layers import (
+    MLP,
+    CrossAttention,
+    ModularLinear,
+    distinct_rows,
+    hidden_activation,
+)
 from hamnet.policy.networks import HAMNet
 from hamnet.policy.policy import log_std_at
 from hamnet.policy.registry import ARCHITECTURES, build, with_changes
@@ -33,7 +40,9 @@ def test_every_architecture_acts_with_the_contract_shapes(name: str) -> None:
     for tensor in (action.action, action.log_prob, action.values, action.module_weights):
         assert torch.isfinite(tensor).all()
     if action.module_weights.shape[1]:  # softmax over modules
-        torch.testing.assert_close(action.module_weights.sum(-1), torch.ones(action.module_weights.shape[:2]))
+        torch.testing.assert_close(
+            action.module_weights.sum(-1), torch.ones(action.module_weights.shape[:2])
+        )
     assert (action.memory is None) == (not policy.config.recurrent)
 
 
@@ -61,7 +70,9 @@ def test_module_contraction_equals_per_sample_weight_matrices(chunk: int, monkey
     weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
     bias_weights = torch.softmax(torch.randn(B, 8, dtype=torch.float64), -1)
     gate = 1 + 0.1 * torch.randn(B, 11, dtype=torch.float64)
-    torch.testing.assert_close(layer(x, weights, bias_weights, gate), naive_modular(layer, x, weights, bias_weights, gate))
+    torch.testing.assert_close(
+        layer(x, weights, bias_weights, gate), naive_modular(layer, x, weights, bias_weights, gate)
+    )
     # The hand-written backward against autograd through the naive reference.
     inputs = [t.clone().requires_grad_() for t in (x, weights, bias_weights, gate)]
     assert torch.autograd.gradcheck(lambda *a: layer(*a), inputs)
@@ -74,7 +85,9 @@ def test_hamnet_forward_equals_naive_reference_to_1e5() -> None:
     network: HAMNet = policy.network
     inputs = random_inputs(policy, B, seed=3)
     captured = {}
-    hook = network.actor.register_forward_hook(lambda m, args, out: captured.update(args=args, out=out))
+    hook = network.actor.register_forward_hook(
+        lambda m, args, out: captured.update(args=args, out=out)
+    )
     network(inputs)
     hook.remove()
     x, weights, bias_weights, gates = captured["args"]
@@ -129,6 +142,46 @@ def test_absorbed_cross_attention_equals_standard_attention(embed_tokens: bool) 
     v = torch.einsum("hed,bnd->bhne", attention.value, keys)
     standard = F.scaled_dot_product_attention(q, k, v).reshape(B, 8)
     torch.testing.assert_close(attention(query, tokens), attention.out(standard))
+
+
+def test_distinct_rows_finds_each_repeated_row_once() -> None:
+    rows = torch.randn(5, 7, 3)
+    picks = torch.tensor([3, 0, 3, 3, 1, 0, 4, 3])
+    distinct, index = distinct_rows(rows[picks])
+    assert len(distinct) == 4  # rows 0, 1, 3, 4
+    assert torch.equal(distinct[index], rows[picks])
+    near = rows[:2].clone()
+    near[1] = near[0]
+    near[1, 6, 2] += 1e-6  # differs in one value
+    assert len(distinct_rows(near)[0]) == 2
+    assert len(distinct_rows(rows[:0])[0]) == 0
+
+
+def test_distinct_rows_counts_every_row_when_projections_collide(monkeypatch) -> None:
+    rows = torch.randn(3, 4, 2)
+    unique = torch.unique
+    monkeypatch.setattr(
+        torch, "unique", lambda keys, return_inverse: unique(keys * 0, return_inverse=True)
+    )
+    distinct, index = distinct_rows(rows)
+    assert torch.equal(distinct, rows) and torch.equal(index, torch.arange(3))
+
+
+def test_repeated_tokens_embedded_once_give_the_same_summaries_and_gradients() -> None:
+    torch.manual_seed(0)
+    attention = CrossAttention(5, 12, 8, 2, (6, 3), True).double()
+    query = torch.randn(9, 5).double()
+    tokens = torch.randn(3, 7, 12).double()[torch.tensor([0, 2, 2, 1, 0, 0, 2, 1, 1])]
+    results = []
+    for repeated in (False, True):
+        attention.zero_grad()
+        out = attention(query, tokens, repeated=repeated)
+        out.square().sum().backward()
+        results.append((out, [p.grad.clone() for p in attention.parameters()]))
+    (plain, plain_grads), (once, once_grads) = results
+    torch.testing.assert_close(once, plain)
+    for a, b in zip(once_grads, plain_grads):
+        torch.testing.assert_close(a, b)
 
 
 def test_log_prob_and_entropy_match_torch_normal() -> None:
