@@ -55,7 +55,9 @@ class Topic:
     """Served by a Zenoh queryable (asked with `get`, answered in JSON text), not published."""
     lossless: bool = False
     """Publishers block instead of dropping when the link is congested: large messages that
-    must arrive (weights, rollouts). Control topics drop: a late state or command is stale.
+    must arrive (weights, rollouts, and scenes: perception answers no state of an episode
+    whose scene it lacks, so a dropped scene stalled the closed loop for minutes while a
+    trainer's update loaded the cores). Control topics drop: a late state or command is stale.
     (With eclipse-zenoh 1.10.2 a 13 MB put under congestion control `drop` was lost while
     another client flooded the router.)"""
     catch_up: bool = False
@@ -167,6 +169,7 @@ TOPICS: tuple[Topic, ...] = (
         ("sim",),
         _read("perception", "policy", "monitor"),
         "at resets",
+        lossless=True,
         catch_up=True,
     ),
     Topic(

@@ -183,10 +183,13 @@ def test_watched_tokens_come_and_go_in_order_with_the_messages(sessions, transpo
 
 
 def test_publishers_of_lossless_topics_block_and_the_others_drop(sessions, transport) -> None:
-    """Weights and rollouts must arrive whole; a late state or command is stale anyway."""
+    """Weights, rollouts and scenes must arrive whole; a late state or command is stale
+    anyway."""
     session, _ = sessions
     ns = transport.namespace
     weights = Publisher(session, contract.topic("trainer/weights").key(ns), "trainer")
+    scene = Publisher(session, contract.topic("sim/<w>/scene").key(ns, w="0"), "sim/0")
     state = Publisher(session, contract.topic("sim/<w>/state").key(ns, w="0"), "sim/0")
     assert weights._publisher.congestion_control == zenoh.CongestionControl.BLOCK
+    assert scene._publisher.congestion_control == zenoh.CongestionControl.BLOCK
     assert state._publisher.congestion_control == zenoh.CongestionControl.DROP
