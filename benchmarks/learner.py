@@ -50,7 +50,7 @@ from hamnet.policy.layers import distinct_rows
 from hamnet.policy.policy import Policy
 from hamnet.policy.shipped import read_shipped
 from hamnet.policy.weights import load_into
-from hamnet.runtime.compute import torch_threads
+from hamnet.runtime.compute import bfloat16_autocast, torch_threads
 from hamnet.runtime.trees import take_rows
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.algorithms.ppo import Batch, UpdateStats, update
@@ -75,8 +75,7 @@ def timed_update(
     optimizer are left where the update put them)."""
     policy, ppo, algorithm = runner.policy, runner.config.ppo, runner.algorithm
     policy.train()
-    low_precision = torch.autocast("cpu", dtype=torch.bfloat16, enabled=bfloat16)
-    with torch_threads(threads), low_precision:
+    with torch_threads(threads), bfloat16_autocast(bfloat16):
         started = time.perf_counter()
         stats = update(policy.evaluate, policy.parameters(), algorithm.optimizer, batch,
                        algorithm.action_bounds, ppo, generator=torch.Generator().manual_seed(0),

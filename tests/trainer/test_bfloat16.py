@@ -9,6 +9,7 @@ from pathlib import Path
 
 import torch
 
+from hamnet.runtime.compute import bfloat16_autocast
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.config import PPOConfig
 from hamnet.trainer.runners.run_config import RunConfig
@@ -31,7 +32,7 @@ def test_the_gradient_of_a_bfloat16_pass_agrees_with_float32s(tmp_path: Path) ->
     full, low = run.algorithm.gradient(batch), run.algorithm.gradient(batch, bfloat16=True)
     assert low.dtype == torch.float32
     assert torch.nn.functional.cosine_similarity(full, low, dim=0) > 0.98
-    with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16):
+    with torch.no_grad(), bfloat16_autocast():
         low_log_prob = run.policy.evaluate(batch.inputs, batch.actions).log_prob
     full_log_prob = run.policy.evaluate(batch.inputs, batch.actions).log_prob.detach()
     assert low_log_prob.dtype == torch.float32
@@ -47,3 +48,17 @@ def test_a_bfloat16_update_learns_and_keeps_float32_parameters(tmp_path: Path) -
     after = list(run.policy.parameters())
     assert all(p.dtype == torch.float32 for p in after)
     assert any(not torch.equal(a, b) for a, b in zip(after, before, strict=True))
+
+
+def test_passes_after_a_step_inside_the_block_read_the_stepped_weights() -> None:
+    """An update steps the weights inside one autocast block: a pass after the step must
+    see them (autocast's cache of cast weights served the old ones, and the KL stop read a
+    policy that was no longer there)."""
+    layer = torch.nn.Linear(8, 8)
+    x = torch.randn(4, 8)
+    with bfloat16_autocast():
+        before = layer(x)
+        with torch.no_grad():
+            layer.weight.add_(1.0)
+        after = layer(x)
+    assert (after - before).abs().min() > 0.5  # every output moved by sum(x) ~ O(1)

@@ -23,7 +23,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.rollout_record import Rollout
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime import contract
-from hamnet.runtime.compute import torch_threads
+from hamnet.runtime.compute import bfloat16_autocast, torch_threads
 from hamnet.safety.config import with_profile
 from hamnet.trainer.algorithms.gae import gae
 from hamnet.trainer.algorithms.normalization import ReturnScaler
@@ -117,8 +117,7 @@ class PPO:
         critic alone on features computed once after the actor stops (`ppo.update`)."""
         batch = self.batch(rollout, whole, envs)
         self.policy.train()
-        low_precision = torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.ppo.bfloat16)
-        with torch_threads(self.threads), low_precision:
+        with torch_threads(self.threads), bfloat16_autocast(self.ppo.bfloat16):
             return update(
                 self.policy.evaluate,
                 self.policy.parameters(),
@@ -140,7 +139,7 @@ class PPO:
         gradients set."""
         policy = self.policy.train()
         policy.zero_grad(set_to_none=True)
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bfloat16):
+        with bfloat16_autocast(bfloat16):
             out = policy.evaluate(batch.inputs, batch.actions)
             loss = policy_loss(
                 out.log_prob, batch.old_log_prob, batch.advantages, self.ppo.clip, True
