@@ -44,7 +44,7 @@ from pathlib import Path
 from tempfile import TemporaryDirectory
 
 import torch
-from common import header, progress, report
+from common import durations, header, progress, report
 
 from hamnet.policy.layers import distinct_rows
 from hamnet.policy.policy import Policy
@@ -84,17 +84,6 @@ def timed_update(
         return time.perf_counter() - started, stats
 
 
-def best_of(run: Callable[[], None], repeats: int = 3) -> float:
-    """The shortest wall time of `repeats` calls of `run` (after one unmeasured call)."""
-    run()
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        run()
-        times.append(time.perf_counter() - started)
-    return min(times)
-
-
 def scene_embedding(policy: Policy, batch: Batch, samples: int) -> dict:
     """Seconds of the global scene cross-attention's forward and backward on the first
     `samples` of a shuffled `batch`, each sample's tokens embedded and each distinct token
@@ -114,8 +103,11 @@ def scene_embedding(policy: Policy, batch: Batch, samples: int) -> dict:
         (evaluation.log_prob.mean() + evaluation.values.mean()).backward()
 
     with torch_threads(1):
-        seconds = {"per_sample": best_of(attend(False)), "distinct": best_of(attend(True))}
-        whole = best_of(step)
+        seconds = {
+            "per_sample": float(durations(attend(False), 3).min()),
+            "distinct": float(durations(attend(True), 3).min()),
+        }
+        whole = float(durations(step, 3).min())
     policy.zero_grad(set_to_none=True)
     return {
         "scene_embedding_s": {name: round(value, 4) for name, value in seconds.items()},
