@@ -1,6 +1,7 @@
 """PPO at small scale (issue 27): the plain state-based MLP on the easy stage, trained by the
 project's own trainer with its defaults and with the authors' update, against the outside
-anchor the issue measured (a CleanRL-style PPO on the same stage), at equal transitions.
+anchor the issue measured (a CleanRL-style PPO on the same stage), at equal transitions; and
+any two variants of the trainer's update side by side (the action spaces, bfloat16).
 
     python scripts/ppo_small_scale.py                  # 2 M transitions per variant (about 1 h)
     python scripts/ppo_small_scale.py --transitions 300000 --out runs/ppo-small-scale-short
@@ -8,13 +9,17 @@ anchor the issue measured (a CleanRL-style PPO on the same stage), at equal tran
     python scripts/ppo_small_scale.py --variants defaults paddle --no-anchor --seed 1 \
         --transitions 1200000 --runs runs/action-space-s1 --out docs/results/action-space-s1
                                                        # the action spaces (issue 28)
+    python scripts/ppo_small_scale.py --architecture hamnet --variants paddle paddle-bfloat16 \
+        --no-anchor --transitions 800000 --runs runs/bfloat16 --out docs/results/ppo-bfloat16
+                                                       # HAMnet's update in bfloat16 (issue 28)
 
 Two variants run side by side (one core each, one torch thread), each as
-`hamnet trainer --inprocess --architecture state-mlp` on the easy stage; the script writes
+`hamnet trainer --inprocess --architecture state-mlp` (or `--architecture`) on the easy
+stage, with the shipped encoder where the architecture reads clouds; the script writes
 `docs/results/ppo-small-scale.json` and `.png`: per variant the training success rate per
 0.1 M transitions, the deterministic policy's held-out success (`--eval-episodes`), and the
 update's diagnostics (KL of the kept policy, clip fraction, gradient agreement, actor steps
-kept, log std) that explain the difference.
+kept, log std) that explain the difference, and each run's wall clock.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from hamnet.evaluation.metrics import wilson_interval
+from hamnet.policy.registry import ARCHITECTURES
 from hamnet.runtime.runs import commit, read_metrics
 from hamnet.trainer.results.summary import repository_path
 
@@ -51,9 +57,11 @@ VARIANTS: dict[str, tuple[str, ...]] = {
     "defaults": (),
     "authors": AUTHORS_FLAGS,
     "paddle": ("--action-space", "paddle"),
+    "paddle-bfloat16": ("--action-space", "paddle", "--ppo.bfloat16"),
 }
 """Variant name -> the trainer flags that make it (beyond the shared ones): the defaults, the
-authors' update, and the defaults acting in the paddle-twist action space."""
+authors' update, the defaults acting in the paddle-twist action space, and that with the
+update's network passes in bfloat16 (`PPOConfig.bfloat16`)."""
 
 ANCHOR = {
     "source": "issue 27, 'On the easy stage': a CleanRL-style PPO on privileged state (MLP 2x256 "
@@ -76,7 +84,7 @@ def run_variant(name: str, flags: tuple[str, ...], args: argparse.Namespace) -> 
     folder = args.runs / name
     folder.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "hamnet", "trainer", "--inprocess", "--architecture",
-               "state-mlp", "--stage", "easy", "--sim.seed", str(args.seed), "--sim.nthread", "1",
+               args.architecture, "--stage", "easy", "--sim.seed", str(args.seed), "--sim.nthread", "1",
                "--learner-threads", "1", "--max-env-transitions", str(args.transitions), "--eval-episodes",
                str(args.eval_episodes), "--run-dir", repository_path(folder), *flags]  # fmt: skip
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
@@ -123,12 +131,14 @@ def summarise(rows: list[dict], summary: dict) -> dict:
         "held_out_goal_return": summary["final_goal_return"],
         "env_transitions": x,
         "success_rate": success,
+        "wall_clock_s": summary["wall_clock_s"],
+        "wall_clock_per_bucket_s": bucketed(rows, "wall_clock_s")[1],
         "diagnostics": {key: bucketed(rows, key)[1] for key in DIAGNOSTICS},
         "run_command": summary["command"],
     }
 
 
-def plot(variants: dict[str, dict], anchor: bool, out: Path) -> None:
+def plot(variants: dict[str, dict], architecture: str, anchor: bool, out: Path) -> None:
     """Success against transitions (next to the anchor with `anchor`), and the diagnostics
     below."""
     figure, axes = plt.subplots(2, 3, figsize=(15, 8))
@@ -139,7 +149,8 @@ def plot(variants: dict[str, dict], anchor: bool, out: Path) -> None:
     for name, variant in variants.items():
         xs = [x / 1e6 for x in variant["env_transitions"]]
         success.plot(xs, variant["success_rate"],
-                     label=f"{name} (held-out {variant['held_out_success_rate']:.3f})")  # fmt: skip
+                     label=f"{name} (held-out {variant['held_out_success_rate']:.3f}, "
+                     f"{variant['wall_clock_s'] / 60:.0f} min)")  # fmt: skip
         for axis, key in zip(axes.flat[1:], DIAGNOSTICS, strict=True):
             axis.plot(xs, variant["diagnostics"][key], label=name)
             axis.set_title(key)
@@ -149,7 +160,7 @@ def plot(variants: dict[str, dict], anchor: bool, out: Path) -> None:
         axis.grid(alpha=0.3)
         axis.legend(fontsize=8)
     shown = ", ".join(variants) + (", the outside anchor" if anchor else "")
-    figure.suptitle(f"state MLP on the easy stage: {shown}")
+    figure.suptitle(f"{architecture} on the easy stage: {shown}")
     figure.tight_layout()
     figure.savefig(out, dpi=90)
     plt.close(figure)
@@ -159,6 +170,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--transitions", type=int, default=2_000_000, help="budget per variant")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--architecture", choices=ARCHITECTURES, default="state-mlp",
+                        help="the policy both variants train (hamnet trainer --architecture)")  # fmt: skip
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=["defaults", "authors"],
                         help="which variants to run, two side by side at a time")  # fmt: skip
     parser.add_argument("--no-anchor", action="store_true",
@@ -180,7 +193,7 @@ def main() -> int:
     }  # fmt: skip
     result = {
         "stage": "easy",
-        "architecture": "state-mlp",
+        "architecture": args.architecture,
         "env_transitions": args.transitions,
         "variants": variants,
         "anchor": None if args.no_anchor else ANCHOR,
@@ -196,7 +209,7 @@ def main() -> int:
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
-    plot(variants, not args.no_anchor, args.out.with_suffix(".png"))
+    plot(variants, args.architecture, not args.no_anchor, args.out.with_suffix(".png"))
     print(json.dumps({f"{name}_held_out_success_rate": v["held_out_success_rate"]
                       for name, v in variants.items()}))  # fmt: skip
     return 0
