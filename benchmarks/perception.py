@@ -1,6 +1,7 @@
 """Perception benchmark: clouds and tokens per second for B environments with and without
 the per-episode caches, and the culling sampler against sampling the boolean mesh union of
-the same scenes (trimesh + manifold3d), in one run.
+the same scenes (trimesh + manifold3d), and the cached step with the encoder's layers in
+float32 against bfloat16 (`CloudConfig.encoder_precision`), in one run.
 
 Scenes come from the sim's own `VectorEnv`. "Cached" is one `Perception.step` (pose the
 object, local cloud, encode it); "uncached" redoes every episode's scene sampling and the
@@ -14,6 +15,7 @@ vectorize), against `sample_surface` for all scenes at once. Last line: one JSON
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -26,6 +28,7 @@ from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception
 from hamnet.perception.scene_cloud import sample_surface
 from hamnet.perception.unicorn import UniCORN
+from hamnet.runtime.compute import native_bfloat16
 from hamnet.sim.config import SimConfig
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.quaternion import to_matrix
@@ -58,8 +61,14 @@ def main() -> dict:
                                        s.cuboid_half_extent, s.cuboid_active, s.object_points)  # fmt: skip
     pose = torch.as_tensor(obs.object_pose, dtype=torch.float32)
     config = CloudConfig()
-    core = Perception(UniCORN(), b, config)
+    encoder = UniCORN()
+    core = Perception(encoder, b, config)
     core.start_episodes(scenes)
+    precisions = {}  # the cached step with the encoder's layers in float32 and in bfloat16
+    for precision in ("float32", "bfloat16"):
+        fixed = Perception(encoder, b, replace(config, encoder_precision=precision))
+        fixed.start_episodes(scenes)
+        precisions[precision] = durations(lambda fixed=fixed: fixed.step(pose), repeats)
 
     def uncached() -> None:
         core.start_episodes(scenes)
@@ -87,13 +96,20 @@ def main() -> dict:
         "uncached_steps_per_s": 1.0 / float(np.median(uncached_s)),
         "cached_env_steps_per_s": b / float(np.median(cached_s)),
         "cache_speedup": float(np.median(uncached_s) / np.median(cached_s)),
+        "native_bfloat16": native_bfloat16(),
+        "cached_step_float32": summary(precisions["float32"], "ms", 1e3),
+        "cached_step_bfloat16": summary(precisions["bfloat16"], "ms", 1e3),
+        "encoder_bfloat16_speedup": float(
+            np.median(precisions["float32"]) / np.median(precisions["bfloat16"])
+        ),
         "culling_sample_512": summary(culling_s, "ms", 1e3),
         "union_sample_512_per_env_ms": 1e3 * float(np.median(union_per_env)),
         "culling_sample_512_per_env_ms": 1e3 * float(np.median(culling_per_env)),
         "union_envs_timed": union_envs,
         "culling_vs_union_speedup": float(np.median(union_per_env) / np.median(culling_per_env)),
     }
-    print(f"{b} environments: cached step {figures['cached_step']['median_ms']:.1f} ms, uncached "
+    print(f"{b} environments: cached step {figures['cached_step']['median_ms']:.1f} ms (float32 layers "
+          f"{figures['cached_step_float32']['median_ms']:.1f}, bfloat16 {figures['cached_step_bfloat16']['median_ms']:.1f}), uncached "
           f"{figures['uncached_step']['median_ms']:.1f} ms ({figures['cache_speedup']:.1f}x); culling sampler "
           f"{figures['culling_sample_512_per_env_ms']:.2f} ms/env vs union {figures['union_sample_512_per_env_ms']:.2f} ms/env")  # fmt: skip
     return figures

@@ -25,10 +25,11 @@ from hamnet.camera.views import DepthView
 from hamnet.perception.cameras import resample
 from hamnet.perception.cloud_ops import farthest_point_sample, gather, local_cloud
 from hamnet.perception.config import CloudConfig
-from hamnet.perception.core import Percepts, encoder_for
+from hamnet.perception.core import Percepts, encode, encoder_for
 from hamnet.perception.object_pose import estimate_pose
 from hamnet.perception.segmenters import Segmenter
 from hamnet.perception.unicorn import UniCORN
+from hamnet.runtime.compute import use_bfloat16
 from hamnet.sim.quaternion import to_matrix
 
 
@@ -50,6 +51,7 @@ class CameraPerception:
         self.config = config = config if config is not None else CloudConfig()
         self.device = torch.device(device)
         self.encoder = encoder_for(encoder, config, self.device)
+        self.bfloat16 = use_bfloat16(config.encoder_precision, self.device)
         self.segmenter = segmenter
         self.rng = np.random.default_rng(seed)
 
@@ -76,8 +78,8 @@ class CameraPerception:
         pose = estimate_pose(object_points)
         rotation = tensor(to_matrix(pose[3:]))  # (1, 3, 3)
         in_object_frame = (obj - tensor(pose[None, :3])) @ rotation  # R^T (p - c), row-wise
-        object_tokens, local_tokens, global_tokens = self.encoder(
-            torch.cat([in_object_frame, local, environment])
+        object_tokens, local_tokens, global_tokens = encode(
+            self.encoder, torch.cat([in_object_frame, local, environment]), self.bfloat16
         ).split(1)
         percepts = Percepts(obj, environment, local, object_tokens, local_tokens, global_tokens)
         return percepts, pose

@@ -12,6 +12,8 @@ import json
 from dataclasses import asdict, dataclass, replace
 from typing import Literal, get_args
 
+from hamnet.runtime.compute import Precision
+
 Visibility = Literal["full", "cameras"]
 """Which surface the clouds show: all of it, or what the four cameras see."""
 
@@ -62,6 +64,13 @@ class CloudConfig:
     """... up to this far above it, m, within the table's footprint: the tallest case, ceiling
     0.5 m on a 0.15 m plate (authors' tabletop_with_object_scene_v3.py:386-387)."""
 
+    encoder_precision: Precision = "auto"
+    """How UniCORN's layers run (`hamnet.runtime.compute.Precision`): "auto" is bfloat16 on
+    a CPU with native bfloat16 and float32 elsewhere; the patches' neighbours are ranked in
+    float32 either way. On the shipped encoder and 64 local clouds of the easy stage,
+    bfloat16 tokens were within 0.5% (relative norm) of float32's, every token's cosine
+    above 0.9999, and the layers 2.3x faster on one thread."""
+
     visibility: Visibility = "full"
     """"full": every surface (the teacher); "cameras": only the points one of the four
     cameras of the paper's rig sees (the student; `hamnet.perception.visibility`): the
@@ -75,6 +84,11 @@ class CloudConfig:
 
     def __post_init__(self) -> None:
         _at_least(self, 1, "num_points", "grid", "num_keypoints")
+        if self.encoder_precision not in get_args(Precision):
+            raise ValueError(
+                f"encoder_precision must be one of {get_args(Precision)}, "
+                f"got {self.encoder_precision!r}"
+            )
         if self.visibility not in get_args(Visibility):
             raise ValueError(
                 f"visibility must be one of {get_args(Visibility)}, got {self.visibility!r}"

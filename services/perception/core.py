@@ -45,6 +45,7 @@ from hamnet.perception.visibility import (
     keep,
     outward_normals,
 )
+from hamnet.runtime.compute import bfloat16_autocast, use_bfloat16
 from hamnet.task.cuboids import TABLE
 
 CACHES = (
@@ -129,6 +130,13 @@ def encoder_for(encoder: UniCORN, config: CloudConfig, device: torch.device) -> 
     return encoder.to(device).eval()
 
 
+def encode(encoder: UniCORN, points: torch.Tensor, bfloat16: bool) -> torch.Tensor:
+    """float32 tokens of clouds (B, P, 3), the encoder's layers in bfloat16 if asked
+    (`CloudConfig.encoder_precision`; its patches are found in float32 either way)."""
+    with bfloat16_autocast(bfloat16, points.device.type):
+        return encoder(points).float()
+
+
 class Perception:
     """Clouds and UniCORN tokens for B environments, with per-episode caches."""
 
@@ -143,6 +151,8 @@ class Perception:
         self.config = config = config if config is not None else CloudConfig()
         self.device = torch.device(device)
         self.encoder = encoder_for(encoder, config, self.device)
+        self.bfloat16 = use_bfloat16(config.encoder_precision, self.device)
+        """Whether the encoder's layers run in bfloat16 (`CloudConfig.encoder_precision`)."""
         self.generator = torch.Generator(self.device).manual_seed(seed)
         b, p, s, d = num_envs, config.num_points, config.scene_pool, encoder.config.width
         n, k = encoder.config.num_tokens, config.num_keypoints
@@ -212,9 +222,13 @@ class Perception:
             update(self.object_points, points),
             update(self.keypoints, keypoints),
         )
-        self.global_tokens = update(self.global_tokens, self.encoder(environment))
-        self.object_tokens = update(self.object_tokens, self.encoder(points))
+        self.global_tokens = update(self.global_tokens, self.encode(environment))
+        self.object_tokens = update(self.object_tokens, self.encode(points))
         self.episode_ids = update(self.episode_ids, scenes.episode_ids.to(self.device, torch.long))
+
+    def encode(self, points: torch.Tensor) -> torch.Tensor:
+        """Tokens (B, 1 + K, D) of clouds (B, P, 3) at the configured precision."""
+        return encode(self.encoder, points, self.bfloat16)
 
     def snapshot(self) -> tuple[dict[str, torch.Tensor], dict[str, object]]:
         """The per-episode caches (`CACHES`) and the noise generator's state: what a
@@ -243,13 +257,13 @@ class Perception:
             points, object_tokens = self.object_points[rows], self.object_tokens[rows]
         else:
             points = self._seen_object(rows, pose)
-            object_tokens = self.encoder(points)
+            object_tokens = self.encode(points)
         return Percepts(
             object_cloud=pose_points(points, pose),
             environment_cloud=self.environment_cloud[rows],
             local_cloud=local,
             object_tokens=object_tokens,
-            local_tokens=self.encoder(local),
+            local_tokens=self.encode(local),
             global_tokens=self.global_tokens[rows],
         )
 

@@ -105,7 +105,8 @@ class UniCORN(nn.Module):
             raise ValueError(
                 f"expected clouds (B, {config.num_points}, 3), got {tuple(points.shape)}"
             )
-        centres, patches = patchify(points, config.num_patches, config.patch_size)
+        with torch.autocast(points.device.type, enabled=False):  # rank neighbours in float32
+            centres, patches = patchify(points.float(), config.num_patches, config.patch_size)
         tokens = self.tokenizer(patches) + self.position(centres)  # (B, K, D)
         tokens = torch.cat([tokens, self.emb.expand(len(points), -1, -1)], 1)  # (B, K + 1, D)
         for layer in self.layers:

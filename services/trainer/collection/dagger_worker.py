@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.perception.config import CloudConfig, student_clouds
+from hamnet.perception.config import student_clouds
 from hamnet.perception.core import Perception
 from hamnet.policy import inputs as builder
 from hamnet.policy.policy import Policy
@@ -38,7 +38,7 @@ from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.algorithms.dagger import Demonstrations, beta_at
 from hamnet.trainer.collection.seat import Seat
-from hamnet.trainer.collection.sources import Collected, frozen_encoder
+from hamnet.trainer.collection.sources import Collected, frozen_encoder, run_clouds
 from hamnet.trainer.collection.worker import Worker
 from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.runners.run_config import RunConfig
@@ -171,7 +171,7 @@ def build_dagger_worker(config: RunConfig, teacher: Policy) -> DaggerWorker:
     student = architecture(config.architecture).config
     needs = {"teacher": teacher.config.clouds, "student": student.clouds}
     encoder = frozen_encoder(config)[0] if any(needs.values()) else None
-    clouds = {"teacher": CloudConfig(), "student": student_clouds()}
+    clouds = {"teacher": run_clouds(config), "student": run_clouds(config, student_clouds())}
     offsets = {"teacher": 0, "student": STUDENT_PERCEPTION_SEED}
     perceptions = {
         role: Perception(encoder, b, clouds[role], seed=seed + offsets[role])

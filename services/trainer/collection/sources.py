@@ -44,6 +44,13 @@ def frozen_encoder(config: RunConfig) -> tuple[UniCORN, int]:
     return encoder.requires_grad_(False), version
 
 
+def run_clouds(config: RunConfig, clouds: CloudConfig | None = None) -> CloudConfig:
+    """`clouds` (default: every surface, noise-free) with the encoder at the run's
+    `encoder_precision`."""
+    clouds = clouds if clouds is not None else CloudConfig()
+    return dataclasses.replace(clouds, encoder_precision=config.encoder_precision)
+
+
 def build_workers(
     config: RunConfig,
     groups: int,
@@ -65,11 +72,11 @@ def build_workers(
     safety = in_action_space(
         with_profile("training") if safety is None else safety, config.action_space
     )
-    workers = []
+    workers, seen = [], run_clouds(config, clouds)
     for group in range(groups):
         seed = config.seed + group
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
-        perception = None if frozen is None else Perception(frozen, size, clouds, seed=seed)
+        perception = None if frozen is None else Perception(frozen, size, seen, seed=seed)
         safe = SafetyFilter(np.zeros((size, NUM_JOINTS)), safety)
         workers.append(RolloutWorker(env, perception, safe, seed))
     return workers, version

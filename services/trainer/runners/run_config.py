@@ -12,6 +12,7 @@ from pathlib import Path
 from hamnet.perception.checkpoint import SHIPPED_ENCODER
 from hamnet.policy.config import Initialization, LogStdConfig
 from hamnet.policy.registry import architecture
+from hamnet.runtime.compute import Precision
 from hamnet.safety.config import ActionSpace
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import STAGES, StageName, stage_config
@@ -70,6 +71,9 @@ class RunConfig:
     random_encoder: bool = False
     """Freeze a randomly initialised encoder (version 0) instead: the ablation without
     pre-training."""
+    encoder_precision: Precision = "auto"
+    """How the encoder's layers run while the run acts (`CloudConfig.encoder_precision`):
+    "auto" is bfloat16 on a CPU with native bfloat16; float32 for tokens exactly as before."""
     overlap: bool | None = None
     """Split the environments into two groups and step one group's physics while the other's
     perception, policy and safety run (`rollout.collect_overlapped`), so both cores stay
