@@ -11,9 +11,10 @@ optimizer state, on a second rollout, with the same minibatch order:
 - critic: one thread, the critic-only steps on features computed once per update
   (`ppo.update`'s `critic`, the trainer's default);
 - default: that, on every core (`RunConfig.learner_threads`: an in-process trainer's
-  rollouts wait for its update);
-- bfloat16: the default under bfloat16 autocast (`PPOConfig.bfloat16`), with how the
-  whole batch's gradient at the start state agrees with float32's (cosine).
+  rollouts wait for its update), in float32;
+- bfloat16: that under bfloat16 autocast (`PPOConfig.precision`, the trainer's default
+  on a CPU with native bfloat16), with how the whole batch's gradient at the start state
+  agrees with float32's (cosine).
 
 And, on one minibatch of the batch (one thread), the global scene cross-attention's forward
 and backward with every sample's tokens embedded (`repeated=False`) against each distinct

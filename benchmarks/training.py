@@ -3,7 +3,10 @@ ceiling of the same world, and where a step's time goes.
 
 Measures in one run, on the easy stage with HAMnet on its paper inputs:
 - inprocess: `hamnet trainer --inprocess`'s loop (`Runner.iterate`: two groups of environments, one
-  group's physics overlapping the other's networks), learning included;
+  group's physics overlapping the other's networks), learning included, at the default
+  precision (bfloat16 encoder layers and update passes where the CPU has native bfloat16);
+- inprocess float32: the same loop with the encoder and the update in float32
+  (`--encoder-precision float32 --ppo.precision float32`);
 - workers: the same loop learning from `hamnet rollout` processes over Zenoh on loopback
   (`hamnet.trainer.collection.streamed.Streamed`), with 1 worker of B environments and 2 of B/2 each;
 - sequential: the same loop with one group (physics, then the networks), and the share of
@@ -19,6 +22,7 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
 
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
+`inprocess_float32_env_steps_per_s` and `precision_speedup` (default / float32),
 `overlap_speedup`, `shares`, `workers_vs_inprocess` (the faster of 1 and 2 workers, both
 reported) and `services_vs_inprocess` (goal >= 0.8).
 
@@ -50,6 +54,7 @@ from tempfile import TemporaryDirectory
 from common import header, loopback_transport, progress, report, spawn, stop
 from sim import raw_copy
 
+from hamnet.runtime.compute import native_bfloat16
 from hamnet.runtime.service import Service, ServiceIdentity
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import stage_config
@@ -130,7 +135,9 @@ def remote_rate(
         stop(processes)
 
 
-def streamed_rate(sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path) -> float:
+def streamed_rate(
+    sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path
+) -> float:
     """Env steps/s of the loop learning from `workers` rollout worker processes of
     `sim.num_envs / workers` environments each, after one warm-up iteration."""
     each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
@@ -218,8 +225,13 @@ def main() -> dict:
         config = RunConfig(sim=sim, run_dir=Path(run_dir), steps_per_rollout=steps)
         inprocess, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
-        sequential_config = RunConfig(sim=sim, run_dir=Path(run_dir), overlap=False,
-                                      steps_per_rollout=steps)
+        float32_config = dataclasses.replace(config, encoder_precision="float32",
+                                             ppo=dataclasses.replace(config.ppo, precision="float32"))  # fmt: skip
+        float32, _ = loop_rate(float32_config, iterations)
+        progress(f"in-process, float32: {float32:.0f} env steps/s")
+        sequential_config = RunConfig(
+            sim=sim, run_dir=Path(run_dir), overlap=False, steps_per_rollout=steps
+        )
         sequential, runner = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
         shares = component_shares(runner, iterations)
@@ -246,6 +258,9 @@ def main() -> dict:
         "stage": config.stage,
         "architecture": config.architecture,
         "inprocess_env_steps_per_s": round(inprocess, 1),
+        "native_bfloat16": native_bfloat16(),
+        "inprocess_float32_env_steps_per_s": round(float32, 1),
+        "precision_speedup": round(inprocess / float32, 3),
         "sequential_env_steps_per_s": round(sequential, 1),
         "overlap_speedup": round(inprocess / sequential, 3),
         "physics_ceiling_env_steps_per_s": round(ceiling, 1),

@@ -9,7 +9,7 @@ any two variants of the trainer's update side by side (the action spaces, bfloat
     python scripts/ppo_small_scale.py --variants defaults paddle --no-anchor --seed 1 \
         --transitions 1200000 --runs runs/action-space-s1 --out docs/results/action-space-s1
                                                        # the action spaces (issue 28)
-    python scripts/ppo_small_scale.py --architecture hamnet --variants paddle paddle-bfloat16 \
+    python scripts/ppo_small_scale.py --architecture hamnet --variants paddle-float32 paddle-bfloat16 \
         --no-anchor --transitions 800000 --runs runs/bfloat16 --out docs/results/ppo-bfloat16
                                                        # HAMnet's update in bfloat16 (issue 28)
 
@@ -57,11 +57,12 @@ VARIANTS: dict[str, tuple[str, ...]] = {
     "defaults": (),
     "authors": AUTHORS_FLAGS,
     "paddle": ("--action-space", "paddle"),
-    "paddle-bfloat16": ("--action-space", "paddle", "--ppo.bfloat16"),
+    "paddle-float32": ("--action-space", "paddle", "--ppo.precision", "float32"),
+    "paddle-bfloat16": ("--action-space", "paddle", "--ppo.precision", "bfloat16"),
 }
 """Variant name -> the trainer flags that make it (beyond the shared ones): the defaults, the
 authors' update, the defaults acting in the paddle-twist action space, and that with the
-update's network passes in bfloat16 (`PPOConfig.bfloat16`)."""
+update's network passes in float32 and in bfloat16 (`PPOConfig.precision`)."""
 
 ANCHOR = {
     "source": "issue 27, 'On the easy stage': a CleanRL-style PPO on privileged state (MLP 2x256 "

@@ -19,7 +19,7 @@ from typing import Literal
 import torch
 
 Precision = Literal["auto", "float32", "bfloat16"]
-"""How a network runs inference: "auto" is bfloat16 on a CPU that multiplies bfloat16
+"""How a network runs (UniCORN's inference, PPO's update): "auto" is bfloat16 on a CPU that multiplies bfloat16
 natively (`native_bfloat16`) and float32 elsewhere (a GPU, or a CPU that would emulate it
 slower than float32)."""
 
@@ -56,16 +56,14 @@ def torch_threads(threads: int) -> Iterator[None]:
 
 
 def bfloat16_autocast(enabled: bool = True, device_type: str = "cpu") -> torch.autocast:
-    """bfloat16 autocast on the CPU (`PPOConfig.bfloat16`, UniCORN's inference under
+    """bfloat16 autocast on the CPU (`PPOConfig.precision`, UniCORN's inference under
     `CloudConfig.encoder_precision`) or `device_type`, without autocast's cache of cast
     weights: an update steps the float32 weights inside the block, and the cache kept
     serving the bfloat16 copies made before the first step, so every later pass, the KL
     stop's included, read the old weights (measured on the shipped teacher's batch: the
     update read a KL of 0.020 after keeping 3 actor steps, where the policy had moved 0.068
     on the whole batch; float32's readings matched its policy)."""
-    return torch.autocast(
-        device_type, dtype=torch.bfloat16, enabled=enabled, cache_enabled=False
-    )
+    return torch.autocast(device_type, dtype=torch.bfloat16, enabled=enabled, cache_enabled=False)
 
 
 @functools.cache

@@ -12,6 +12,7 @@ from tests.benchmarks.quick import run_quick
 def test_quick_run_ends_with_one_json_line_of_figures() -> None:
     figures = run_quick("training.py", timeout=120)
     assert figures["benchmark"] == "training" and figures["inprocess_env_steps_per_s"] > 0
+    assert figures["inprocess_float32_env_steps_per_s"] > 0 and figures["precision_speedup"] > 0
     assert 0 < figures["inprocess_vs_physics_ceiling"] and set(figures["shares"]) >= {
         "sim",
         "perception",

@@ -23,7 +23,7 @@ from hamnet.policy.policy import Policy
 from hamnet.policy.rollout_record import Rollout
 from hamnet.proto.trainer_pb2 import RolloutChunk
 from hamnet.runtime import contract
-from hamnet.runtime.compute import bfloat16_autocast, torch_threads
+from hamnet.runtime.compute import bfloat16_autocast, torch_threads, use_bfloat16
 from hamnet.safety.config import with_profile
 from hamnet.trainer.algorithms.gae import gae
 from hamnet.trainer.algorithms.normalization import ReturnScaler
@@ -80,6 +80,8 @@ class PPO:
 
     def start(self, policy: Policy, envs: int, ranks: Ranks = ONE, threads: int = 1) -> None:
         self.policy, self.ranks, self.threads = policy, ranks, threads
+        self.bfloat16 = use_bfloat16(self.ppo.precision, policy.log_std.device)
+        """Whether the update's passes run in bfloat16 (`PPOConfig.precision`)."""
         self.optimizer = optimizer_for(
             policy.actor_parameters(), policy.critic_parameters(), self.ppo
         )
@@ -117,7 +119,7 @@ class PPO:
         critic alone on features computed once after the actor stops (`ppo.update`)."""
         batch = self.batch(rollout, whole, envs)
         self.policy.train()
-        with torch_threads(self.threads), bfloat16_autocast(self.ppo.bfloat16):
+        with torch_threads(self.threads), bfloat16_autocast(self.bfloat16):
             return update(
                 self.policy.evaluate,
                 self.policy.parameters(),
@@ -135,7 +137,7 @@ class PPO:
     def gradient(self, batch: Batch, bfloat16: bool = False) -> torch.Tensor:
         """The flat gradient of the clipped surrogate and the value loss of the whole
         `batch` at the current weights, the network's pass in bfloat16 or float32: how far
-        a bfloat16 update's direction is from float32's (`PPOConfig.bfloat16`). Leaves the
+        a bfloat16 update's direction is from float32's (`PPOConfig.precision`). Leaves the
         gradients set."""
         policy = self.policy.train()
         policy.zero_grad(set_to_none=True)
