@@ -11,6 +11,10 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
   (`hamnet.trainer.collection.streamed.Streamed`), with 1 worker of B environments and 2 of B/2 each;
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
+- the seconds an update of each component in the overlapped and the sequential loop (timed
+  in the measured iterations themselves), and how busy the overlapped loop's two threads
+  were while it acted (`overlap_busy`: physics, networks), which says what overlapping
+  can still gain;
 - physics ceiling: a raw `mujoco.batch.Batch` of the same compiled world, per-environment
   fields and state, stepped 40 physics steps per policy step and nothing else;
 - services: the same loop learning from the service chain, `hamnet sim`, `perception`,
@@ -23,7 +27,8 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
 Produces a progress line per setup on stderr and, as the last stdout line, one JSON object
 with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 `inprocess_float32_env_steps_per_s` and `precision_speedup` (default / float32),
-`overlap_speedup`, `shares`, `workers_vs_inprocess` (the faster of 1 and 2 workers, both
+`overlap_speedup`, `shares`, `seconds_per_update`, `overlap_busy`,
+`workers_vs_inprocess` (the faster of 1 and 2 workers, both
 reported) and `services_vs_inprocess` (goal >= 0.8).
 
     .venv/bin/python benchmarks/training.py --quick     # 16 envs x 32 steps, 2 iterations, 1 worker
@@ -84,15 +89,59 @@ def timed(function: Callable, seconds: dict[str, float], name: str) -> Callable:
     return wrapper
 
 
-def loop_rate(config: RunConfig, iterations: int) -> tuple[float, Runner]:
-    """Env steps/s of `iterations` iterations after one warm-up, learning included."""
+def instrument(runner: Runner) -> dict[str, float]:
+    """Seconds each component of `runner`'s loop takes from now on, summed over its calls:
+    sim (`env.step`, in the physics thread when overlapped), perception, policy, safety,
+    learner. The wrappers cost two clock reads a call."""
+    seconds: dict[str, float] = defaultdict(float)
+    for worker in runner.source.workers:
+        worker.env.step = timed(worker.env.step, seconds, "sim")
+        worker.perception.step = timed(worker.perception.step, seconds, "perception")
+        worker.perception.start_episodes = timed(
+            worker.perception.start_episodes, seconds, "perception"
+        )
+        worker.safety.command = timed(worker.safety.command, seconds, "safety")
+    runner.policy.act = timed(runner.policy.act, seconds, "policy")
+    runner.algorithm.learn = timed(runner.algorithm.learn, seconds, "learner")
+    return seconds
+
+
+def loop_rate(config: RunConfig, iterations: int) -> tuple[float, dict[str, float], Runner]:
+    """Env steps/s of `iterations` iterations after one warm-up, learning included, the
+    seconds per iteration of the whole (`iteration`) and of each component (`instrument`),
+    and the runner."""
     runner = Runner(config)
     runner.iterate()
+    seconds = instrument(runner)
     started = time.perf_counter()
     for _ in range(iterations):
         runner.iterate()
+    elapsed = time.perf_counter() - started
     steps = iterations * config.num_envs * config.rollout_steps
-    return steps / (time.perf_counter() - started), runner
+    per_iteration = {name: round(value / iterations, 3) for name, value in sorted(seconds.items())}
+    seconds = {**per_iteration, "iteration": round(elapsed / iterations, 3)}
+    return steps / elapsed, seconds, runner
+
+
+def shares_of(seconds: dict[str, float]) -> dict[str, float]:
+    """Each component's share of a sequential iteration's wall time (`loop_rate`'s seconds
+    of a one-group loop, where the components take turns), and the rest as `other`."""
+    total = seconds["iteration"]
+    shares = {
+        name: round(value / total, 3) for name, value in seconds.items() if name != "iteration"
+    }
+    shares["other"] = round(1.0 - sum(shares.values()), 3)
+    return shares
+
+
+def overlap_busy(seconds: dict[str, float]) -> dict[str, float]:
+    """The share of the overlapped loop's acting time (its iteration less the update) that
+    each of its two threads spent working: the physics thread in `env.step`, the main thread
+    in perception, policy and safety. Both near 1: the overlap is balanced and only less work
+    per step makes acting faster."""
+    acting = seconds["iteration"] - seconds["learner"]
+    networks = seconds["perception"] + seconds["policy"] + seconds["safety"]
+    return {"physics": round(seconds["sim"] / acting, 3), "networks": round(networks / acting, 3)}
 
 
 def remote_rate(
@@ -163,27 +212,6 @@ def chain_rate(
     return remote_rate(sim, commands, 1, CHAIN_LAG, steps, iterations, run_dir, deadline_s)
 
 
-def component_shares(runner: Runner, iterations: int) -> dict[str, float]:
-    """Share of a sequential step's wall time in each component (`runner`: one group)."""
-    seconds: dict[str, float] = defaultdict(float)
-    (worker,) = runner.source.workers
-    worker.env.step = timed(worker.env.step, seconds, "sim")
-    worker.perception.step = timed(worker.perception.step, seconds, "perception")
-    worker.perception.start_episodes = timed(
-        worker.perception.start_episodes, seconds, "perception"
-    )
-    worker.safety.command = timed(worker.safety.command, seconds, "safety")
-    runner.policy.act = timed(runner.policy.act, seconds, "policy")
-    runner.algorithm.learn = timed(runner.algorithm.learn, seconds, "learner")
-    started = time.perf_counter()
-    for _ in range(iterations):
-        runner.iterate()
-    total = time.perf_counter() - started
-    shares = {name: round(value / total, 3) for name, value in sorted(seconds.items())}
-    shares["other"] = round(1.0 - sum(shares.values()), 3)
-    return shares
-
-
 def physics_ceiling(runner: Runner, steps: int) -> float:
     """Env steps/s of raw MuJoCo on the run's world (40 physics steps per policy step)."""
     env = runner.source.workers[0].env
@@ -223,19 +251,20 @@ def main() -> dict:
     with TemporaryDirectory() as run_dir:
         sim = stage_config("easy", num_envs=num_envs)
         config = RunConfig(sim=sim, run_dir=Path(run_dir), steps_per_rollout=steps)
-        inprocess, _ = loop_rate(config, iterations)
+        inprocess, overlapped_s, _ = loop_rate(config, iterations)
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
         float32_config = dataclasses.replace(config, encoder_precision="float32",
                                              ppo=dataclasses.replace(config.ppo, precision="float32"))  # fmt: skip
-        float32, _ = loop_rate(float32_config, iterations)
+        float32, _, _ = loop_rate(float32_config, iterations)
         progress(f"in-process, float32: {float32:.0f} env steps/s")
         sequential_config = RunConfig(
             sim=sim, run_dir=Path(run_dir), overlap=False, steps_per_rollout=steps
         )
-        sequential, runner = loop_rate(sequential_config, iterations)
+        sequential, sequential_s, runner = loop_rate(sequential_config, iterations)
         progress(f"in-process, one group: {sequential:.0f} env steps/s")
-        shares = component_shares(runner, iterations)
+        shares = shares_of(sequential_s)
         progress(f"shares of a sequential step: {shares}")
+        progress(f"seconds an update, overlapped: {overlapped_s}; sequential: {sequential_s}")
         ceiling = physics_ceiling(runner, 5 if args.quick else 30)
         progress(f"physics ceiling: {ceiling:.0f} env steps/s")
         streamed = {}
@@ -266,6 +295,8 @@ def main() -> dict:
         "physics_ceiling_env_steps_per_s": round(ceiling, 1),
         "inprocess_vs_physics_ceiling": round(inprocess / ceiling, 3),
         "shares": shares,
+        "seconds_per_update": {"overlapped": overlapped_s, "sequential": sequential_s},
+        "overlap_busy": overlap_busy(overlapped_s),
         "workers_1_env_steps_per_s": round(streamed[1], 1),
         "workers_2_env_steps_per_s": round(streamed[2], 1) if 2 in streamed else None,
         "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),

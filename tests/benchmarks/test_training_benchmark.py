@@ -20,6 +20,11 @@ def test_quick_run_ends_with_one_json_line_of_figures() -> None:
         "safety",
         "learner",
     }
+    seconds = figures["seconds_per_update"]
+    for loop in ("overlapped", "sequential"):
+        assert set(seconds[loop]) >= {"sim", "perception", "policy", "learner", "iteration"}
+        assert 0 < seconds[loop]["sim"] < seconds[loop]["iteration"]
+    assert all(0 < share <= 1.05 for share in figures["overlap_busy"].values())
     assert figures["workers_vs_inprocess"] > 0 and figures["workers_1_env_steps_per_s"] > 0
     assert figures["workers_2_env_steps_per_s"] is None  # --quick measures one worker
     assert figures["services_vs_inprocess"] > 0 or figures["not_measured"]
