@@ -1,13 +1,18 @@
 """Perception benchmark: clouds and tokens per second for B environments with and without
 the per-episode caches, and the culling sampler against sampling the boolean mesh union of
-the same scenes (trimesh + manifold3d), and the cached step with the encoder's layers in
-float32 against bfloat16 (`CloudConfig.encoder_precision`), in one run.
+the same scenes (trimesh + manifold3d), the cached step with the encoder's layers in
+float32 against bfloat16 (`CloudConfig.encoder_precision`), and the cached step of objects
+being pushed with the local cloud ranked over shortlists against the whole pool every step
+(`CloudConfig.local_shortlist`), in one run.
 
 Scenes come from the sim's own `VectorEnv`. "Cached" is one `Perception.step` (pose the
 object, local cloud, encode it); "uncached" redoes every episode's scene sampling and the
 global and object encodings each step as well. The union baseline builds each scene's
 union mesh with manifold3d and samples it with trimesh, one scene at a time (it does not
-vectorize), against `sample_surface` for all scenes at once. Last line: one JSON object.
+vectorize), against `sample_surface` for all scenes at once. The pushed objects move 5 mm
+a step in a direction of their own, the pace of the scripted pusher's push (2 cm a step at
+most); `local_full_ranking_share` is the share of environment steps that ranked the whole
+pool anyway. Last line: one JSON object.
 
     python benchmarks/perception.py [--quick] [--num-envs 64]
 """
@@ -46,6 +51,20 @@ def union_sample(scene: dict[str, np.ndarray], num_points: int) -> np.ndarray:
     return points
 
 
+def pushed_steps(core: Perception, pose: torch.Tensor, repeats: int) -> np.ndarray:
+    """Seconds of `repeats` cached steps, every object moving 5 mm a step in a direction of
+    its own (after one warm-up step, which ranks every pool in full)."""
+    direction = torch.nn.functional.normalize(torch.randn(len(pose), 3), dim=1)
+    direction[:, 2] = 0.0
+    moved = pose.clone()
+
+    def step() -> None:
+        moved[:, :3] += 0.005 * direction
+        core.step(moved)
+
+    return durations(step, repeats)
+
+
 def main() -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="few repeats (under a minute)")
@@ -69,6 +88,13 @@ def main() -> dict:
         fixed = Perception(encoder, b, replace(config, encoder_precision=precision))
         fixed.start_episodes(scenes)
         precisions[precision] = durations(lambda fixed=fixed: fixed.step(pose), repeats)
+
+    pushed = {}  # the cached step of pushed objects with and without shortlists
+    for shortlist in (config.local_shortlist, 0):
+        moving = Perception(encoder, b, replace(config, local_shortlist=shortlist))
+        moving.start_episodes(scenes)
+        pushed[shortlist] = (pushed_steps(moving, pose, repeats), moving)
+    (short_s, short_core), (full_s, _) = pushed[config.local_shortlist], pushed[0]
 
     def uncached() -> None:
         core.start_episodes(scenes)
@@ -102,6 +128,11 @@ def main() -> dict:
         "encoder_bfloat16_speedup": float(
             np.median(precisions["float32"]) / np.median(precisions["bfloat16"])
         ),
+        "local_shortlist": config.local_shortlist,
+        "pushed_step_shortlist": summary(short_s, "ms", 1e3),
+        "pushed_step_full_ranking": summary(full_s, "ms", 1e3),
+        "local_shortlist_speedup": float(np.median(full_s) / np.median(short_s)),
+        "local_full_ranking_share": (short_core.local_clouds.full_rankings - b) / (b * repeats),
         "culling_sample_512": summary(culling_s, "ms", 1e3),
         "union_sample_512_per_env_ms": 1e3 * float(np.median(union_per_env)),
         "culling_sample_512_per_env_ms": 1e3 * float(np.median(culling_per_env)),
@@ -109,7 +140,9 @@ def main() -> dict:
         "culling_vs_union_speedup": float(np.median(union_per_env) / np.median(culling_per_env)),
     }
     print(f"{b} environments: cached step {figures['cached_step']['median_ms']:.1f} ms (float32 layers "
-          f"{figures['cached_step_float32']['median_ms']:.1f}, bfloat16 {figures['cached_step_bfloat16']['median_ms']:.1f}), uncached "
+          f"{figures['cached_step_float32']['median_ms']:.1f}, bfloat16 {figures['cached_step_bfloat16']['median_ms']:.1f}), pushed objects "
+          f"{figures['pushed_step_shortlist']['median_ms']:.1f} ms with shortlists against "
+          f"{figures['pushed_step_full_ranking']['median_ms']:.1f} ranking whole pools, uncached "
           f"{figures['uncached_step']['median_ms']:.1f} ms ({figures['cache_speedup']:.1f}x); culling sampler "
           f"{figures['culling_sample_512_per_env_ms']:.2f} ms/env vs union {figures['union_sample_512_per_env_ms']:.2f} ms/env")  # fmt: skip
     return figures

@@ -93,8 +93,26 @@ def squared_distances(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return a_aug @ b_aug.transpose(1, 2)
 
 
+def nearest_squared_distances(points: torch.Tensor, keypoints: torch.Tensor) -> torch.Tensor:
+    """(B, N) squared distance of each point (B, N, 3) to its nearest keypoint (B, K, 3), for
+    ranking, `ENV_CHUNK` environments at a time."""
+    return torch.cat(
+        [
+            squared_distances(points[rows], keypoints[rows]).amin(-1)  # (b, N)
+            for rows in env_chunks(len(points))
+        ]
+    )
+
+
+def nearest_points(scene: torch.Tensor, keypoints: torch.Tensor, num_points: int) -> torch.Tensor:
+    """(B, L) indices of the L = `num_points` scene points (B, S, 3) with the smallest
+    distance to their nearest keypoint (B, K, 3), nearest first."""
+    nearest = nearest_squared_distances(scene, keypoints)  # (B, S)
+    return nearest.topk(num_points, dim=1, largest=False, sorted=True).indices
+
+
 def local_cloud(scene: torch.Tensor, keypoints: torch.Tensor, num_points: int) -> torch.Tensor:
-    """The scene points nearest the object: the local (focal) cloud.
+    """The scene points nearest the object: the local (focal) cloud, nearest first.
 
     Args:
         scene: (B, S, 3) scene points (the dense pool), m.
@@ -103,14 +121,7 @@ def local_cloud(scene: torch.Tensor, keypoints: torch.Tensor, num_points: int) -
     Returns:
         (B, L, 3) the L scene points with the smallest distance to their nearest keypoint.
     """
-    nearest = torch.cat(
-        [
-            squared_distances(scene[rows], keypoints[rows]).amin(-1)  # (b, S)
-            for rows in env_chunks(len(scene))
-        ]
-    )  # (B, S)
-    index = nearest.topk(num_points, dim=1, largest=False, sorted=True).indices  # (B, L)
-    return gather(scene, index)
+    return gather(scene, nearest_points(scene, keypoints, num_points))
 
 
 def corrupt(

@@ -8,7 +8,8 @@ tokens every step):
   points), its first P points are the global cloud, encoded once; the object's surface
   points (own frame) are encoded once, and 64 FPS keypoints are picked from them;
 - every step (`step`): the object cloud and the keypoints are posed, the local cloud is the P
-  pool points nearest the posed keypoints, and only it is encoded.
+  pool points nearest the posed keypoints (ranked over a shortlist while it provably holds
+  them, `local_cloud.LocalClouds`), and only it is encoded.
 
 Sensor noise and dropout (`CloudConfig.noise_std`, `dropout`) corrupt each cloud where it
 is made: the global and object clouds once per episode, the local cloud every step.
@@ -31,11 +32,11 @@ from hamnet.perception.cloud_ops import (
     corrupt,
     farthest_point_sample,
     gather,
-    local_cloud,
     pose_points,
     quaternion_matrix,
 )
 from hamnet.perception.config import CloudConfig
+from hamnet.perception.local_cloud import LocalClouds
 from hamnet.perception.scene_cloud import Cuboids, sample_surface, workspace_box
 from hamnet.perception.unicorn import UniCORN
 from hamnet.perception.visibility import (
@@ -165,6 +166,9 @@ class Perception:
         self.keypoints = zeros(b, k, 3)  # (B, K, 3) object frame
         self.object_tokens = zeros(b, n, d)  # (B, 1 + K, D)
         self.global_tokens = zeros(b, n, d)  # (B, 1 + K, D)
+        self.local_clouds = LocalClouds(b, p, config.local_shortlist, self.device)
+        """Each environment's shortlist of local-cloud candidates in its pool (derived: not
+        in `snapshot`)."""
         self.camera_view: CameraView | None = None
         """Which points the cameras see; None: every point (`CloudConfig.visibility` full)."""
         if config.visibility == "cameras":
@@ -217,6 +221,7 @@ class Perception:
         else:  # `step` corrupts what the cameras see
             self.object_normals = update(self.object_normals, outward_normals(points))
         self.scene_pool = update(self.scene_pool, pool)
+        self.local_clouds.forget(ids)
         self.environment_cloud = update(self.environment_cloud, environment)
         self.object_points, self.keypoints = (
             update(self.object_points, points),
@@ -240,6 +245,7 @@ class Perception:
         """Continue from `snapshot`'s arrays (copied into torch-allocated tensors)."""
         for name in self.caches:
             setattr(self, name, torch.tensor(arrays[name], device=self.device))
+        self.local_clouds.forget()
         self.generator.set_state(torch.tensor(arrays["generator"]))
 
     @torch.no_grad()
@@ -251,7 +257,9 @@ class Perception:
         rows = slice(None) if env_ids is None else env_ids.to(self.device)
         pose = object_pose.to(self.device, torch.float32)
         keypoints = pose_points(self.keypoints[rows], pose)  # (B, 64, 3)
-        local = local_cloud(self.scene_pool[rows], keypoints, config.num_points)  # (B, P, 3)
+        pool = self.scene_pool[rows]
+        ids = None if env_ids is None else rows
+        local = gather(pool, self.local_clouds.nearest(pool, keypoints, ids))  # (B, P, 3)
         local = corrupt(local, config.noise_std, config.dropout, self.generator)
         if self.camera_view is None:
             points, object_tokens = self.object_points[rows], self.object_tokens[rows]
