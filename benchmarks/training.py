@@ -29,7 +29,10 @@ with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 `inprocess_float32_env_steps_per_s` and `precision_speedup` (default / float32),
 `overlap_speedup`, `shares`, `seconds_per_update`, `overlap_busy`,
 `workers_vs_inprocess` (the faster of 1 and 2 workers, both
-reported) and `services_vs_inprocess` (goal >= 0.8).
+reported) and `services_vs_inprocess` (goal >= 0.8); and per setup the update's seconds an
+iteration (`update_s`) and the rate of the iteration less it (`acting_env_steps_per_s`,
+`workers_vs_inprocess_acting`): how many steps an update keeps varies from run to run
+and setup to setup, and moves the rates with learning by a tenth or more.
 
     .venv/bin/python benchmarks/training.py --quick     # 16 envs x 32 steps, 2 iterations, 1 worker
     .venv/bin/python benchmarks/training.py             # 64 envs x 128 steps (the run's), 3 iterations
@@ -134,6 +137,14 @@ def shares_of(seconds: dict[str, float]) -> dict[str, float]:
     return shares
 
 
+def acting_rate(samples: int, seconds: dict[str, float]) -> float:
+    """Env steps/s of an iteration less its update (`seconds`: `iteration`, `learner`): what
+    a synchronous setup's acting ran at. From a fresh policy the actor keeps 20-30 of its 32
+    steps, as many as the setup's own rollout allows, so the update took 5.9-7.8 s of an
+    iteration from run to run and setup to setup; acting rates compare setups without it."""
+    return round(samples / (seconds["iteration"] - seconds["learner"]), 1)
+
+
 def overlap_busy(seconds: dict[str, float]) -> dict[str, float]:
     """The share of the overlapped loop's acting time (its iteration less the update) that
     each of its two threads spent working: the physics thread in `env.step`, the main thread
@@ -153,11 +164,13 @@ def remote_rate(
     iterations: int,
     run_dir: Path,
     deadline_s: float | None = None,
-) -> float | None:
+) -> tuple[float, dict[str, float]] | None:
     """Env steps/s of the loop learning from rollouts that `commands` (`hamnet` processes,
     started on a loopback network of their own) stream from `workers` sources of
     `sim.num_envs` environments each, `steps` steps a rollout, after one warm-up iteration
-    that includes their start; None when that iteration has not ended within `deadline_s` (None: no deadline)."""
+    that includes their start, and the seconds an iteration of the whole and of its update
+    (`iteration`, `learner`); None when that iteration has not ended within `deadline_s`
+    (None: no deadline)."""
     transport = loopback_transport()
     processes = [spawn(command, transport) for command in commands]
     try:
@@ -175,20 +188,28 @@ def remote_rate(
             finally:
                 if timer is not None:
                     timer.cancel()
+            seconds: dict[str, float] = defaultdict(float)
+            runner.algorithm.learn = timed(runner.algorithm.learn, seconds, "learner")
             started = time.perf_counter()
             for _ in range(iterations):
                 runner.iterate()
+            elapsed = time.perf_counter() - started
             steps = iterations * workers * sim.num_envs * config.rollout_steps
-            return steps / (time.perf_counter() - started)
+            per_iteration = {
+                "learner": seconds["learner"] / iterations,
+                "iteration": elapsed / iterations,
+            }
+            return steps / elapsed, {name: round(value, 3) for name, value in per_iteration.items()}
     finally:
         stop(processes)
 
 
 def streamed_rate(
     sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path
-) -> float:
+) -> tuple[float, dict[str, float]]:
     """Env steps/s of the loop learning from `workers` rollout worker processes of
-    `sim.num_envs / workers` environments each, after one warm-up iteration."""
+    `sim.num_envs / workers` environments each, after one warm-up iteration, and the
+    seconds an iteration (`remote_rate`)."""
     each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
     commands = [["rollout", "--worker", str(k), "--sim.num-envs", str(each.num_envs),
                  "--steps-per-rollout", str(steps)] for k in range(workers)]  # fmt: skip
@@ -199,9 +220,9 @@ def streamed_rate(
 
 def chain_rate(
     sim: SimConfig, steps: int, iterations: int, run_dir: Path, deadline_s: float
-) -> float | None:
-    """Env steps/s of the loop learning from the service chain's chunks (None: no update
-    within `deadline_s`)."""
+) -> tuple[float, dict[str, float]] | None:
+    """Env steps/s of the loop learning from the service chain's chunks and the seconds an
+    iteration (`remote_rate`; None: no update within `deadline_s`)."""
     horizon = str(steps)
     commands = [
         ["sim", "--stage", "easy", "--num-envs", str(sim.num_envs)],
@@ -255,7 +276,7 @@ def main() -> dict:
         progress(f"in-process, overlapped groups: {inprocess:.0f} env steps/s")
         float32_config = dataclasses.replace(config, encoder_precision="float32",
                                              ppo=dataclasses.replace(config.ppo, precision="float32"))  # fmt: skip
-        float32, _, _ = loop_rate(float32_config, iterations)
+        float32, float32_s, _ = loop_rate(float32_config, iterations)
         progress(f"in-process, float32: {float32:.0f} env steps/s")
         sequential_config = RunConfig(
             sim=sim, run_dir=Path(run_dir), overlap=False, steps_per_rollout=steps
@@ -267,19 +288,35 @@ def main() -> dict:
         progress(f"seconds an update, overlapped: {overlapped_s}; sequential: {sequential_s}")
         ceiling = physics_ceiling(runner, 5 if args.quick else 30)
         progress(f"physics ceiling: {ceiling:.0f} env steps/s")
-        streamed = {}
+        streamed, streamed_s = {}, {}
         for workers in worker_counts:
-            streamed[workers] = streamed_rate(
+            streamed[workers], streamed_s[workers] = streamed_rate(
                 sim, workers, steps, iterations, Path(run_dir) / f"workers{workers}"
             )
             progress(
                 f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
             )
-        chain = chain_rate(sim, steps, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
+        chained = chain_rate(sim, steps, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
+        chain, chain_s = (None, None) if chained is None else chained
         progress("trainer + service chain: " + (
             f"{chain:.0f} env steps/s" if chain is not None
             else f"no update within {args.chain_deadline_s:.0f} s"))  # fmt: skip
     services = None if chain is None else chain / inprocess
+    samples = num_envs * steps
+    acting = {
+        "inprocess": acting_rate(samples, overlapped_s),
+        "float32": acting_rate(samples, float32_s),
+        "sequential": acting_rate(samples, sequential_s),
+        **{f"workers_{w}": acting_rate(samples, streamed_s[w]) for w in worker_counts},
+    }
+    update_s = {
+        "inprocess": overlapped_s["learner"],
+        "float32": float32_s["learner"],
+        "sequential": sequential_s["learner"],
+        **{f"workers_{w}": streamed_s[w]["learner"] for w in worker_counts},
+        "services": None if chain_s is None else chain_s["learner"],
+    }
+    best_workers = max(acting[f"workers_{w}"] for w in worker_counts)
     return {
         **header("training", args.quick),
         "num_envs": num_envs,
@@ -300,6 +337,12 @@ def main() -> dict:
         "workers_1_env_steps_per_s": round(streamed[1], 1),
         "workers_2_env_steps_per_s": round(streamed[2], 1) if 2 in streamed else None,
         "workers_vs_inprocess": round(max(streamed.values()) / inprocess, 3),
+        "update_s": update_s,
+        "acting_env_steps_per_s": acting,
+        "workers_vs_inprocess_acting": round(best_workers / acting["inprocess"], 3),
+        "acting_note": "acting rates leave the update out (the iteration less it), and with "
+        "it the spread of how many steps a fresh policy's update keeps; the chain acts while "
+        "its trainer learns, so it has none",
         "services_env_steps_per_s": None if chain is None else round(chain, 1),
         "services_vs_inprocess": None if services is None else round(services, 3),
         "services_note": f"the chain steps on while the trainer learns: its chunks lag up to "
