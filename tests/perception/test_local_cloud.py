@@ -112,6 +112,8 @@ def test_perception_with_and_without_shortlists_sees_the_same_local_clouds() -> 
         scenes = EpisodeScenes(torch.arange(2), torch.arange(2) + 2 * episode, scene, object_points)
         for core in cores:
             core.start_episodes(scenes)
+        # A new episode's pool starts without a shortlist: the old indices point elsewhere.
+        assert torch.equal(cores[0].local_clouds.bound, torch.full((2,), -torch.inf).double())
         for step in range(8):
             moved = pose + torch.tensor([0.002 * step, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
             short, full = (core.step(moved).local_cloud for core in cores)
