@@ -14,6 +14,7 @@ from hamnet.perception.config import CloudConfig
 from hamnet.perception.core import EpisodeScenes, Perception
 from hamnet.perception.local_cloud import LocalClouds
 from hamnet.perception.scene_cloud import Cuboids
+from hamnet.perception.unicorn import UniCORN
 
 B, S, K, P, M = 3, 600, 9, 40, 80
 
@@ -95,14 +96,19 @@ def test_a_shortlist_shorter_than_the_cloud_is_refused() -> None:
     assert CloudConfig(local_shortlist=0).local_shortlist == 0
 
 
-def test_perception_with_and_without_shortlists_sees_the_same_local_clouds() -> None:
-    """Real perception on one scene pool per environment, the object pushed 2 mm a step,
-    then a new episode: the local clouds equal those of ranking the whole pool each step."""
+def shipped_encoder_and_table_scenes() -> tuple[UniCORN, Cuboids]:
+    """The shipped encoder and two scenes of a table with a block on it."""
     encoder, _ = load_checkpoint(SHIPPED_ENCODER)
     centre = torch.tensor([[0.5, 0.0, 0.3], [0.6, 0.1, 0.45]]).expand(2, 2, 3)
     half_extent = torch.tensor([[0.4, 0.4, 0.1], [0.05, 0.05, 0.05]]).expand(2, 2, 3)
     quat = torch.tensor([1.0, 0.0, 0.0, 0.0]).expand(2, 2, 4)
-    scene = Cuboids.from_quat(centre, quat, half_extent, torch.ones(2, 2, dtype=torch.bool))
+    return encoder, Cuboids.from_quat(centre, quat, half_extent, torch.ones(2, 2, dtype=torch.bool))
+
+
+def test_perception_with_and_without_shortlists_sees_the_same_local_clouds() -> None:
+    """Real perception on one scene pool per environment, the object pushed 2 mm a step,
+    then a new episode: the local clouds equal those of ranking the whole pool each step."""
+    encoder, scene = shipped_encoder_and_table_scenes()
     object_points = torch.rand(2, 512, 3, generator=torch.Generator().manual_seed(0)) * 0.1 - 0.05
     cores = [
         Perception(encoder, 2, CloudConfig(local_shortlist=shortlist)) for shortlist in (1024, 0)
@@ -135,3 +141,18 @@ def test_a_point_left_out_that_the_move_brings_nearer_sends_the_step_to_a_full_r
     moved = torch.tensor([[[-0.012, 0.0, 0.0]]], dtype=torch.float64)
     assert clouds.nearest(pool.double(), moved).tolist() == [[0, 3]]
     assert clouds.full_rankings == 2
+
+
+def test_a_restored_perception_starts_without_shortlists() -> None:
+    """Shortlists are derived, not saved (`Perception.snapshot`): after `restore` every
+    environment ranks its whole pool again."""
+    encoder, scene = shipped_encoder_and_table_scenes()
+    core = Perception(encoder, 2, CloudConfig())
+    core.start_episodes(
+        EpisodeScenes(torch.arange(2), torch.arange(2), scene, torch.zeros(2, 512, 3))
+    )
+    core.step(torch.tensor([[0.6, 0.1, 0.45, 1.0, 0.0, 0.0, 0.0]]).repeat(2, 1))
+    assert torch.isfinite(core.local_clouds.bound).all()
+    arrays, meta = core.snapshot()
+    core.restore({name: value.numpy() for name, value in arrays.items()}, meta)
+    assert torch.isinf(core.local_clouds.bound).all()
