@@ -92,6 +92,18 @@ def timed(function: Callable, seconds: dict[str, float], name: str) -> Callable:
     return wrapper
 
 
+def per_iteration(seconds: dict[str, float], elapsed: float, iterations: int) -> dict[str, float]:
+    """Summed component `seconds` and the measured window's `elapsed` wall time as seconds an
+    iteration (the whole as `iteration`)."""
+    per = {name: round(value / iterations, 3) for name, value in sorted(seconds.items())}
+    return {**per, "iteration": round(elapsed / iterations, 3)}
+
+
+def acting_seconds(seconds: dict[str, float]) -> float:
+    """An iteration's seconds less its update's (`per_iteration`'s `iteration`, `learner`)."""
+    return seconds["iteration"] - seconds["learner"]
+
+
 def instrument(runner: Runner) -> dict[str, float]:
     """Seconds each component of `runner`'s loop takes from now on, summed over its calls:
     sim (`env.step`, in the physics thread when overlapped), perception, policy, safety,
@@ -121,9 +133,7 @@ def loop_rate(config: RunConfig, iterations: int) -> tuple[float, dict[str, floa
         runner.iterate()
     elapsed = time.perf_counter() - started
     steps = iterations * config.num_envs * config.rollout_steps
-    per_iteration = {name: round(value / iterations, 3) for name, value in sorted(seconds.items())}
-    seconds = {**per_iteration, "iteration": round(elapsed / iterations, 3)}
-    return steps / elapsed, seconds, runner
+    return steps / elapsed, per_iteration(seconds, elapsed, iterations), runner
 
 
 def shares_of(seconds: dict[str, float]) -> dict[str, float]:
@@ -142,7 +152,7 @@ def acting_rate(samples: int, seconds: dict[str, float]) -> float:
     a synchronous setup's acting ran at. From a fresh policy the actor keeps 20-30 of its 32
     steps, as many as the setup's own rollout allows, so the update took 5.9-7.8 s of an
     iteration from run to run and setup to setup; acting rates compare setups without it."""
-    return round(samples / (seconds["iteration"] - seconds["learner"]), 1)
+    return round(samples / acting_seconds(seconds), 1)
 
 
 def overlap_busy(seconds: dict[str, float]) -> dict[str, float]:
@@ -150,7 +160,7 @@ def overlap_busy(seconds: dict[str, float]) -> dict[str, float]:
     each of its two threads spent working: the physics thread in `env.step`, the main thread
     in perception, policy and safety. Both near 1: the overlap is balanced and only less work
     per step makes acting faster."""
-    acting = seconds["iteration"] - seconds["learner"]
+    acting = acting_seconds(seconds)
     networks = seconds["perception"] + seconds["policy"] + seconds["safety"]
     return {"physics": round(seconds["sim"] / acting, 3), "networks": round(networks / acting, 3)}
 
@@ -195,11 +205,7 @@ def remote_rate(
                 runner.iterate()
             elapsed = time.perf_counter() - started
             steps = iterations * workers * sim.num_envs * config.rollout_steps
-            per_iteration = {
-                "learner": seconds["learner"] / iterations,
-                "iteration": elapsed / iterations,
-            }
-            return steps / elapsed, {name: round(value, 3) for name, value in per_iteration.items()}
+            return steps / elapsed, per_iteration(seconds, elapsed, iterations)
     finally:
         stop(processes)
 
