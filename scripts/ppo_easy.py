@@ -5,6 +5,7 @@ the plain state-based PPO baseline, on the same stage for the same wall-clock bu
     python scripts/ppo_easy.py --minutes 10 --out runs/ppo-easy-short   # a shorter try
     python scripts/ppo_easy.py --from-runs           # rewrite the result from finished runs
     python scripts/ppo_easy.py --minutes 180 --resume  # continue both finished runs to 3 hours each
+    python scripts/ppo_easy.py --action-space paddle --guide.coef 1 ...  # trainer flags: to both runs
 
 Both runs go side by side, so each has about one of the machine's two cores (the baseline in
 one process; HAMnet as `hamnet trainer` plus one `hamnet rollout` worker over Zenoh on
@@ -13,7 +14,9 @@ loopback, with `hamnet monitor` saving the Rerun view of its training to
 with the deterministic policy's success rate on held-out episodes) under `--runs`; this
 script then evaluates both final policies again on `--eval-episodes` held-out episodes
 (success rate, share within 0.05 m, median object-goal distance at the end and at the
-start) and writes the result JSON and the curves next to it.
+start) and writes the result JSON and the curves next to it. Flags this script does not know
+(`hamnet trainer` flags such as `--guide.coef 1 --ppo.kl-stop off`) go to both runs and to
+HAMnet's worker.
 """
 
 from __future__ import annotations
@@ -53,10 +56,13 @@ def hamnet(*args: str, log: Path) -> subprocess.Popen:
                             start_new_session=True, cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
 
 
-def train(budget_s: float, runs: Path, seed: int, lag: int, space: str, resume: bool) -> None:
+def train(
+    budget_s: float, runs: Path, seed: int, lag: int, space: str, resume: bool, flags: list[str]
+) -> None:
     """Run HAMnet (trainer + one rollout worker, policy lag up to `lag`) and the baseline
-    side by side, both acting in the action space `space`; with `resume`, both continue from
-    their runs' snapshots (`hamnet trainer --resume`) until `budget_s` over every resume."""
+    side by side, both acting in the action space `space` with the further run `flags`; with
+    `resume`, both continue from their runs' snapshots (`hamnet trainer --resume`) until
+    `budget_s` over every resume."""
     network = [
         "--namespace",
         f"ppoeasy{os.getpid()}",
@@ -65,7 +71,7 @@ def train(budget_s: float, runs: Path, seed: int, lag: int, space: str, resume: 
     ]
     # One torch thread each: the two learners share the two cores.
     common = ["--stage", "easy", "--sim.seed", str(seed), "--max-wall-clock-s", str(budget_s),
-              "--learner-threads", "1", "--action-space", space]  # fmt: skip
+              "--learner-threads", "1", "--action-space", space, *flags]  # fmt: skip
     dirs = {"hamnet": runs / "hamnet", "baseline": runs / "state-mlp"}
     for folder in dirs.values():
         folder.mkdir(parents=True, exist_ok=True)  # names as in main()
@@ -165,12 +171,12 @@ def main() -> int:
     parser.add_argument("--resume", action="store_true",
                         help="continue both runs in --runs from their snapshots until --minutes in all "
                         "(the same --seed and --action-space as they started with)")  # fmt: skip
-    args = parser.parse_args()
+    args, flags = parser.parse_known_args()
     code = commit()  # the code that trains is the one checked out now
     dirs = {"hamnet": args.runs / "hamnet", "baseline": args.runs / "state-mlp"}
     if not args.from_runs:
         train(args.minutes * 60, args.runs, args.seed, args.max_policy_lag, args.action_space,
-              args.resume)  # fmt: skip
+              args.resume, flags)  # fmt: skip
     summaries = {
         name: json.loads((folder / "summary.json").read_text()) for name, folder in dirs.items()
     }

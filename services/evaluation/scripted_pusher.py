@@ -1,41 +1,13 @@
-"""A scripted pusher: a hand-written closed-loop controller that pushes the object to its goal
-through the policy's own action space (a residual joint target and gains, through the safety
-filter's training profile), reading the privileged state: the object's and the goal's poses,
-the paddle's position and the object's size.
-
-It is the easy stage's reference: what a controller that knows the state gets from the same
-arm, action mapping and physics as PPO, on the same held-out episodes
-(`scripts/scripted_push.py`, docs/results/scripted-push.json). It plans nothing around
-obstacles and reads the true object pose: a measurement, not a policy to deploy.
-
-The rule, per environment and step (xy in the table's plane):
-- the push line runs from the object's centre to its goal; the contact point lies on it,
-  `gap` beyond the object's planar radius behind the object, shifted sideways by `k_yaw`
-  times the yaw error (pushing off-centre turns the object back; bounded to 0.6 radius);
-- aligned (the paddle within `align_tolerance` of that shifted line, behind the object):
-  the paddle moves along the line by min(`speed`, `slow` x the remaining distance), pulled
-  back towards the line by `lateral_gain`; otherwise it moves towards the contact point;
-- the paddle's height goes halfway to `lift` above the object's centre each step, and its
-  orientation is held (the twist's angular rows are 0).
-The motion (at most `max_step` per step in xy) becomes a joint residual by damped least
-squares on Pinocchio's paddle Jacobian, and u = residual / xi (the filter's scale, stage 2);
-the gains are constant (`kp_u`, `rho_u`). The defaults are the best of a sweep on the easy
-stage (docs/trainer-history.md, "A scripted reference").
-"""
+"""The scripted pusher (`hamnet.trainer.collection.scripted_pusher`) on the held-out episodes
+a policy is evaluated on: the easy stage's reference (`scripts/scripted_push.py`,
+docs/results/scripted-push.json)."""
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
-import numpy as np
-import torch
-
-from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.fr3.model import load_pinocchio
-from hamnet.safety.cartesian import ee_jacobians
-from hamnet.safety.schedule import per_joint, xi_at
 from hamnet.sim.env import StepResult
+from hamnet.trainer.collection.scripted_pusher import PusherConfig, ScriptedPusher
 from hamnet.trainer.results.evaluate import HeldOut, held_out_worker, play_held_out
 from hamnet.trainer.runners.run_config import RunConfig
 
@@ -43,132 +15,19 @@ NO_CLOUDS = "state-mlp"
 """The pusher reads no clouds: its held-out worker is built as this architecture's (no
 perception), on the same environments as every other policy's."""
 
-OFFSET_LIMIT = 0.6
-"""Largest sideways shift of the contact point, in object radii (beyond, the paddle slips
-past the object's side)."""
-
-
-@dataclass(frozen=True)
-class PusherConfig:
-    """The pusher's constants (defaults: the best of a sweep on the easy stage)."""
-
-    gap: float = 0.05
-    """Contact point's distance beyond the object's planar radius while approaching, m."""
-    speed: float = 0.02
-    """Paddle motion asked per policy step while pushing, m."""
-    slow: float = 0.5
-    """Near the goal, at most this fraction of the remaining distance per step."""
-    lift: float = 0.01
-    """Paddle height above the object's centre, m."""
-    k_yaw: float = 0.2
-    """Sideways shift of the contact point per radian of yaw error, m/rad."""
-    lateral_gain: float = 1.5
-    """Pull back to the push line per step, as a multiple of half the sideways error."""
-    align_tolerance: float = 0.02
-    """Sideways distance from the line under which the paddle pushes, m."""
-    max_step: float = 0.02
-    """Largest xy motion asked per step, m."""
-    kp_u: float = 1.0
-    """Stiffness action component (1: the filter's kp_max)."""
-    rho_u: float = 0.0
-    """Damping-ratio action component (0: halfway through the filter's range)."""
-    damping: float = 1e-3
-    """Damped least squares' lambda (m^2)."""
-
-
-@dataclass(frozen=True)
-class PushState:
-    """What the pusher reads, for B environments."""
-
-    tip: np.ndarray
-    """(B, 3) the paddle's position, m."""
-    object_pose: np.ndarray
-    """(B, 7) position and wxyz quaternion."""
-    goal_pose: np.ndarray
-    """(B, 7) position and wxyz quaternion."""
-    radius: np.ndarray
-    """(B,) the object's planar radius (largest horizontal half extent), m."""
-    jacobians: np.ndarray
-    """(B, 6, J) the paddle's world-aligned Jacobian (linear rows, then angular)."""
-    xi: np.ndarray
-    """(J,) the filter's residual scale this step, rad."""
-
-
-def yaw_of(quat: np.ndarray) -> np.ndarray:
-    """Rotation about the vertical of wxyz quaternions (B, 4), rad."""
-    w, x, y, z = quat.T
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def paddle_motion(state: PushState, config: PusherConfig) -> np.ndarray:
-    """The paddle's motion asked this step (B, 3), m: along the push line or to its start."""
-    pos, goal, tip = state.object_pose[:, :3], state.goal_pose[:, :3], state.tip
-    to_goal = goal[:, :2] - pos[:, :2]  # (B, 2)
-    remaining = np.linalg.norm(to_goal, axis=1, keepdims=True)  # (B, 1)
-    forward = to_goal / np.maximum(remaining, 1e-9)  # (B, 2)
-    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # (B, 2)
-    yaw_error = yaw_of(state.object_pose[:, 3:]) - yaw_of(state.goal_pose[:, 3:])
-    yaw_error = (yaw_error + np.pi) % (2.0 * np.pi) - np.pi  # (B,) in [-pi, pi)
-    bound = OFFSET_LIMIT * state.radius
-    shift = left * np.clip(config.k_yaw * yaw_error, -bound, bound)[:, None]  # (B, 2)
-    contact = pos[:, :2] - forward * (state.radius + config.gap)[:, None] + shift  # (B, 2)
-    relative = tip[:, :2] - pos[:, :2]  # (B, 2)
-    along = (relative * forward).sum(axis=1)  # (B,), < 0 behind the object
-    sideways = relative - along[:, None] * forward - shift  # (B, 2)
-    aligned = (np.linalg.norm(sideways, axis=1) < config.align_tolerance) & (along < 0.0)
-    push = (
-        forward * np.minimum(config.speed, config.slow * remaining)
-        - 0.5 * config.lateral_gain * sideways
-    )
-    target = np.where(aligned[:, None], tip[:, :2] + push, contact)  # (B, 2)
-    xy = target - tip[:, :2]
-    norm = np.linalg.norm(xy, axis=1, keepdims=True)
-    xy = xy * np.minimum(1.0, config.max_step / np.maximum(norm, 1e-9))
-    z = 0.5 * (pos[:, 2] + config.lift - tip[:, 2])  # (B,)
-    return np.concatenate([xy, z[:, None]], axis=1)
-
-
-def push_actions(state: PushState, config: PusherConfig) -> np.ndarray:
-    """Raw actions (B, 21) [u_dq | u_kp | u_rho] that ask the arm for `paddle_motion`."""
-    b = len(state.tip)
-    twist = np.zeros((b, 6))
-    twist[:, :3] = paddle_motion(state, config)
-    j = state.jacobians  # (B, 6, J)
-    gram = j @ j.transpose(0, 2, 1) + config.damping * np.eye(6)  # (B, 6, 6)
-    dq = np.einsum("bri,br->bi", j, np.linalg.solve(gram, twist[..., None])[..., 0])  # (B, J)
-    u = np.clip(dq / state.xi, -1.0, 1.0)
-    gains = np.concatenate(
-        [np.full((b, NUM_JOINTS), config.kp_u), np.full((b, NUM_JOINTS), config.rho_u)], axis=1
-    )
-    return np.concatenate([u, gains], axis=1)
-
 
 def scripted_held_out(
     config: RunConfig, episodes: int, pusher: PusherConfig | None = None, env_transitions: int = 0
 ) -> HeldOut:
     """The pusher on the held-out episodes a policy of `config`'s run is evaluated on
-    (`hamnet.trainer.results.evaluate`), one per environment, with the training profile's
-    filter at the schedule counter `env_transitions`."""
-    pusher = pusher if pusher is not None else PusherConfig()
+    (`hamnet.trainer.results.evaluate`), one per environment, acting in the run's action
+    space through the training profile's filter at the schedule counter `env_transitions`."""
     worker = held_out_worker(dataclasses.replace(config, architecture=NO_CLOUDS), episodes)
-    env, safety = worker.env, worker.safety
-    model, data = load_pinocchio()
-    magnitude = safety.config.action_magnitude
-    xi = per_joint(*xi_at(env_transitions, magnitude), magnitude.num_large_joints)  # (J,)
-    radius_of = np.abs(env.library.bbox[:, :, :2]).max(axis=(1, 2))  # (N,) per library entry
+    script = ScriptedPusher(worker.env, worker.safety.config.action_magnitude, pusher)
 
     def step() -> StepResult:
-        obs = worker.observation
-        state = PushState(
-            tip=obs.ee_pos_rot6d[:, :3].astype(np.float64),
-            object_pose=obs.object_pose.astype(np.float64),
-            goal_pose=obs.goal_pose.astype(np.float64),
-            radius=radius_of[env.object_index],
-            jacobians=ee_jacobians(model, data, obs.q, "full"),
-            xi=xi,
-        )
-        action = torch.as_tensor(push_actions(state, pusher), dtype=torch.float32)
-        result = env.step(worker.command(action, env_transitions))
+        action = script.actions(worker.observation, env_transitions)
+        result = worker.env.step(worker.command(action, env_transitions))
         worker.start(result.reset_ids, result.observation)
         return result
 

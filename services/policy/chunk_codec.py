@@ -75,8 +75,9 @@ def encode_rollout(batch: RolloutLike, version: int, step: int) -> RolloutChunk:
     horizon = len(batch.dones)
     chunk = RolloutChunk(header=Header(step=step, policy_version=version), horizon=horizon)
     for field in dataclasses.fields(batch):
-        if field.name != "inputs":
-            to_tensor(getattr(batch, field.name).numpy(), chunk.tensors[field.name])
+        value = getattr(batch, field.name)
+        if field.name != "inputs" and value is not None:
+            to_tensor(value.numpy(), chunk.tensors[field.name])
     for name, rows in flatten(batch.inputs, "inputs").items():
         if name.rsplit(".", 1)[-1] in PER_EPISODE:
             rows, index = _rows_once(rows)
@@ -114,25 +115,28 @@ def decode_batch(
     shapes: dict[str, str],
     flags: tuple[str, ...],
     policy: Policy,
+    optional: dict[str, str] | None = None,
 ) -> RolloutLike:
     """The `kind` in `chunk`, checked for `policy` as `decode_rollout` says; `shapes`: its
     fields other than the inputs by their dimensions' letters (T, B, A, R, V the object's
     velocity; one (T, B, A) field, which the policy's check evaluates), `flags`: those that
-    are bool."""
+    are bool, `optional`: fields a chunk may leave out (None then), by their letters."""
     steps, terms, action_dim = chunk.horizon, len(REWARD_NAMES), policy.config.action_dim
     missing = [name for name in shapes if name not in chunk.tensors]
     if missing or steps < 1:
         raise PayloadError("missing", f"RolloutChunk lacks {missing} (horizon {steps})")
     batch = int(chunk.tensors["dones"].shape[-1]) if chunk.tensors["dones"].shape else 0
     sizes = {"T": steps, "B": batch, "A": action_dim, "R": terms, "V": VELOCITY_WIDTH}
+    optional = optional or {}
     fields = {
         name: _array(
             chunk, name, bool if name in flags else np.float32, tuple(sizes[d] for d in dims)
         )
-        for name, dims in shapes.items()
+        for name, dims in {**shapes, **optional}.items()
+        if name in shapes or name in chunk.tensors
     }
     names = leaf_names(PolicyInputs, "inputs")
-    known = set(shapes) | set(names) | {n + INDEX for n in names if _per_episode(n)}
+    known = set(shapes) | set(optional) | set(names) | {n + INDEX for n in names if _per_episode(n)}
     unknown = sorted(set(chunk.tensors) - known)
     if unknown:
         raise PayloadError("shape", f"RolloutChunk has unknown tensors {unknown[:5]}")

@@ -41,6 +41,9 @@ class Rollout:
     """(B, R) values of the states after the last step."""
     success: Tensor
     """(T, B) bool: the episode ended in success at this step."""
+    guide: Tensor | None = None
+    """(T, B, A) the scripted pusher's raw action in each state acted in: the target of PPO's
+    imitation term (`GuideConfig`); None where the run has no guide."""
 
 
 RolloutLike = TypeVar("RolloutLike")
@@ -73,7 +76,7 @@ def merge_environments(rollouts: list[RolloutLike]) -> RolloutLike:
             [getattr(r, f.name) for r in rollouts], dim=0 if f.name in PER_ENVIRONMENT else 1
         )
         for f in dataclasses.fields(rollouts[0])
-        if f.name != "inputs"
+        if f.name != "inputs" and getattr(rollouts[0], f.name) is not None
     }
     inputs = zip_trees([r.inputs for r in rollouts], side_by_side)
     return dataclasses.replace(rollouts[0], inputs=inputs, **fields)

@@ -7,17 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hamnet.evaluation.scripted_pusher import (
-    PusherConfig,
-    PushState,
-    paddle_motion,
-    push_actions,
-    scripted_held_out,
-)
+from hamnet.evaluation.scripted_pusher import scripted_held_out
 from hamnet.fr3.limits import NUM_JOINTS, Q_HOME
 from hamnet.fr3.model import load_pinocchio
 from hamnet.safety.cartesian import ee_jacobians
 from hamnet.sim.stages import stage_config
+from hamnet.trainer.collection.scripted_pusher import (
+    PusherConfig,
+    PushState,
+    paddle_motion,
+    push_actions,
+)
 from hamnet.trainer.runners.run_config import RunConfig
 
 CONFIG = PusherConfig()

@@ -32,7 +32,10 @@ def test_a_rollout_round_trips_exactly(collected) -> None:
     rollout, policy = collected
     decoded = decode_rollout(RolloutChunk.FromString(encode(encode_rollout(rollout, 7, 0))), policy)
     for name in (field.name for field in dataclasses.fields(Rollout) if field.name != "inputs"):
-        assert torch.equal(getattr(decoded, name), getattr(rollout, name)), name
+        if getattr(rollout, name) is None:  # a run without a guide
+            assert getattr(decoded, name) is None, name
+        else:
+            assert torch.equal(getattr(decoded, name), getattr(rollout, name)), name
     zip_trees(
         [decoded.inputs, rollout.inputs],
         lambda pair: torch.equal(*pair) or pytest.fail("inputs differ"),
@@ -83,3 +86,21 @@ def test_unfit_chunks_are_refused_with_a_reason(collected) -> None:
     to_tensor(index, pointing.tensors["inputs.object_tokens" + INDEX])
     refused(pointing, policy, "shape")
     assert chunk_decoder(policy)("key", encode(good)).version == 1
+
+
+def test_a_guided_rollouts_pusher_actions_travel_with_it_and_are_checked(collected) -> None:
+    """A guided run's workers send the scripted pusher's actions (`Rollout.guide`) beside the
+    rollout: they arrive as sent, and a wrong shape or a NaN is refused like any field."""
+    rollout, policy = collected
+    guided = dataclasses.replace(rollout, guide=torch.rand(rollout.actions.shape))
+    chunk = encode_rollout(guided, 1, 0)
+    decoded = decode_rollout(RolloutChunk.FromString(encode(chunk)), policy)
+    assert torch.equal(decoded.guide, guided.guide)
+    narrow = copy_of(chunk)
+    to_tensor(guided.guide[..., :5].numpy(), narrow.tensors["guide"])
+    refused(narrow, policy, "shape")
+    nan = copy_of(chunk)
+    labels = guided.guide.numpy().copy()
+    labels[0, 0, 0] = np.nan
+    to_tensor(labels, nan.tensors["guide"])
+    refused(nan, policy, "nonfinite")

@@ -60,12 +60,14 @@ def shard(batch: Batch, rank: int) -> Batch:
     """Rank `rank`'s rows: its half of the batch, unequal halves (the weighting counts)."""
     cut = N // 2 + 16
     rows = slice(0, cut) if rank == 0 else slice(cut, N)
-    return Batch(*(getattr(batch, f.name)[rows] if getattr(batch, f.name) is not None else None
-                   for f in dataclasses.fields(Batch)))  # fmt: skip
+    tensors = {f.name: getattr(batch, f.name) for f in dataclasses.fields(Batch)}
+    return dataclasses.replace(batch, **{name: value[rows] for name, value in tensors.items()
+                                         if isinstance(value, torch.Tensor)})  # fmt: skip
 
 
 def tiny_rollout(rank: int, steps: int = 3, envs: int = 2) -> Rollout:
-    """A rollout of `envs` environments whose every number says its rank, step and env."""
+    """A rollout of `envs` environments whose every number says its rank, step and env (a
+    guided run's: the scripted pusher's actions travel too)."""
     generator = torch.Generator().manual_seed(rank)
     field = lambda *shape: torch.randn(*shape, generator=generator)
     observation = NetworkInputs(
@@ -74,7 +76,7 @@ def tiny_rollout(rank: int, steps: int = 3, envs: int = 2) -> Rollout:
     return Rollout(
         PolicyInputs(observation, field(steps * envs, 4, 5)), field(steps, envs, 2),
         field(steps, envs), field(steps, envs, 2), field(steps, envs, 2), field(steps, envs, 2),
-        field(steps, envs) > 0, field(envs, 2), field(steps, envs) > 1,
+        field(steps, envs) > 0, field(envs, 2), field(steps, envs) > 1, field(steps, envs, 2),
     )  # fmt: skip
 
 

@@ -26,6 +26,7 @@ from hamnet.trainer.algorithms.ppo_losses import (
     bound_loss,
     clip_fraction,
     explained_variance,
+    guide_loss,
     normalize_advantages,
     policy_loss,
     value_loss,
@@ -76,6 +77,10 @@ class Batch:
     """(N, R) value targets per reward term."""
     joint_velocity: Tensor | None = None
     """(N, J) measured joint velocities, rad/s, for the energy loss (None: no energy loss)."""
+    guide: Tensor | None = None
+    """(N, A) the scripted pusher's raw actions, the imitation term's target (None: none)."""
+    guide_weight: float = 0.0
+    """The imitation term's weight in the actor's loss (`GuideConfig.weight`)."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +109,9 @@ class UpdateStats:
     explained_variance: float = math.nan
     """How much of the rollout's summed return targets the acting critic predicted
     (`ppo_losses.explained_variance`): near 0, the advantages are the returns' noise."""
+    guide_loss: float = math.nan
+    """The imitation term (mean squared error of the mean against the scripted pusher's
+    actions) of the policy the update kept; NaN in a run without a guide."""
 
     @classmethod
     def none(cls, learning_rate: float) -> UpdateStats:
@@ -227,6 +235,7 @@ def update(
                             config.policy_coef * terms["policy"]
                             + config.bound_coef * terms["bound"]
                             + config.energy_coef * terms.get("energy", 0.0)
+                            + batch.guide_weight * terms.get("guide", 0.0)
                         )
                     (weight * loss).backward()
                     if len(parts) == 2:
@@ -270,6 +279,7 @@ def update(
         value_steps,
         agreement,
         explained_variance(batch.advantages, batch.returns, ranks.moments),
+        kept.get("guide", math.nan),
     )
 
 
@@ -319,6 +329,8 @@ def _losses(
         }
         if config.energy_coef > 0 and energy is not None and batch.joint_velocity is not None:
             terms["energy"] = energy(evaluated.mean, batch.joint_velocity[rows])
+        if batch.guide is not None:
+            terms["guide"] = guide_loss(evaluated.mean, batch.guide[rows])
         log_prob = evaluated.log_prob.detach()
         diagnostics = {
             **terms,

@@ -54,7 +54,7 @@ class PPO:
 
     def __init__(self, config: RunConfig) -> None:
         """`config.ppo` sets the update, `config.seed` the minibatches' generator."""
-        self.ppo, self.seed = config.ppo, config.seed
+        self.ppo, self.seed, self.guide = config.ppo, config.seed, config.guide
         self.energy = partial(energy_loss, config=with_profile("training").action_magnitude)
         """The energy loss of an action mean, read as the workers' safety profile reads it."""
 
@@ -101,7 +101,8 @@ class PPO:
     ) -> dict[str, float]:
         """One update of this rank's rollout, or the first rollout's warm-up."""
         if self.policy.normalizer.count:
-            stats = self.update(collected.rollout, whole, collected.envs, running)
+            weight = self.guide.weight(env_transitions)
+            stats = self.update(collected.rollout, whole, collected.envs, running, weight)
         else:
             for t in range(len(whole.rewards)):
                 self.scaler.scale(whole.rewards[t], whole.dones[t], collected.envs)
@@ -114,10 +115,12 @@ class PPO:
         whole: Rollout | None = None,
         envs: torch.Tensor | None = None,
         running: Callable[[], bool] = always,
+        guide_weight: float = 0.0,
     ) -> UpdateStats:
         """One PPO update of this rank's `rollout` (`batch`), on the learner's threads, the
-        critic alone on features computed once after the actor stops (`ppo.update`)."""
-        batch = self.batch(rollout, whole, envs)
+        critic alone on features computed once after the actor stops (`ppo.update`), with
+        the guide's imitation term at `guide_weight`."""
+        batch = self.batch(rollout, whole, envs, guide_weight)
         self.policy.train()
         with torch_threads(self.threads), bfloat16_autocast(self.bfloat16):
             return update(
@@ -151,11 +154,27 @@ class PPO:
         return torch.cat([p.grad.flatten() for p in policy.parameters() if p.grad is not None])
 
     def batch(
-        self, rollout: Rollout, whole: Rollout | None = None, envs: torch.Tensor | None = None
+        self,
+        rollout: Rollout,
+        whole: Rollout | None = None,
+        envs: torch.Tensor | None = None,
+        guide_weight: float = 0.0,
     ) -> Batch:
         """Scale rewards, bootstrap, GAE per term: the update's batch of this rank's
         `rollout`; `whole` (default `rollout`): every rank's environments, which the scaler
-        sees; `envs`: which environments they are (None: all)."""
+        sees; `envs`: which environments they are (None: all); `guide_weight` > 0: with the
+        rollout's scripted-pusher actions as the imitation target.
+
+        Raises:
+            ValueError: a guide weight on a rollout without the pusher's actions (the policy
+                service's rollouts carry none: a guided run learns from rollout workers or
+                in process).
+        """
+        if guide_weight and rollout.guide is None:
+            raise ValueError(
+                "a guided run (--guide.coef) needs rollouts with the scripted pusher's actions:"
+                " train in process or from `hamnet rollout` workers given the same --guide flags"
+            )
         whole = rollout if whole is None else whole
         scaled = torch.stack(
             [
@@ -185,6 +204,8 @@ class PPO:
             flat(advantages),
             flat(returns),
             joint_velocity=robot_state[:, NUM_JOINTS:],  # (T * B, J): q, then dq
+            guide=flat(rollout.guide) if guide_weight else None,
+            guide_weight=guide_weight,
         )
 
     def progress(self, row: dict[str, float]) -> str:

@@ -89,6 +89,12 @@ def bound_loss(mean: Tensor, low: Tensor, high: Tensor) -> Tensor:
     return (above.square() + below.square()).sum(dim=1).mean()
 
 
+def guide_loss(mean: Tensor, target: Tensor) -> Tensor:
+    """Mean squared error of the action mean (N, A) against the guide's raw actions (N, A),
+    over samples and components (`GuideConfig`); in float32 whatever the pass's precision."""
+    return (mean.float() - target).square().mean()
+
+
 def energy_loss(mean: Tensor, joint_velocity: Tensor, config: ActionMagnitudeConfig) -> Tensor:
     """Mean over samples of |tau * v|, the joint power of the impedance torque the action
     mean (N, A) asks for at the measured joint velocities v (N, J): tau = kp dq - kd v with

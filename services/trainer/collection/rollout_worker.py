@@ -12,6 +12,8 @@ learner adds, discounted, to that step's (scaled) reward as the authors bootstra
 is the learner's alone: a worker needs no PPO setting. A student (a policy without
 privileged inputs) reads the sim's true object pose only through the pose estimator's
 error model (`PoseNoiseConfig`), as the policy service does: the sim is no estimator.
+A guided run's worker (`GuideConfig`) also records the scripted pusher's action in every
+state it acts in (`Rollout.guide`), read off the sim's true state.
 Shapes: T steps, B environments, A action, R reward terms.
 """
 
@@ -35,6 +37,7 @@ from hamnet.policy.rollout_record import Rollout, cat_rows, merge_environments
 from hamnet.runtime.trees import take_rows
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import StepResult, VectorEnv
+from hamnet.trainer.collection.scripted_pusher import ScriptedPusher
 from hamnet.trainer.collection.seat import Seat, tokens_of
 from hamnet.trainer.collection.worker import Worker
 from hamnet.trainer.runners.stopping import always, check
@@ -50,6 +53,8 @@ class Pending:
     inputs: PolicyInputs
     acted: Action
     command: Command
+    guide: Tensor | None = None
+    """(B, A) the scripted pusher's action in the state acted in (a guided run's)."""
 
 
 @torch.no_grad()
@@ -93,8 +98,11 @@ class RolloutWorker(Worker):
         perception: Perception | None,
         safety: SafetyFilter,
         seed: int = 0,
+        guide: ScriptedPusher | None = None,
     ) -> None:
+        """`guide`: the scripted pusher whose actions a guided run's rollouts record."""
         super().__init__(env, {POLICY: Seat(perception)}, safety, seed)
+        self.guide = guide
 
     @property
     def seat(self) -> Seat:
@@ -131,10 +139,14 @@ class RolloutWorker(Worker):
         return self.finish(policy, records)
 
     def act(self, policy: Policy, env_transitions: int, deterministic: bool = False) -> Pending:
-        """The first half of a step: inputs, the policy's action and the safe command."""
+        """The first half of a step: inputs, the policy's action and the safe command (and,
+        guided and sampling, the scripted pusher's action)."""
+        guide = None
+        if self.guide is not None and not deterministic:
+            guide = self.guide.actions(self.observation, env_transitions)
         inputs = self.inputs(policy)
         acted = policy.act(inputs, deterministic, self.generator)
-        return Pending(inputs, acted, self.command(acted.action, env_transitions))
+        return Pending(inputs, acted, self.command(acted.action, env_transitions), guide)
 
     def observe(self, policy: Policy, pending: Pending, result: StepResult) -> dict[str, object]:
         """The second half, after `env.step(pending.command)`: bootstrap timeouts, start new
@@ -149,7 +161,9 @@ class RolloutWorker(Worker):
                 policy, result.final_observation, timed_out
             )
         self.start(result.reset_ids, result.observation)
+        guide = {} if pending.guide is None else {"guide": pending.guide}
         return {
+            **guide,
             "inputs": pending.inputs,
             "actions": acted.action,
             "log_prob": acted.log_prob,

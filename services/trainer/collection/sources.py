@@ -27,6 +27,7 @@ from hamnet.safety.config import SafetyConfig, in_action_space, with_profile
 from hamnet.safety.filter import SafetyFilter
 from hamnet.sim.env import VectorEnv
 from hamnet.trainer.collection.rollout_worker import RolloutWorker, collect_overlapped
+from hamnet.trainer.collection.scripted_pusher import ScriptedPusher
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.snapshots import Arrays, Snapshot, nest, part
 from hamnet.trainer.runners.stopping import always
@@ -63,7 +64,8 @@ def build_workers(
     perception at all for a policy without clouds). The groups share one frozen encoder:
     `encoder` when given, else `frozen_encoder(config)`; perception samples `clouds`
     (default: every surface, noise-free); the safety filter is `safety` (default: the
-    training profile) reading actions in the run's `action_space`."""
+    training profile) reading actions in the run's `action_space`; a guided run's workers
+    record the scripted pusher's actions (`GuideConfig`)."""
     size = config.num_envs // groups
     frozen, version = None, 0
     if architecture(config.architecture).config.clouds:
@@ -78,7 +80,8 @@ def build_workers(
         env = VectorEnv(dataclasses.replace(config.sim, num_envs=size, seed=seed, nthread=threads))
         perception = None if frozen is None else Perception(frozen, size, seen, seed=seed)
         safe = SafetyFilter(np.zeros((size, NUM_JOINTS)), safety)
-        workers.append(RolloutWorker(env, perception, safe, seed))
+        guide = ScriptedPusher(env, safety.action_magnitude) if config.guide.coef else None
+        workers.append(RolloutWorker(env, perception, safe, seed, guide))
     return workers, version
 
 

@@ -8,14 +8,17 @@ import math
 
 
 def ppo_line(row: dict[str, float]) -> str:
-    """A PPO iteration: budget, rate, success, return and what the update did."""
+    """A PPO iteration: budget, rate, success, return and what the update did (and, guided,
+    the imitation term)."""
+    guide = row.get("guide_loss", math.nan)
     return (
         f"{_budget(row)} | success {row['success_rate']:.2f} over "
         f"{row['episodes']} episodes | return {row.get('return/total', math.nan):.3f} | "
         f"kl {row['approx_kl']:.4f} | clip {row['clip_fraction']:.2f} | grad agreement "
         f"{row['gradient_agreement']:.3f} | value ev {row.get('explained_variance', math.nan):.2f} | "
         f"lr {row['learning_rate']:.1e} | "
-        f"log std {row['log_std']:.2f}{workers_part(row)}"
+        f"log std {row['log_std']:.2f}{'' if math.isnan(guide) else f' | guide {guide:.4f}'}"
+        f"{workers_part(row)}"
     )
 
 

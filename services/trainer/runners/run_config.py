@@ -16,7 +16,7 @@ from hamnet.runtime.compute import Precision
 from hamnet.safety.config import ActionSpace
 from hamnet.sim.config import SimConfig
 from hamnet.sim.stages import STAGES, StageName, stage_config
-from hamnet.trainer.config import PPOConfig
+from hamnet.trainer.config import GuideConfig, PPOConfig
 
 NUM_ENVS = 64
 """Environments of a run unless `--sim.num-envs` says otherwise."""
@@ -92,6 +92,10 @@ class RunConfig:
     eval_episodes: int = 64
     """Held-out episodes the final policy plays with its mean (`final_success_rate`); 0: none."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
+    guide: GuideConfig = field(default_factory=GuideConfig)
+    """PPO's guide: the scripted pusher's actions as an imitation target, weighted
+    `--guide.coef` until `--guide.hold` transitions, then falling to 0 at `--guide.until`;
+    off by default (`GuideConfig`)."""
     init: Initialization = "orthogonal"
     """How the actor and critic start: orthogonal (output layers 0.01 and 1) or torch's
     default, the authors' (`hamnet.policy.init`)."""

@@ -33,6 +33,9 @@ _SHAPES = {
 }
 """The rollout's fields other than its inputs, by their dimensions' letters."""
 
+_OPTIONAL = {"guide": "TBA"}
+"""Fields a rollout carries only in some runs (the scripted pusher's actions: a guided run)."""
+
 Batch = Rollout | Demonstrations
 """What a chunk carries: T steps of B environments with the policy inputs of each."""
 
@@ -45,7 +48,7 @@ def decode_rollout(chunk: RolloutChunk, policy: Policy) -> Rollout:
         PayloadError: a tensor is missing, unknown, of the wrong dtype or shape, not finite,
             or inputs the policy cannot evaluate.
     """
-    return decode_batch(chunk, Rollout, _SHAPES, _FLAGS, policy)
+    return decode_batch(chunk, Rollout, _SHAPES, _FLAGS, policy, _OPTIONAL)
 
 
 @dataclass(frozen=True)
