@@ -44,7 +44,8 @@ class PolicyServiceConfig:
     """safetensors checkpoint written by the trainer (architecture, config and version are
     in its metadata), or the name of a policy shipped in the package (easy-teacher: PPO on
     the easy stage; easy-student: distilled from it, deployable inputs; easy-paddle: PPO in
-    the paddle-twist action space; easy-paddle-student: distilled from it; see
+    the paddle-twist action space; easy-paddle-student: distilled from it; easy-guided: PPO
+    with the scripted guide in the paddle space, the best; see
     docs/policy.md). Required unless --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and
