@@ -58,6 +58,14 @@ def copy_of(chunk: RolloutChunk) -> RolloutChunk:
     return out
 
 
+def with_a_nan(chunk: RolloutChunk, name: str, values: torch.Tensor) -> RolloutChunk:
+    """A copy of `chunk` whose tensor `name` is `values` (T, B, ...) with its first entry NaN."""
+    out, array = copy_of(chunk), values.numpy().copy()
+    array.flat[0] = np.nan
+    to_tensor(array, out.tensors[name])
+    return out
+
+
 def refused(chunk: RolloutChunk, policy, reason: str) -> None:
     with pytest.raises(PayloadError) as error:
         chunk_decoder(policy)("key", encode(chunk))
@@ -70,11 +78,7 @@ def test_unfit_chunks_are_refused_with_a_reason(collected) -> None:
     missing = copy_of(good)
     del missing.tensors["log_prob"]
     refused(missing, policy, "missing")
-    nan = copy_of(good)
-    actions = rollout.actions.numpy().copy()
-    actions[0, 0, 0] = np.nan
-    to_tensor(actions, nan.tensors["actions"])
-    refused(nan, policy, "nonfinite")
+    refused(with_a_nan(good, "actions", rollout.actions), policy, "nonfinite")
     unknown = copy_of(good)
     to_tensor(np.zeros(3, np.float32), unknown.tensors["inputs.extra"])
     refused(unknown, policy, "shape")
@@ -99,8 +103,4 @@ def test_a_guided_rollouts_pusher_actions_travel_with_it_and_are_checked(collect
     narrow = copy_of(chunk)
     to_tensor(guided.guide[..., :5].numpy(), narrow.tensors["guide"])
     refused(narrow, policy, "shape")
-    nan = copy_of(chunk)
-    labels = guided.guide.numpy().copy()
-    labels[0, 0, 0] = np.nan
-    to_tensor(labels, nan.tensors["guide"])
-    refused(nan, policy, "nonfinite")
+    refused(with_a_nan(chunk, "guide", guided.guide), policy, "nonfinite")
