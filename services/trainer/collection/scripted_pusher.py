@@ -23,9 +23,10 @@ The rule, per environment and step (xy in the table's plane):
 The motion (at most `max_step` per step in xy) is the action's twist in the paddle space
 (u = motion / `twist_linear`); in the joint space it becomes a joint residual by damped least
 squares on Pinocchio's paddle Jacobian, and u = residual / xi (the filter's scale, stage 2),
-which is what the paddle space's filter does with the twist. The gains are constant (`kp_u`,
-`rho_u`). The defaults are the best of a sweep on the easy
-stage (docs/trainer-history.md, "A scripted reference").
+which is what the paddle space's filter does with the twist (its damping added to J J^T is
+`twist_damping` squared, 1e-6, where the script adds `damping`, 1e-3: the two residuals
+differ by a few percent). The gains are constant (`kp_u`, `rho_u`). The defaults are the best
+of a sweep on the easy stage (docs/trainer-history.md, "A scripted reference").
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ import torch
 from hamnet.fr3.limits import NUM_JOINTS
 from hamnet.fr3.model import load_pinocchio
 from hamnet.messages.robot_state import Observation
-from hamnet.safety.cartesian import ee_jacobians
+from hamnet.safety.cartesian import damped_least_squares, ee_jacobians
 from hamnet.safety.config import ActionMagnitudeConfig
 from hamnet.safety.schedule import per_joint, xi_at
 from hamnet.safety.stages import twist_scale
@@ -75,7 +76,7 @@ class PusherConfig:
     rho_u: float = 0.0
     """Damping-ratio action component (0: halfway through the filter's range)."""
     damping: float = 1e-3
-    """Damped least squares' lambda (m^2)."""
+    """What the joint space's damped least squares adds to J J^T (lambda^2, m^2)."""
 
 
 @dataclass(frozen=True)
@@ -137,9 +138,8 @@ def push_actions(state: PushState, config: PusherConfig) -> np.ndarray:
     b = len(state.tip)
     twist = np.zeros((b, 6))
     twist[:, :3] = paddle_motion(state, config)
-    j = state.jacobians  # (B, 6, J)
-    gram = j @ j.transpose(0, 2, 1) + config.damping * np.eye(6)  # (B, 6, 6)
-    dq = np.einsum("bri,br->bi", j, np.linalg.solve(gram, twist[..., None])[..., 0])  # (B, J)
+    # `damping` is added to J J^T as it is: lambda = its square root
+    dq = damped_least_squares(state.jacobians, twist, np.sqrt(config.damping))  # (B, J)
     return with_gains(np.clip(dq / state.xi, -1.0, 1.0), config)
 
 
