@@ -4,6 +4,8 @@ the easy stage is pushed through the policy's action space and the training filt
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from hamnet.evaluation.scripted_pusher import scripted_held_out
 from hamnet.fr3.limits import NUM_JOINTS, Q_HOME
 from hamnet.fr3.model import load_pinocchio
 from hamnet.safety.cartesian import ee_jacobians
+from hamnet.sim.rewards import bbox_corners, to_world
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.collection.scripted_pusher import (
     PusherConfig,
@@ -29,13 +32,19 @@ def yawed(angle: float) -> list[float]:
     return [np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)]
 
 
-def state(tip, obj=(0.5, 0.0, 0.35), goal=(0.7, 0.0, 0.35), obj_quat=UPRIGHT, jacobians=None):
-    """One environment: an object of radius 0.04 m pushed along +x unless told otherwise."""
+def state(
+    tip, obj=(0.5, 0.0, 0.35), goal=(0.7, 0.0, 0.35), obj_quat=UPRIGHT, jacobians=None,
+    half=(0.04, 0.04, 0.03),
+):  # fmt: skip
+    """One environment: a box of half extents `half` (0.04 m wide by default) pushed along
+    +x unless told otherwise."""
+    pose = np.array([[*obj, *obj_quat]], dtype=float)
+    box = np.array([[np.negative(half), half]], dtype=float)  # (1, 2, 3) min and max corner
     return PushState(
         tip=np.array([tip], dtype=float),
-        object_pose=np.array([[*obj, *obj_quat]], dtype=float),
+        object_pose=pose,
         goal_pose=np.array([[*goal, *UPRIGHT]], dtype=float),
-        radius=np.array([0.04]),
+        corners=to_world(pose[:, :3], pose[:, 3:], bbox_corners(box)),
         jacobians=np.zeros((1, 6, NUM_JOINTS)) if jacobians is None else jacobians,
         xi=np.full(NUM_JOINTS, 0.2),
     )
@@ -53,6 +62,20 @@ def test_away_from_the_line_the_paddle_goes_to_the_contact_point_first():
     towards = (contact - [0.5, 0.1]) / np.linalg.norm(contact - [0.5, 0.1])
     assert np.linalg.norm(motion[:2]) == pytest.approx(CONFIG.max_step)
     assert motion[:2] / CONFIG.max_step == pytest.approx(towards)
+
+
+@pytest.mark.parametrize(("yaw", "behind"), [(0.0, 0.1), (np.pi / 2, 0.04), (np.pi / 4, 0.0990)])
+def test_the_contact_point_lies_behind_the_rearmost_corner_of_the_box_as_it_lies(yaw, behind):
+    """A 0.2 x 0.08 m box pushed along +x: its rear face 0.1 m behind its centre lengthwise,
+    0.04 m crosswise, and its corner 0.0990 m (0.14 x cos(45 deg - atan(0.4))) at 45 deg."""
+    tip = np.array([0.3, 0.05, 0.36])  # off the line: the paddle heads for the contact point
+    lying = state(tip=tip, obj_quat=yawed(yaw), half=(0.1, 0.04, 0.03))
+    no_yaw_error = dataclasses.replace(lying, goal_pose=lying.object_pose.copy())
+    no_yaw_error.goal_pose[0, :3] = (0.7, 0.0, 0.35)
+    motion = paddle_motion(no_yaw_error, CONFIG)[0]
+    contact = np.array([0.5 - behind - CONFIG.gap, 0.0])
+    towards = (contact - tip[:2]) / np.linalg.norm(contact - tip[:2])
+    assert motion[:2] / np.linalg.norm(motion[:2]) == pytest.approx(towards, abs=1e-3)
 
 
 def test_in_front_of_the_object_the_paddle_does_not_push():

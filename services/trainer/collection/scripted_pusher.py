@@ -13,8 +13,10 @@ towards while the guide's weight lasts.
 
 The rule, per environment and step (xy in the table's plane):
 - the push line runs from the object's centre to its goal; the contact point lies on it,
-  `gap` beyond the object's planar radius behind the object, shifted sideways by `k_yaw`
-  times the yaw error (pushing off-centre turns the object back; bounded to 0.6 radius);
+  `gap` behind the object's rearmost point along the line (its bounding box's corners as it
+  lies now: an object resting on its side reaches further than its upright planar radius),
+  shifted sideways by `k_yaw` times the yaw error (pushing off-centre turns the object back;
+  bounded to 0.6 of the box's sideways reach);
 - aligned (the paddle within `align_tolerance` of that shifted line, behind the object):
   the paddle moves along the line by min(`speed`, `slow` x the remaining distance), pulled
   back towards the line by `lateral_gain`; otherwise it moves towards the contact point;
@@ -45,10 +47,11 @@ from hamnet.safety.config import ActionMagnitudeConfig
 from hamnet.safety.schedule import per_joint, xi_at
 from hamnet.safety.stages import twist_scale
 from hamnet.sim.env import VectorEnv
+from hamnet.sim.rewards import bbox_corners, to_world
 
 OFFSET_LIMIT = 0.6
-"""Largest sideways shift of the contact point, in object radii (beyond, the paddle slips
-past the object's side)."""
+"""Largest sideways shift of the contact point, as a share of the object's sideways reach
+from its centre (beyond, the paddle slips past the object's side)."""
 
 
 @dataclass(frozen=True)
@@ -56,12 +59,12 @@ class PusherConfig:
     """The pusher's constants (defaults: the best of a sweep on the easy stage)."""
 
     gap: float = 0.05
-    """Contact point's distance beyond the object's planar radius while approaching, m."""
+    """Contact point's distance behind the object's rearmost point while approaching, m."""
     speed: float = 0.02
     """Paddle motion asked per policy step while pushing, m."""
     slow: float = 0.5
     """Near the goal, at most this fraction of the remaining distance per step."""
-    lift: float = 0.01
+    lift: float = 0.02
     """Paddle height above the object's centre, m."""
     k_yaw: float = 0.2
     """Sideways shift of the contact point per radian of yaw error, m/rad."""
@@ -89,8 +92,8 @@ class PushState:
     """(B, 7) position and wxyz quaternion."""
     goal_pose: np.ndarray
     """(B, 7) position and wxyz quaternion."""
-    radius: np.ndarray
-    """(B,) the object's planar radius (largest horizontal half extent), m."""
+    corners: np.ndarray
+    """(B, 8, 3) the corners of the object's bounding box in the world, m."""
     jacobians: np.ndarray | None = None
     """(B, 6, J) the paddle's world-aligned Jacobian (linear rows, then angular); joint
     space only."""
@@ -113,9 +116,11 @@ def paddle_motion(state: PushState, config: PusherConfig) -> np.ndarray:
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # (B, 2)
     yaw_error = yaw_of(state.object_pose[:, 3:]) - yaw_of(state.goal_pose[:, 3:])
     yaw_error = (yaw_error + np.pi) % (2.0 * np.pi) - np.pi  # (B,) in [-pi, pi)
-    bound = OFFSET_LIMIT * state.radius
+    reach = state.corners[:, :, :2] - pos[:, None, :2]  # (B, 8, 2) corners from the centre
+    behind = -(reach * forward[:, None]).sum(axis=2).min(axis=1)  # (B,) rearmost point
+    bound = OFFSET_LIMIT * np.abs((reach * left[:, None]).sum(axis=2)).max(axis=1)  # (B,)
     shift = left * np.clip(config.k_yaw * yaw_error, -bound, bound)[:, None]  # (B, 2)
-    contact = pos[:, :2] - forward * (state.radius + config.gap)[:, None] + shift  # (B, 2)
+    contact = pos[:, :2] - forward * (behind + config.gap)[:, None] + shift  # (B, 2)
     relative = tip[:, :2] - pos[:, :2]  # (B, 2)
     along = (relative * forward).sum(axis=1)  # (B,), < 0 behind the object
     sideways = relative - along[:, None] * forward - shift  # (B, 2)
@@ -175,8 +180,6 @@ class ScriptedPusher:
     ) -> None:
         self.env, self.magnitude = env, magnitude
         self.config = config if config is not None else PusherConfig()
-        self.radius_of = np.abs(env.library.bbox[:, :, :2]).max(axis=(1, 2))
-        """(N,) the planar radius of every library entry, m."""
         self.model, self.data = load_pinocchio() if magnitude.space == "joint" else (None, None)
 
     def actions(self, observation: Observation, env_transitions: int) -> torch.Tensor:
@@ -186,7 +189,11 @@ class ScriptedPusher:
             tip=observation.ee_pos_rot6d[:, :3].astype(np.float64),
             object_pose=observation.object_pose.astype(np.float64),
             goal_pose=observation.goal_pose.astype(np.float64),
-            radius=self.radius_of[self.env.object_index],
+            corners=to_world(
+                observation.object_pose[:, :3].astype(np.float64),
+                observation.object_pose[:, 3:].astype(np.float64),
+                bbox_corners(self.env.library.bbox[self.env.object_index]),
+            ),
         )
         if self.magnitude.space == "paddle":
             action = twist_actions(state, self.config, self.magnitude)
