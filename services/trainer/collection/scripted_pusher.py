@@ -180,20 +180,19 @@ class ScriptedPusher:
     ) -> None:
         self.env, self.magnitude = env, magnitude
         self.config = config if config is not None else PusherConfig()
+        self.corners_of = bbox_corners(env.library.bbox)
+        """(N, 8, 3) the object-frame bounding-box corners of every library entry, m."""
         self.model, self.data = load_pinocchio() if magnitude.space == "joint" else (None, None)
 
     def actions(self, observation: Observation, env_transitions: int) -> torch.Tensor:
         """(B, 21) float32 raw actions for `observation`, the filter at the schedule counter
         `env_transitions` (the joint space's residual scale xi)."""
+        pose = observation.object_pose.astype(np.float64)  # (B, 7)
         state = PushState(
             tip=observation.ee_pos_rot6d[:, :3].astype(np.float64),
-            object_pose=observation.object_pose.astype(np.float64),
+            object_pose=pose,
             goal_pose=observation.goal_pose.astype(np.float64),
-            corners=to_world(
-                observation.object_pose[:, :3].astype(np.float64),
-                observation.object_pose[:, 3:].astype(np.float64),
-                bbox_corners(self.env.library.bbox[self.env.object_index]),
-            ),
+            corners=to_world(pose[:, :3], pose[:, 3:], self.corners_of[self.env.object_index]),
         )
         if self.magnitude.space == "paddle":
             action = twist_actions(state, self.config, self.magnitude)
