@@ -20,6 +20,7 @@ from hamnet.trainer.algorithms.dagger import (
     VelocityReadout,
     beta_at,
     imitation_loss,
+    lr_at,
     update_student,
 )
 from hamnet.trainer.algorithms.dagger_learner import Dagger
@@ -27,7 +28,7 @@ from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_
 from hamnet.trainer.algorithms.teacher import load_teacher
 from hamnet.trainer.cli import main
 from hamnet.trainer.collection.dagger_worker import build_dagger_worker
-from hamnet.trainer.collection.sources import build_workers
+from hamnet.trainer.collection.sources import Collected, build_workers
 from hamnet.trainer.config import DaggerConfig
 from hamnet.trainer.rollout_cli import main as rollout_main
 from hamnet.trainer.runners.progress import dagger_line
@@ -57,10 +58,12 @@ def teacher_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_beta_falls_linearly_then_stays() -> None:
+def test_beta_and_the_rate_fall_linearly_then_stay() -> None:
     config = DaggerConfig(beta_initial=1.0, beta_final=0.2, beta_decay_transitions=100)
     assert [beta_at(n, config) for n in (0, 50, 100, 1000)] == pytest.approx([1.0, 0.6, 0.2, 0.2])
     assert beta_at(5, DaggerConfig(beta_decay_transitions=0)) == 0.0
+    rates = DaggerConfig(lr=1e-3, lr_final=1e-4, lr_decay_transitions=100)
+    assert [lr_at(n, rates) for n in (0, 50, 200)] == pytest.approx([1e-3, 5.5e-4, 1e-4])
     with pytest.raises(ValueError, match="beta_initial"):
         DaggerConfig(beta_initial=1.5)
 
@@ -125,6 +128,42 @@ def test_the_imitation_loss_falls_on_a_fixed_batch_and_on_held_states(
     assert held_loss() < 0.5 * before
 
 
+def test_replayed_windows_are_learned_beside_the_newest_and_reported_apart(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    """From the same weights, an update that replays an older window starts from the same
+    reported loss (the newest window's own) and ends nearer the teacher on the older window
+    than one on the newest window alone; the `Dagger` keeps `replay_windows - 1` windows."""
+    teacher, student = informed("hamnet"), build("student", seed=0)
+    config = DaggerConfig(beta_initial=0.0, beta_final=0.0, epochs=30)
+    older, newest = (
+        build_dagger_worker(tiny_run(tmp_path, seed=seed), teacher).collect(
+            teacher, student.eval(), STEPS, 0, config
+        )
+        for seed in (5, 0)
+    )
+
+    def loss_on(policy: torch.nn.Module, batch) -> float:
+        with torch.no_grad():
+            starts = episode_starts(batch.dones, batch.first)
+            mean = evaluate_sequence(policy, batch.inputs, batch.labels, starts).mean
+            return imitation_loss(mean, batch.labels).item()
+
+    alone, replaying = build("student", seed=0), build("student", seed=0)
+    firsts = [
+        update_student(policy, torch.optim.Adam(policy.parameters()), newest, config, None,
+                       replayed).imitation_loss
+        for policy, replayed in ((alone, list), (replaying, lambda: [older]))
+    ]  # fmt: skip
+    assert firsts[0] == firsts[1] == pytest.approx(loss_on(student, newest))
+    assert loss_on(replaying, older) < 0.9 * loss_on(alone, older)
+    dagger = Dagger(load_teacher(teacher_file), DaggerConfig(replay_windows=2, replay_draw=1))
+    dagger.start(student, B)
+    for window in (older, newest, older):
+        dagger.learn(Collected(window), window, 0)
+    assert len(dagger.replay) == 1 and len(dagger.replayed()) == 1
+
+
 def test_the_velocity_loss_is_in_the_teachers_standardised_units() -> None:
     """A read-out that gives the teacher's mean velocity scores the velocities' spread in the
     teacher's units (1 where they spread as the teacher's statistics say), an exact one 0."""
@@ -185,8 +224,11 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
     """4 iterations in one go vs 2, a snapshot, 2 more in a new runner: equal metrics and
     student weights. A 3-step timeout and a beta that falls within the run make episodes end
     and who acts them be drawn on both sides of the snapshot; the velocity loss's read-out
-    is resumed too. PPO, another teacher and another velocity loss are refused."""
-    dagger = DaggerConfig(beta_decay_transitions=3 * B * STEPS, velocity_coef=0.5)
+    is resumed too, and the windows the update replays (two kept by then, one drawn at each
+    step). PPO, another teacher and another velocity loss are refused."""
+    dagger = DaggerConfig(
+        beta_decay_transitions=3 * B * STEPS, velocity_coef=0.5, replay_windows=3, replay_draw=1
+    )
     teacher = load_teacher(teacher_file)
     whole = Runner(tiny_run(tmp_path / "whole", 4, timeout=3), algorithm=Dagger(teacher, dagger))
     whole.run()
@@ -204,6 +246,7 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
                     "imitation_loss_after", "episodes", "success_rate", "return/total",
                     "student_episodes", "velocity_loss"):  # fmt: skip
             assert have[key] == want[key], key
+    assert len(whole.algorithm.replay) == len(resumed.algorithm.replay) == 2
     for name, tensor in whole.policy.state_dict().items():
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
     other = tmp_path / "other.safetensors"

@@ -11,6 +11,7 @@ components, R reward terms.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -19,17 +20,32 @@ from torch import Tensor
 from hamnet.policy.networks import PolicyInputs
 from hamnet.policy.observation import VELOCITY_WIDTH
 from hamnet.policy.policy import Policy
+from hamnet.policy.rollout_record import merge_environments
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from hamnet.trainer.config import DaggerConfig
 
 
+def linear(start: float, end: float, span: int, env_transitions: int) -> float:
+    """`start` at the counter 0, `end` from `span` on, linear in between (`end` throughout
+    for a span of 0): DAgger's schedules."""
+    if span == 0:
+        return end
+    done = min(1.0, max(0, env_transitions) / span)
+    return start + (end - start) * done
+
+
 def beta_at(env_transitions: int, config: DaggerConfig) -> float:
     """Probability that the teacher acts an episode that starts at the counter
-    `env_transitions` (linear from `beta_initial` to `beta_final`, then constant)."""
-    if config.beta_decay_transitions == 0:
-        return config.beta_final
-    done = min(1.0, max(0, env_transitions) / config.beta_decay_transitions)
-    return config.beta_initial + (config.beta_final - config.beta_initial) * done
+    `env_transitions` (from `beta_initial` to `beta_final` over `beta_decay_transitions`)."""
+    return linear(
+        config.beta_initial, config.beta_final, config.beta_decay_transitions, env_transitions
+    )
+
+
+def lr_at(env_transitions: int, config: DaggerConfig) -> float:
+    """The student's learning rate at the counter `env_transitions` (from `lr` to
+    `lr_final` over `lr_decay_transitions`)."""
+    return linear(config.lr, config.lr_final, config.lr_decay_transitions, env_transitions)
 
 
 @dataclass(frozen=True)
@@ -125,28 +141,34 @@ def update_student(
     batch: Demonstrations,
     config: DaggerConfig,
     readout: VelocityReadout | None = None,
+    replayed: Callable[[], list[Demonstrations]] = list,
 ) -> ImitationStats:
     """`config.epochs` Adam steps on the whole window, each unrolling the student's GRUs over
     the T steps with their memory reset where an episode starts (`evaluate_sequence`);
     with `readout` (in `optimizer`), the velocity loss at `config.velocity_coef` too. The
-    gradient is clipped over every parameter `optimizer` steps."""
-    starts = episode_starts(batch.dones, batch.first)
+    gradient is clipped over every parameter `optimizer` steps. Each step's batch is the
+    window beside the windows `replayed()` gives for it (older ones, of the same T); the
+    imitation losses reported are the window's own."""
     parameters = [p for group in optimizer.param_groups for p in group["params"]]
     for group in optimizer.param_groups:
         group["lr"] = config.lr
     student.train()
-    first = None
+    width, first = batch.dones.shape[1], None
     for _ in range(config.epochs):
-        out = evaluate_sequence(student, batch.inputs, batch.labels, starts)
-        actions = imitation_loss(out.mean, batch.labels)
-        values = value_loss(out.values, batch.label_values)
+        older = replayed()
+        merged = merge_environments([batch, *older]) if older else batch
+        starts = episode_starts(merged.dones, merged.first)
+        out = evaluate_sequence(student, merged.inputs, merged.labels, starts)
+        own = imitation_loss(out.mean[:, :width], batch.labels).detach()
+        actions = imitation_loss(out.mean, merged.labels)
+        values = value_loss(out.values, merged.label_values)
         loss, velocity = actions + config.value_coef * values, math.nan
         if readout is not None:
-            read = readout.loss(out.memories, batch.object_velocity)
+            read = readout.loss(out.memories, merged.object_velocity)
             loss, velocity = loss + config.velocity_coef * read, read.item()
-        first = actions.item() if first is None else first
+        first = own.item() if first is None else first
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         norm = torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
         optimizer.step()
-    return ImitationStats(first, actions.item(), values.item(), float(norm), velocity)
+    return ImitationStats(first, own.item(), values.item(), float(norm), velocity)

@@ -33,6 +33,7 @@ from hamnet.trainer.algorithms.dagger import (
     Demonstrations,
     VelocityReadout,
     beta_at,
+    lr_at,
     update_student,
 )
 from hamnet.trainer.algorithms.teacher import Teacher, check_student
@@ -56,6 +57,7 @@ from hamnet.trainer.runners.snapshots import (
 from hamnet.trainer.runners.stopping import always
 from hamnet.trainer.storage.demonstration_chunks import (
     DEMONSTRATIONS,
+    decode_demonstrations,
     demonstrations_decoder,
     encode_demonstrations,
 )
@@ -109,6 +111,10 @@ class Dagger:
             list(self.readout.parameters()) if self.readout is not None else []
         )
         self.optimizer = torch.optim.Adam(learned, lr=self.dagger.lr)
+        self.replay: deque[np.ndarray] = deque(maxlen=self.dagger.replay_windows - 1)
+        """The windows before the newest that the update draws from, oldest first, each as
+        its chunk's bytes (`encode_demonstrations`, read-only: a window's per-episode tokens
+        once, and nothing to copy when the run keeps its state in memory)."""
 
     def learn(
         self,
@@ -122,29 +128,57 @@ class Dagger:
         demos: Demonstrations = collected.rollout
         ended = demos.dones & ~demos.teacher_acted  # (T, B) student episodes that ended
         self.student_episodes.extend(demos.success[ended].tolist())
+        rate = lr_at(env_transitions, self.dagger)
+        config = dataclasses.replace(self.dagger, lr=rate)
         with torch_threads(self.threads):
-            stats = update_student(self.student, self.optimizer, demos, self.dagger, self.readout)
+            stats = update_student(
+                self.student, self.optimizer, demos, config, self.readout, self.replayed
+            )
+        if self.replay.maxlen:
+            encoded = self.encode(demos, 0, 0).SerializeToString()
+            self.replay.append(np.frombuffer(encoded, dtype=np.uint8))
         return {
             "beta": beta_at(env_transitions, self.dagger),
             "student_share": 1.0 - float(demos.teacher_acted.float().mean()),
             **dataclasses.asdict(stats),
-            "learning_rate": self.dagger.lr,
+            "learning_rate": rate,
             "student_episodes": len(self.student_episodes),
             "student_episode_success": (
                 float(np.mean(self.student_episodes)) if self.student_episodes else math.nan
             ),
         }
 
+    def replayed(self) -> list[Demonstrations]:
+        """`replay_draw` of the kept windows, drawn without replacement by torch's global
+        generator (the run's snapshot keeps its state)."""
+        count = min(self.dagger.replay_draw, len(self.replay))
+        if not count:
+            return []
+        picks = torch.randperm(len(self.replay))[:count].tolist()
+        return [
+            decode_demonstrations(
+                RolloutChunk.FromString(self.replay[i].tobytes()),
+                self.student,
+                self.teacher.sha256,
+            )
+            for i in picks
+        ]
+
     def progress(self, row: dict[str, float]) -> str:
         return dagger_line(row)
 
     def snapshot(self) -> Snapshot:
-        """Adam's state, the velocity read-out's weights, the student's last outcomes and
-        the teacher's identity."""
+        """Adam's state, the velocity read-out's weights, the kept windows, the student's
+        last outcomes and the teacher's identity."""
         outcomes = np.array(self.student_episodes, dtype=bool)
         readout = dict(self.readout.state_dict()) if self.readout is not None else {}
+        replay = {str(i): window for i, window in enumerate(self.replay)}
         arrays, meta = nest(
-            {"optimizer": optimizer_snapshot(self.optimizer), "readout": (readout, {})}
+            {
+                "optimizer": optimizer_snapshot(self.optimizer),
+                "readout": (readout, {}),
+                "replay": (replay, {"windows": len(replay)}),
+            }
         )
         teacher = {"path": str(self.teacher.path), "sha256": self.teacher.sha256}
         return {**arrays, "student_episodes": outcomes}, {**meta, "teacher": teacher}
@@ -168,6 +202,12 @@ class Dagger:
         if self.readout is not None:
             self.readout.load_state_dict({k: torch.tensor(v) for k, v in readout.items()})
         restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+        windows, kept = part(arrays, meta, "replay") if "replay" in meta else ({}, {"windows": 0})
+        self.replay.clear()
+        for i in range(kept["windows"]):
+            window = np.array(windows[str(i)], dtype=np.uint8)
+            window.flags.writeable = False
+            self.replay.append(window)
         self.student_episodes.clear()
         self.student_episodes.extend(np.asarray(arrays["student_episodes"]).tolist())
 

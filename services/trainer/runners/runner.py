@@ -196,11 +196,16 @@ class Runner:
         }
 
     def state(self) -> Snapshot:
-        """The whole run in memory, copied: its snapshot and the policy's weights."""
+        """The whole run in memory, copied: its snapshot and the policy's weights (read-only
+        arrays, which nothing changes in place, as they are)."""
         arrays, meta = self.snapshot()
         weights = {f"policy.{name}": value for name, value in self.policy.state_dict().items()}
         copied = {
-            name: value.clone() if isinstance(value, torch.Tensor) else np.array(value)
+            name: value.clone()
+            if isinstance(value, torch.Tensor)
+            else value
+            if isinstance(value, np.ndarray) and not value.flags.writeable
+            else np.array(value)
             for name, value in {**arrays, **weights}.items()
         }
         return copied, copy.deepcopy(meta)
