@@ -38,7 +38,6 @@ import random
 from collections.abc import Callable, Iterator
 
 import torch
-from student_memory import STUDENT_ACTS, student_and_result
 
 from hamnet.perception.config import student_clouds
 from hamnet.policy.policy import Policy
@@ -47,9 +46,9 @@ from hamnet.policy.weights import policy_from
 from hamnet.trainer.algorithms.dagger import Demonstrations, imitation_loss
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts, evaluate_sequence
 from hamnet.trainer.collection.dagger_worker import InProcessDagger
-from hamnet.trainer.config import DaggerConfig
+from hamnet.trainer.config import STUDENT_ALONE, DaggerConfig
 from hamnet.trainer.results.evaluate import evaluate
-from hamnet.trainer.results.summary import run_of
+from hamnet.trainer.results.summary import policy_and_result, run_of
 
 Schedule = Iterator[tuple[list[Demonstrations], float]]
 """The windows of each Adam step and the step's learning rate."""
@@ -138,11 +137,11 @@ def main() -> int:
     args = parser.parse_args()
     torch.set_num_threads(1)
     torch.manual_seed(args.seed)
-    student, result = student_and_result(args.student)
+    student, result = policy_and_result(args.student)
     teacher = policy_from(read_weights(result["teacher"]))
     config = DaggerConfig()
     collect = lambda seed, n, acting: windows(
-        InProcessDagger(run_of(result, seed), teacher, STUDENT_ACTS), acting, n, args.steps
+        InProcessDagger(run_of(result, seed), teacher, STUDENT_ALONE), acting, n, args.steps
     )
     train = collect(args.seed, args.windows, student)
     held_out = collect(args.seed + 1000, args.held_out, student)

@@ -31,19 +31,18 @@ import argparse
 import dataclasses
 import itertools
 import json
-from pathlib import Path
 
 import torch
 
 from hamnet.policy.policy import Policy
-from hamnet.policy.shipped import read_card, read_shipped, read_weights
+from hamnet.policy.shipped import read_weights
 from hamnet.policy.weights import policy_from
 from hamnet.runtime.trees import take_rows
 from hamnet.trainer.algorithms.dagger import VelocityReadout
 from hamnet.trainer.algorithms.recurrent_unroll import episode_starts
 from hamnet.trainer.collection.dagger_worker import InProcessDagger
-from hamnet.trainer.config import DaggerConfig
-from hamnet.trainer.results.summary import CHECKOUT, run_of
+from hamnet.trainer.config import STUDENT_ALONE
+from hamnet.trainer.results.summary import policy_and_result, run_of
 
 BIN_EDGES = (0, 1, 4, 8, 16, 32, 64, 1_000_000)
 """Episode steps [edge, next edge): the first step (no history), the window's length (8,
@@ -54,8 +53,6 @@ RIDGE = 1e-2
 on a few thousand correlated steps of 385 features overfits the fitted half (held-out losses
 of 9-14 on 128 steps of the shipped students)."""
 
-STUDENT_ACTS = DaggerConfig(beta_initial=0.0, beta_final=0.0, beta_decay_transitions=0)
-
 
 def episode_step(starts: torch.Tensor) -> torch.Tensor:
     """(T, B) each step's index in its episode, from the (T, B) steps that begin one
@@ -64,17 +61,6 @@ def episode_step(starts: torch.Tensor) -> torch.Tensor:
     for t in range(1, len(starts)):
         index[t] = torch.where(starts[t], 0, index[t - 1] + 1)
     return index
-
-
-def student_and_result(value: str) -> tuple[Policy, dict]:
-    """The student `value` names (a run's folder or a shipped name) and the summary of the
-    run that trained it."""
-    run = Path(value)
-    if run.is_dir():
-        summary = json.loads((run / "summary.json").read_text())
-        return policy_from(read_weights(run / "checkpoints" / "latest.safetensors")), summary
-    card = read_card(value)
-    return policy_from(read_shipped(value)), json.loads((CHECKOUT / card["result"]).read_text())
 
 
 def held_out_velocity_loss(
@@ -108,11 +94,11 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=1, help="seed of the environments")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    student, result = student_and_result(args.student)
+    student, result = policy_and_result(args.student)
     if student.config.privileged or not student.memory_width:
         parser.error(f"{args.student} is not a recurrent student")
     teacher = policy_from(read_weights(result["teacher"]))
-    source = InProcessDagger(run_of(result, args.seed), teacher, STUDENT_ACTS)
+    source = InProcessDagger(run_of(result, args.seed), teacher, STUDENT_ALONE)
     demos = source.collect(student, args.steps, 0, 0).rollout
     steps, b = demos.dones.shape
     index = episode_step(episode_starts(demos.dones, demos.first))

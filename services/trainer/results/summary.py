@@ -10,6 +10,9 @@ import dataclasses
 import json
 from pathlib import Path
 
+from hamnet.policy.policy import Policy
+from hamnet.policy.shipped import read_card, read_shipped, read_weights
+from hamnet.policy.weights import policy_from
 from hamnet.runtime.runs import read_metrics
 from hamnet.trainer.results.evaluate import HeldOut
 from hamnet.trainer.runners.run_config import RunConfig, stage_sim
@@ -27,6 +30,17 @@ def repository_path(path: Path | str) -> str:
     machine's folders), else as given."""
     resolved = Path(path).resolve()
     return str(resolved.relative_to(CHECKOUT)) if resolved.is_relative_to(CHECKOUT) else str(path)
+
+
+def policy_and_result(value: str) -> tuple[Policy, dict]:
+    """The policy `value` names (a finished run's folder, or a shipped name) and the summary
+    of the run that trained it (the folder's `summary.json`, or the result its card names)."""
+    run = Path(value)
+    if run.is_dir():
+        summary = json.loads((run / "summary.json").read_text())
+        return policy_from(read_weights(run / "checkpoints" / "latest.safetensors")), summary
+    card = read_card(value)
+    return policy_from(read_shipped(value)), json.loads((CHECKOUT / card["result"]).read_text())
 
 
 DAGGER_KEYS = ("beta", "student_share", "imitation_loss", "student_episode_success")
