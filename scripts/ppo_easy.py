@@ -80,7 +80,7 @@ def train(
     worker = hamnet(
         "rollout", "--worker", "0", *common, *streaming, log=runs / f"rollout{suffix}.log"
     )
-    monitor = hamnet("monitor", "--save", str(runs / f"monitor{suffix}.rrd"), *network,
+    monitor = hamnet("monitor", "--layout", "training", "--save", str(runs / f"monitor{suffix}.rrd"), *network,
                      log=runs / f"monitor{suffix}.log")  # fmt: skip
     run_flag = "--resume" if resume else "--run-dir"
     trainers = [

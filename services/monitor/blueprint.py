@@ -8,17 +8,31 @@ trainer's status line, or the note saying why there are none yet); the module ac
 (layer x module heat map with its colour scale, each module's mean weight over time); tabs
 for the rest (rewards of the env in focus, values, PPO statistics, DAgger statistics,
 throughput, safety, episodes). The viewer opens on the `step` timeline.
+
+A training run with no sim in its namespace (`hamnet trainer` with rollout workers, or in
+process with `--publish`) gives the scene and the environment in focus nothing to draw, so
+its layout (`--layout training`) shows only what it has: the trainer's status line, its
+return per reward term and success rate, and below them the update's statistics, DAgger's
+and the run's pace, on the `env_transitions` timeline (the paper's x-axis).
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 import rerun as rr
 import rerun.blueprint as rrb
 
 from hamnet.sim.scene_view import spatial_view
 
+Layout = Literal["stack", "training"]
+"""stack: the whole stack's view (scene, clouds, modules, rewards, safety, trainer);
+training: a trainer's curves alone, for a run whose namespace has no sim."""
+
 DEFAULT_TIMELINE = "step"
-"""The timeline the view opens on (wall-clock time would squeeze a run into a sliver)."""
+"""The timeline the stack's view opens on (wall-clock time would squeeze a run into a sliver)."""
+TRAINING_TIMELINE = "env_transitions"
+"""The timeline the training view opens on: the paper's x-axis, the same for every run."""
 
 SCENE_CONTENTS = ["+ /robot/**", "+ /scene/**", "+ /object/**", "+ /goal/**", "+ /clouds/**"]
 """What the 3D view shows (everything spatial, nothing else)."""
@@ -50,13 +64,23 @@ THROUGHPUT_METRICS = ("env_steps_per_s", "policy_lag", "episode_length")
 """Trainer metrics of the run's pace, one plot each."""
 
 
-def _plot(origin: str, name: str, contents: list[str] | None = None) -> rrb.TimeSeriesView:
+WHOLE_RUN = rrb.TimeAxis(
+    view_range=rrb.TimeRange(rrb.TimeRangeBoundary.infinite(), rrb.TimeRangeBoundary.infinite())
+)
+"""A plot's x-axis over all its data: on `env_transitions` (hundreds of thousands) the
+viewer's own default showed only the last few thousand transitions."""
+
+
+def _plot(
+    origin: str, name: str, contents: list[str] | None = None, axis_x: rrb.TimeAxis | None = None
+) -> rrb.TimeSeriesView:
     """A time series view with its legend in the top left corner."""
     return rrb.TimeSeriesView(
         origin=origin,
         contents=contents or "$origin/**",
         name=name,
         plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        axis_x=axis_x,
     )
 
 
@@ -92,23 +116,57 @@ def modules() -> rrb.Container:
     )
 
 
+def update_tabs(axis_x: rrb.TimeAxis | None = None) -> list[rrb.Grid]:
+    """The update's statistics, DAgger's and the run's pace: one grid of plots each."""
+    groups = {"PPO update": PPO_METRICS, "DAgger": DAGGER_METRICS, "throughput": THROUGHPUT_METRICS}
+    return [
+        rrb.Grid(*(_plot(f"/trainer/{m}", m, axis_x=axis_x) for m in metrics), name=name)
+        for name, metrics in groups.items()
+    ]
+
+
 def details() -> rrb.Container:
     """Everything else, one tab each."""
     return rrb.Tabs(
         _plot("/rewards", "reward terms (env in focus)"),
         _plot("/episodes/return", "episode return (env in focus)"),
         _plot("/policy/values", "values per reward term"),
-        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in PPO_METRICS), name="PPO update"),
-        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in DAGGER_METRICS), name="DAgger"),
-        rrb.Grid(*(_plot(f"/trainer/{m}", m) for m in THROUGHPUT_METRICS), name="throughput"),
+        *update_tabs(),
         _plot("/safety/clip_rate", "safety: clipped share per stage"),
         rrb.TextLogView(origin="/safety/events", name="safety events"),
         rrb.TextLogView(origin="/episodes/started", name="episodes"),
     )
 
 
-def blueprint() -> rrb.Blueprint:
-    """The default layout, sent with the data to every output."""
+def panels(timeline: str) -> tuple[rrb.TimePanel, rrb.BlueprintPanel, rrb.SelectionPanel]:
+    """The viewer's panels: the time panel collapsed, following the newest data on
+    `timeline`; the blueprint and selection panels collapsed."""
+    return (
+        rrb.TimePanel(timeline=timeline, play_state="following", state="collapsed"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+    )
+
+
+def training() -> rrb.Blueprint:
+    """The training layout: status line, curves, and the update's tabs under them."""
+    curves = rrb.Horizontal(
+        _plot("/trainer/return", "return per reward term (trainer)", axis_x=WHOLE_RUN),
+        _plot("/trainer/success_rate", "success rate (trainer)", axis_x=WHOLE_RUN),
+    )
+    view = rrb.Vertical(
+        rrb.TextDocumentView(origin="/trainer/status", name="trainer"),
+        curves,
+        rrb.Tabs(*update_tabs(WHOLE_RUN)),
+        row_shares=[1, 6, 6],
+    )
+    return rrb.Blueprint(view, *panels(TRAINING_TIMELINE))
+
+
+def blueprint(layout: Layout = "stack") -> rrb.Blueprint:
+    """The layout `layout`, sent with the data to every output."""
+    if layout == "training":
+        return training()
     scene = rrb.Vertical(
         spatial_view("FR3 and scene", SCENE_CONTENTS),
         rrb.TextDocumentView(origin="/legend", name="legend"),
@@ -116,7 +174,5 @@ def blueprint() -> rrb.Blueprint:
     )
     return rrb.Blueprint(
         rrb.Horizontal(scene, rrb.Vertical(learning(), modules(), details()), column_shares=[1, 1]),
-        rrb.TimePanel(timeline=DEFAULT_TIMELINE, play_state="following", state="collapsed"),
-        rrb.BlueprintPanel(state="collapsed"),
-        rrb.SelectionPanel(state="collapsed"),
+        *panels(DEFAULT_TIMELINE),
     )

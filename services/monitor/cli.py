@@ -4,7 +4,8 @@ environment in focus (`--worker`, `--env`).
 
 Outputs, any combination: `--spawn` (start a viewer), `--connect-viewer URL` (a running
 viewer), `--serve-web` (a browser at http://localhost:9090), `--save FILE.rrd` (headless).
-It runs in its own process and drops frames rather than slowing the stack
+`--layout training` shows a training run's curves alone (its rollout workers publish no
+scene to draw). It runs in its own process and drops frames rather than slowing the stack
 (`--max-rate-hz`, `--inbox-capacity`); see docs/monitor.md.
 """
 
@@ -42,7 +43,7 @@ def main(argv: Sequence[str]) -> int:
     """Run `hamnet monitor` with command-line arguments `argv`; returns the exit status."""
     config, identity = parse_service(CONFIG, argv, "monitor", __doc__, ports=PORTS)
     try:
-        recording, saved = open_recording(config.output)
+        recording, saved = open_recording(config.output, config.view.layout)
     except ValueError as error:
         print(f"hamnet monitor: {error}", file=sys.stderr)
         return 2

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
+from hamnet.monitor.blueprint import Layout
 from hamnet.runtime.shell_config import Flattened, ReportConfig
 
 
@@ -22,6 +23,10 @@ class ViewConfig:
     policy rate (10 Hz) nothing is skipped in real time; a faster lock-step sim is thinned."""
     success_window: int = 100
     """Finished episodes (of every environment of the worker) the success rate averages."""
+    layout: Layout = "stack"
+    """The viewer's layout (`hamnet.monitor.blueprint`): stack, the whole stack around the
+    environment in focus; training, the trainer's curves and update statistics alone, for
+    a training run whose namespace has no sim (rollout workers publish no scenes)."""
 
     def __post_init__(self) -> None:
         if self.env < 0:

@@ -1,6 +1,6 @@
 """Where the monitor's Rerun data goes: one recording stream teed to every chosen output
 (a viewer it spawns, a viewer at a URL, a served web viewer, an .rrd file), each getting
-the default layout (`hamnet.monitor.blueprint`).
+the chosen layout (`hamnet.monitor.blueprint`).
 
 The .rrd file is streamed without Rerun's footer: the footer indexes every chunk and Rerun
 keeps that index in memory until the file closes, which grew the monitor by about the
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import rerun as rr
 
-from hamnet.monitor.blueprint import blueprint
+from hamnet.monitor.blueprint import Layout, blueprint
 from hamnet.monitor.config import OutputConfig
 from hamnet.runtime.numbered_files import next_part
 
@@ -36,9 +36,11 @@ def local_url(port: int) -> str:
     return f"rerun+http://127.0.0.1:{port}/proxy"
 
 
-def open_recording(output: OutputConfig) -> tuple[rr.RecordingStream, Path | None]:
-    """A recording stream that writes to every output `output` chooses, and the .rrd file
-    it saves to (None: no file).
+def open_recording(
+    output: OutputConfig, layout: Layout = "stack"
+) -> tuple[rr.RecordingStream, Path | None]:
+    """A recording stream that writes to every output `output` chooses, each getting the
+    layout `layout`, and the .rrd file it saves to (None: no file).
 
     Raises:
         ValueError: when no output is chosen.
@@ -61,7 +63,7 @@ def open_recording(output: OutputConfig) -> tuple[rr.RecordingStream, Path | Non
     if output.serve_web:
         sinks.append(rr.GrpcServerSink(port=output.viewer_port))
     recording = rr.RecordingStream(APPLICATION_ID)
-    recording.set_sinks(*sinks, default_blueprint=blueprint())
+    recording.set_sinks(*sinks, default_blueprint=blueprint(layout))
     if output.serve_web:
         rr.serve_web_viewer(
             web_port=output.web_port, open_browser=False, connect_to=local_url(output.viewer_port)

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from hamnet.monitor.blueprint import DEFAULT_TIMELINE, blueprint
+from hamnet.monitor.blueprint import (
+    DAGGER_METRICS,
+    DEFAULT_TIMELINE,
+    PPO_METRICS,
+    THROUGHPUT_METRICS,
+    TRAINING_TIMELINE,
+    blueprint,
+)
 from hamnet.monitor.config import ViewConfig
 from hamnet.monitor.decode import (
     decode_action,
@@ -254,6 +261,29 @@ def test_without_a_sim_the_learning_curves_are_on_the_trainers_steps(tmp_path) -
     recording.flush()
     recording.disconnect()
     assert sorted(Rrd(path).rows("/trainer/success_rate", "Scalars:scalars")) == [1, 2]
+
+
+def test_a_training_runs_layout_shows_only_what_a_trainer_publishes(tmp_path) -> None:
+    """`--layout training`, for a run without a sim: every view of it shows logged trainer
+    entities (none of the scene's or the focus environment's, which stay empty there), and
+    it opens on the env_transitions timeline."""
+    path = tmp_path / "training.rrd"
+    recording = rr.RecordingStream("test_monitor_training")
+    recording.save(path, default_blueprint=blueprint("training"))
+    view = MonitorView(recording)
+    rng = np.random.default_rng(0)
+    for iteration in (1, 2):
+        view.on_metrics(decode_metrics(metrics(iteration, rng)))
+    view.on_metrics(decode_metrics(dagger_metrics(3, rng)))
+    recording.flush()
+    recording.disconnect()
+    rrd = Rrd(path)
+    assert len(rrd.view_origins) == 3 + len(PPO_METRICS + DAGGER_METRICS + THROUGHPUT_METRICS)
+    for origin in rrd.view_origins:
+        assert origin.startswith("/trainer/"), origin
+        assert any(e == origin or e.startswith(origin + "/") for e in rrd.entities), origin
+    assert rrd.blueprint_values("TimePanelBlueprint:timeline") == [[TRAINING_TIMELINE]]
+    assert sorted(rrd.rows("/trainer/success_rate", "Scalars:scalars")) == [1, 2, 3]
 
 
 def test_show_scene_files_open_with_a_layout_a_camera_and_a_legend(tmp_path) -> None:
