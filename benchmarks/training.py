@@ -9,6 +9,9 @@ Measures in one run, on the easy stage with HAMnet on its paper inputs:
   (`--encoder-precision float32 --ppo.precision float32`);
 - workers: the same loop learning from `hamnet rollout` processes over Zenoh on loopback
   (`hamnet.trainer.collection.streamed.Streamed`), with 1 worker of B environments and 2 of B/2 each;
+- workers acting while the trainer learns: 1 worker of B environments that goes on acting
+  on the weights it has while the trainer's update (one thread) runs, its chunks up to
+  `LEARNING_LAG` version old (`--max-policy-lag 1`): collection overlapped with learning;
 - sequential: the same loop with one group (physics, then the networks), and the share of
   each component in its step: sim, perception, policy, safety, learner;
 - the seconds an update of each component in the overlapped and the sequential loop (timed
@@ -29,7 +32,8 @@ with `inprocess_env_steps_per_s`, `inprocess_vs_physics_ceiling` (goal >= 0.33),
 `inprocess_float32_env_steps_per_s` and `precision_speedup` (default / float32),
 `overlap_speedup`, `shares`, `seconds_per_update`, `overlap_busy`,
 `workers_vs_inprocess` (the faster of 1 and 2 workers, both
-reported) and `services_vs_inprocess` (goal >= 0.8); and per setup the update's seconds an
+reported), `workers_acting_while_learning_env_steps_per_s` with its ratios to in-process
+and to the ceiling, and `services_vs_inprocess` (goal >= 0.8); and per setup the update's seconds an
 iteration (`update_s`) and the rate of the iteration less it (`acting_env_steps_per_s`,
 `workers_vs_inprocess_acting`): how many steps an update keeps varies from run to run
 and setup to setup, and moves the rates with learning by a tenth or more.
@@ -75,6 +79,9 @@ FULL_STEPS, QUICK_STEPS = 128, 32
 update (`RunConfig.samples_per_update`), whose minibatches of 2048 the learner's cost per
 sample depends on; `--quick` takes 16 x 32 = 512 samples (minibatches of 128) to stay
 under a minute, so its learner share is not the run's."""
+LEARNING_LAG = 1
+"""Versions a worker's chunk may lag when it acts while the trainer learns: one, the
+rollout acted during the update of the one before (`workers_acting_while_learning`)."""
 CHAIN_LAG = 8
 """Versions a chain's chunk may lag the trainer (as tests/stack/test_chain_rollouts.py)."""
 
@@ -211,15 +218,18 @@ def remote_rate(
 
 
 def streamed_rate(
-    sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path
+    sim: SimConfig, workers: int, steps: int, iterations: int, run_dir: Path, lag: int = 0
 ) -> tuple[float, dict[str, float]]:
     """Env steps/s of the loop learning from `workers` rollout worker processes of
     `sim.num_envs / workers` environments each, after one warm-up iteration, and the
-    seconds an iteration (`remote_rate`)."""
+    seconds an iteration (`remote_rate`). `lag` > 0: the workers act while the trainer
+    learns, on weights up to `lag` versions old (`--max-policy-lag`; the update then takes
+    one thread), where 0 makes them wait for each update."""
     each = dataclasses.replace(sim, num_envs=sim.num_envs // workers)
     commands = [["rollout", "--worker", str(k), "--sim.num-envs", str(each.num_envs),
-                 "--steps-per-rollout", str(steps)] for k in range(workers)]  # fmt: skip
-    rate = remote_rate(each, commands, workers, 0, steps, iterations, run_dir)
+                 "--steps-per-rollout", str(steps), "--max-policy-lag", str(lag)]
+                for k in range(workers)]  # fmt: skip
+    rate = remote_rate(each, commands, workers, lag, steps, iterations, run_dir)
     assert rate is not None  # no deadline
     return rate
 
@@ -302,6 +312,12 @@ def main() -> dict:
             progress(
                 f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
             )
+        overlapped_workers, overlapped_workers_s = streamed_rate(
+            sim, 1, steps, iterations, Path(run_dir) / "workers-lag", lag=LEARNING_LAG
+        )
+        progress(
+            f"trainer + 1 rollout worker acting while it learns: {overlapped_workers:.0f} env steps/s"
+        )
         chained = chain_rate(sim, steps, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
         chain, chain_s = (None, None) if chained is None else chained
         progress("trainer + service chain: " + (
@@ -320,6 +336,7 @@ def main() -> dict:
         "float32": float32_s["learner"],
         "sequential": sequential_s["learner"],
         **{f"workers_{w}": streamed_s[w]["learner"] for w in worker_counts},
+        "workers_acting_while_learning": overlapped_workers_s["learner"],
         "services": None if chain_s is None else chain_s["learner"],
     }
     best_workers = max(acting[f"workers_{w}"] for w in worker_counts)
@@ -346,6 +363,9 @@ def main() -> dict:
         "update_s": update_s,
         "acting_env_steps_per_s": acting,
         "workers_vs_inprocess_acting": round(best_workers / acting["inprocess"], 3),
+        "workers_acting_while_learning_env_steps_per_s": round(overlapped_workers, 1),
+        "workers_acting_while_learning_vs_inprocess": round(overlapped_workers / inprocess, 3),
+        "workers_acting_while_learning_vs_physics_ceiling": round(overlapped_workers / ceiling, 3),
         "acting_note": "acting rates leave the update out (the iteration less it), and with "
         "it the spread of how many steps a fresh policy's update keeps; the chain acts while "
         "its trainer learns, so it has none",

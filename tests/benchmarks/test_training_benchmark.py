@@ -32,4 +32,7 @@ def test_quick_run_ends_with_one_json_line_of_figures() -> None:
     assert figures["workers_vs_inprocess_acting"] > 0
     assert figures["workers_vs_inprocess"] > 0 and figures["workers_1_env_steps_per_s"] > 0
     assert figures["workers_2_env_steps_per_s"] is None  # --quick measures one worker
+    assert figures["workers_acting_while_learning_env_steps_per_s"] > 0
+    assert figures["update_s"]["workers_acting_while_learning"] > 0
+    assert figures["workers_acting_while_learning_vs_physics_ceiling"] > 0
     assert figures["services_vs_inprocess"] > 0 or figures["not_measured"]
