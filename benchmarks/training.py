@@ -312,11 +312,11 @@ def main() -> dict:
             progress(
                 f"trainer + {workers} rollout worker(s) over Zenoh: {streamed[workers]:.0f} env steps/s"
             )
-        overlapped_workers, overlapped_workers_s = streamed_rate(
+        while_learning, while_learning_s = streamed_rate(
             sim, 1, steps, iterations, Path(run_dir) / "workers-lag", lag=LEARNING_LAG
         )
         progress(
-            f"trainer + 1 rollout worker acting while it learns: {overlapped_workers:.0f} env steps/s"
+            f"trainer + 1 rollout worker acting while it learns: {while_learning:.0f} env steps/s"
         )
         chained = chain_rate(sim, steps, iterations, Path(run_dir) / "chain", args.chain_deadline_s)
         chain, chain_s = (None, None) if chained is None else chained
@@ -336,7 +336,7 @@ def main() -> dict:
         "float32": float32_s["learner"],
         "sequential": sequential_s["learner"],
         **{f"workers_{w}": streamed_s[w]["learner"] for w in worker_counts},
-        "workers_acting_while_learning": overlapped_workers_s["learner"],
+        "workers_acting_while_learning": while_learning_s["learner"],
         "services": None if chain_s is None else chain_s["learner"],
     }
     best_workers = max(acting[f"workers_{w}"] for w in worker_counts)
@@ -363,9 +363,9 @@ def main() -> dict:
         "update_s": update_s,
         "acting_env_steps_per_s": acting,
         "workers_vs_inprocess_acting": round(best_workers / acting["inprocess"], 3),
-        "workers_acting_while_learning_env_steps_per_s": round(overlapped_workers, 1),
-        "workers_acting_while_learning_vs_inprocess": round(overlapped_workers / inprocess, 3),
-        "workers_acting_while_learning_vs_physics_ceiling": round(overlapped_workers / ceiling, 3),
+        "workers_acting_while_learning_env_steps_per_s": round(while_learning, 1),
+        "workers_acting_while_learning_vs_inprocess": round(while_learning / inprocess, 3),
+        "workers_acting_while_learning_vs_physics_ceiling": round(while_learning / ceiling, 3),
         "acting_note": "acting rates leave the update out (the iteration less it), and with "
         "it the spread of how many steps a fresh policy's update keeps; the chain acts while "
         "its trainer learns, so it has none",
