@@ -17,6 +17,7 @@ import torch
 from hamnet.policy.weights import read_checkpoint
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.cli import main
+from hamnet.trainer.runners import runner as runner_module
 from hamnet.trainer.runners.run_config import RunConfig
 from hamnet.trainer.runners.runner import Runner
 from hamnet.trainer.runners.snapshots import ResumeError
@@ -141,6 +142,43 @@ def test_a_run_stopped_mid_iteration_goes_back_to_its_start_and_resumes_exactly(
         assert {k: have[k] for k in keys} == {k: want[k] for k in keys}
     for name, tensor in whole.policy.state_dict().items():
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
+
+
+class TickingClock:
+    """`time` for the runner alone: `monotonic()` advances one second per call, so where a
+    budget runs out depends on the run's own checks, not on how fast this machine is."""
+
+    perf_counter = staticmethod(time.perf_counter)
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def monotonic(self) -> float:
+        self.now += 1.0
+        return self.now
+
+
+def test_a_wall_clock_budget_ends_the_run_at_its_last_whole_iteration_within_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A budget that runs out inside the third iteration drops that iteration: the run keeps
+    two, and its wall_clock_s and checkpoint are those of the second, within the budget (a
+    loop that checked the budget only between iterations finished the third past it)."""
+    monkeypatch.setattr(runner_module, "time", TickingClock())
+    free = Runner(tiny_run(tmp_path / "free", 3))
+    free.run()
+    ends = [row["wall_clock_s"] for row in rows(tmp_path / "free")]
+    budget = (ends[1] + ends[2]) / 2
+    monkeypatch.setattr(runner_module, "time", TickingClock())
+    bounded = Runner(
+        dataclasses.replace(tiny_run(tmp_path / "bounded", 3), max_wall_clock_s=budget)
+    )
+    bounded.run()
+    assert bounded.interrupted and bounded.iteration == 2
+    assert [row["wall_clock_s"] for row in rows(tmp_path / "bounded")] == ends[:2]
+    assert bounded.wall_clock_s == ends[1] <= budget
+    resumed = Runner(tiny_run(tmp_path / "bounded", 3), resume=True)
+    assert resumed.iteration == 2 and resumed.wall_clock_s == ends[1]
 
 
 @pytest.mark.stack  # `hamnet trainer` as a process

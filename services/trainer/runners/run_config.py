@@ -62,7 +62,8 @@ class RunConfig:
     max_env_transitions: int = 2_048_000_000
     """Stop after this many env_transitions (the authors' 2e6 vectorized steps of 1024)."""
     max_wall_clock_s: float = math.inf
-    """Stop after this much wall-clock time, s."""
+    """Stop after this much wall-clock time over every resume, s: the iteration under way
+    when it runs out is dropped, so the run's checkpoint and `wall_clock_s` lie within it."""
     run_dir: Path = Path("runs/train")
     """Where metrics.jsonl and checkpoints go."""
     encoder_checkpoint: Path = SHIPPED_ENCODER

@@ -275,31 +275,43 @@ class Runner:
         together); returns the metrics file. `on_iteration` sees every iteration's metrics (a
         publisher, a test). Only the main rank writes metrics, logs and checkpoints.
 
-        With one rank, `running()` turning False also stops the iteration under way, between
-        two steps of its rollout or two minibatches of its update: the run then goes back to
-        where that iteration began (a snapshot kept in memory), so the checkpoint it writes
-        is the state after its last whole iteration and `--resume` continues exactly from it.
-        Several ranks finish the iteration together (their collectives must not part)."""
+        With one rank, `running()` turning False or the wall-clock budget running out also
+        stops the iteration under way, between two steps of its rollout or two minibatches
+        of its update: the run then goes back to where that iteration began (a snapshot kept
+        in memory), so the checkpoint it writes is the state after its last whole iteration,
+        `--resume` continues exactly from it, and a run's `wall_clock_s` never passes its
+        budget (a result claimed within the hour is the policy of the hour). Several ranks
+        finish the iteration together (their collectives must not part), so they may pass
+        the budget by one iteration."""
         config, main = self.config, self.ranks.main
         started = last_log = last_checkpoint = time.monotonic()
         before = self.wall_clock_s  # a resumed run's budget counts its earlier time too
-        inner = running if self.ranks.size == 1 else always
+        deadline = started + config.max_wall_clock_s - before
+
+        def within_budget() -> bool:
+            return running() and time.monotonic() < deadline
+
+        inner = within_budget if self.ranks.size == 1 else always
         with contextlib.ExitStack() as stack:
             metrics = stack.enter_context(self.metrics_path.open("a")) if main else None
             while self.ranks.all(
-                running()
-                and self.env_transitions < config.max_env_transitions
-                and before + time.monotonic() - started < config.max_wall_clock_s
+                within_budget() and self.env_transitions < config.max_env_transitions
             ):
                 boundary = self.state() if inner is not always else None
                 try:
                     row = self.iterate(inner)
+                    ended = time.monotonic()
+                    if inner is not always and ended >= deadline:
+                        raise InterruptedError("the iteration ended past the wall-clock budget")
                 except InterruptedError:  # stopped mid-iteration, or while waiting for workers
                     if boundary is not None:
                         self.load_state(boundary)
                     self.interrupted = True
+                    if running():
+                        log.info("wall-clock budget of %.0f s spent: the unfinished iteration "
+                                 "%d is dropped", config.max_wall_clock_s, self.iteration + 1)  # fmt: skip
                     break
-                self.wall_clock_s = before + time.monotonic() - started
+                self.wall_clock_s = before + ended - started
                 row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}
                 if metrics is not None:
                     metrics.write(json.dumps(row) + "\n")
