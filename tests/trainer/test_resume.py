@@ -144,6 +144,24 @@ def test_a_run_stopped_mid_iteration_goes_back_to_its_start_and_resumes_exactly(
         assert torch.equal(resumed.policy.state_dict()[name], tensor), name
 
 
+@pytest.mark.parametrize("schedule", ["fixed", "adaptive"])
+def test_a_resumed_run_learns_at_its_own_rates_unless_the_rate_is_adapted(
+    tmp_path: Path, schedule: str
+) -> None:
+    """`--ppo.lr` and `--ppo.value-lr` given on resume are the rates it learns at (the
+    snapshot's Adam state kept); an adapted actor rate goes on from the snapshot's value."""
+    first = tiny_run(tmp_path, 3, architecture="state-mlp")  # the first only fills statistics
+    first = dataclasses.replace(first, ppo=dataclasses.replace(first.ppo, lr_schedule=schedule))
+    Runner(first).run()
+    saved = json.loads((tmp_path / "checkpoints" / "state.json").read_text())
+    adapted = saved["algorithm"]["optimizer"]["param_groups"][0]["lr"]
+    changed = dataclasses.replace(first.ppo, lr=1e-5, value_lr=2e-5)
+    resumed = Runner(dataclasses.replace(first, ppo=changed), resume=True)
+    rates = [group["lr"] for group in resumed.algorithm.optimizer.param_groups]
+    assert rates == [1e-5 if schedule == "fixed" else adapted, 2e-5]
+    assert resumed.algorithm.optimizer.state  # Adam's moments came back
+
+
 class TickingClock:
     """`time` for the runner alone: `monotonic()` advances one second per call, so where a
     budget runs out depends on the run's own checks, not on how fast this machine is."""

@@ -222,7 +222,14 @@ class PPO:
         )
 
     def restore(self, arrays: Arrays, meta: dict[str, Any]) -> None:
+        """Adam's state as the snapshot left it, at the rates this run is configured with (a
+        resumed run may change `--ppo.lr` and `--ppo.value-lr`), except an adapted actor
+        rate (`lr_schedule` adaptive), which goes on from where the run had adapted it."""
+        configured = [group["lr"] for group in self.optimizer.param_groups]
         restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
+        for index, (group, lr) in enumerate(zip(self.optimizer.param_groups, configured)):
+            if index or self.ppo.lr_schedule == "fixed":
+                group["lr"] = lr
         self.scaler.restore(*part(arrays, meta, "scaler"))
         self.shuffle.set_state(torch.tensor(part(arrays, meta, "shuffle")[0]["state"]))
 
