@@ -308,8 +308,9 @@ class Runner:
                         self.load_state(boundary)
                     self.interrupted = True
                     if running():
-                        log.info("wall-clock budget of %.0f s spent: the unfinished iteration "
-                                 "%d is dropped", config.max_wall_clock_s, self.iteration + 1)  # fmt: skip
+                        log.info("wall-clock budget of %.0f s spent: iteration %d, which did "
+                                 "not end within it, is dropped", config.max_wall_clock_s,
+                                 self.iteration + 1)  # fmt: skip
                     break
                 self.wall_clock_s = before + ended - started
                 row = self.last_row = {**row, "wall_clock_s": self.wall_clock_s}
