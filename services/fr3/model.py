@@ -7,6 +7,7 @@ end-effector pose and Jacobian by construction; tests/fr3/test_model.py checks t
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import mujoco
@@ -24,6 +25,9 @@ EE_SITE = "ee"
 PADDLE_BODY = "fr3_paddle"
 """Body of the paddle that replaces the gripper (its tube and plate)."""
 
+PADDLE_PLATE_GEOM = "fr3_paddle_plate"
+"""The paddle's plate: a box whose axes are the `EE_SITE` frame's, its outer face at the site."""
+
 ROBOT_CONTYPE = 2
 """contype of every robot geom: scene geoms (contype 1) do not match it..."""
 
@@ -39,6 +43,14 @@ def model_path() -> Path:
 def load_mujoco() -> mujoco.MjModel:
     """The FR3 as a MuJoCo model (robot only; scenes add their geoms through MjSpec)."""
     return mujoco.MjModel.from_xml_path(str(model_path()))
+
+
+@functools.cache
+def paddle_plate_half_extents() -> np.ndarray:
+    """(2,) the plate's half extents along the ee frame's x and y axes, m: how far the plate
+    reaches past the ee site sideways (what a pusher keeps clear of the object it steps
+    behind)."""
+    return load_mujoco().geom(PADDLE_PLATE_GEOM).size[:2].copy()
 
 
 def load_pinocchio() -> tuple[pin.Model, pin.Data]:

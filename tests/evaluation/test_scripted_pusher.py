@@ -11,8 +11,9 @@ import pytest
 
 from hamnet.evaluation.scripted_pusher import scripted_held_out
 from hamnet.fr3.limits import NUM_JOINTS, Q_HOME
-from hamnet.fr3.model import load_pinocchio
+from hamnet.fr3.model import load_pinocchio, paddle_plate_half_extents
 from hamnet.safety.cartesian import ee_jacobians
+from hamnet.sim import quaternion
 from hamnet.sim.rewards import bbox_corners, to_world
 from hamnet.sim.stages import stage_config
 from hamnet.trainer.collection.scripted_pusher import (
@@ -20,11 +21,15 @@ from hamnet.trainer.collection.scripted_pusher import (
     PushState,
     paddle_motion,
     push_actions,
+    yaw_error,
 )
 from hamnet.trainer.runners.run_config import RunConfig
 
 CONFIG = PusherConfig()
 UPRIGHT = [1.0, 0.0, 0.0, 0.0]
+PLATE_X_ALONG_X = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+"""The plate's axes as `state` lays them by default: its long side (x) along the world's x."""
+LONG, SHORT = paddle_plate_half_extents()
 
 
 def yawed(angle: float) -> list[float]:
@@ -34,14 +39,15 @@ def yawed(angle: float) -> list[float]:
 
 def state(
     tip, obj=(0.5, 0.0, 0.35), goal=(0.7, 0.0, 0.35), obj_quat=UPRIGHT, jacobians=None,
-    half=(0.04, 0.04, 0.03),
+    half=(0.04, 0.04, 0.03), plate_axes=PLATE_X_ALONG_X,
 ):  # fmt: skip
     """One environment: a box of half extents `half` (0.04 m wide by default) pushed along
-    +x unless told otherwise."""
+    +x unless told otherwise, by the plate lying lengthwise along x."""
     pose = np.array([[*obj, *obj_quat]], dtype=float)
     box = np.array([[np.negative(half), half]], dtype=float)  # (1, 2, 3) min and max corner
     return PushState(
         tip=np.array([tip], dtype=float),
+        plate_axes=np.array([plate_axes], dtype=float),
         object_pose=pose,
         goal_pose=np.array([[*goal, *UPRIGHT]], dtype=float),
         corners=to_world(pose[:, :3], pose[:, 3:], bbox_corners(box)),
@@ -58,7 +64,7 @@ def test_behind_the_object_on_its_line_the_paddle_pushes_towards_the_goal():
 
 def test_away_from_the_line_the_paddle_goes_to_the_contact_point_first():
     motion = paddle_motion(state(tip=(0.5, 0.1, 0.36)), CONFIG)[0]
-    contact = np.array([0.5 - 0.04 - CONFIG.gap, 0.0])
+    contact = np.array([0.5 - 0.04 - LONG - CONFIG.gap, 0.0])
     towards = (contact - [0.5, 0.1]) / np.linalg.norm(contact - [0.5, 0.1])
     assert np.linalg.norm(motion[:2]) == pytest.approx(CONFIG.max_step)
     assert motion[:2] / CONFIG.max_step == pytest.approx(towards)
@@ -73,9 +79,39 @@ def test_the_contact_point_lies_behind_the_rearmost_corner_of_the_box_as_it_lies
     no_yaw_error = dataclasses.replace(lying, goal_pose=lying.object_pose.copy())
     no_yaw_error.goal_pose[0, :3] = (0.7, 0.0, 0.35)
     motion = paddle_motion(no_yaw_error, CONFIG)[0]
-    contact = np.array([0.5 - behind - CONFIG.gap, 0.0])
+    contact = np.array([0.5 - behind - LONG - CONFIG.gap, 0.0])
     towards = (contact - tip[:2]) / np.linalg.norm(contact - tip[:2])
     assert motion[:2] / np.linalg.norm(motion[:2]) == pytest.approx(towards, abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("plate_axes", "reach"),
+    [
+        (PLATE_X_ALONG_X, LONG),
+        ([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]], SHORT),  # turned 90 deg: its narrow side leads
+        ([[np.sqrt(0.5), np.sqrt(0.5), 0.0], [-np.sqrt(0.5), np.sqrt(0.5), 0.0]],
+         np.sqrt(0.5) * (LONG + SHORT)),  # turned 45 deg: its corner leads
+    ],
+)  # fmt: skip
+def test_the_contact_point_keeps_the_plates_edge_clear_of_the_object(plate_axes, reach):
+    """Before, the plate's centre stopped `gap` behind the object, so a plate turned
+    lengthwise (6 cm from its centre to its edge) came down on the object's top and rode it."""
+    tip = np.array([0.3, 0.05, 0.36])
+    motion = paddle_motion(state(tip=tip, plate_axes=plate_axes), CONFIG)[0]
+    contact = np.array([0.5 - 0.04 - reach - CONFIG.gap, 0.0])
+    towards = (contact - tip[:2]) / np.linalg.norm(contact - tip[:2])
+    assert motion[:2] / np.linalg.norm(motion[:2]) == pytest.approx(towards, abs=1e-6)
+
+
+def test_the_yaw_error_of_an_object_on_its_side_is_its_turn_about_the_vertical():
+    """An object lying on its side (90 deg about x) and turned 0.2 rad about the vertical
+    from a goal lying the same way: the difference of Euler yaws reads about 0 or pi here,
+    the rotation between the two reads 0.2."""
+    side = quaternion.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)
+    turn = quaternion.from_axis_angle(np.array([0.0, 0.0, 1.0]), 0.2)
+    lying = quaternion.multiply(turn, side)
+    assert yaw_error(lying[None], side[None])[0] == pytest.approx(0.2)
+    assert yaw_error(side[None], lying[None])[0] == pytest.approx(-0.2)
 
 
 def test_in_front_of_the_object_the_paddle_does_not_push():

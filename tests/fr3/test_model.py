@@ -45,7 +45,9 @@ def add_table_and_box(spec: mujoco.MjSpec, top: float, box_pos: list[float]) -> 
     """A 0.5 x 0.7 m table in front of the robot with its top at `top`, and a free 5 cm,
     0.1 kg box at `box_pos`; both keep MuJoCo's default contact bits, like scene geoms."""
     spec.worldbody.add_geom(
-        name="table", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0.55, 0, top / 2],
+        name="table",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=[0.55, 0, top / 2],
         size=[0.25, 0.35, top / 2],
     )
     box = spec.worldbody.add_body(name="box", pos=box_pos)
@@ -222,7 +224,9 @@ def test_robot_geoms_collide_with_the_scene_but_not_with_each_other(mj_model) ->
     assert all(mj_model.geom_conaffinity[g] == fr3_model.ROBOT_CONAFFINITY for g in robot_geoms)
     scene_contype, scene_conaffinity = 1, 1  # MuJoCo's defaults
     assert not fr3_model.ROBOT_CONTYPE & fr3_model.ROBOT_CONAFFINITY
-    assert fr3_model.ROBOT_CONTYPE & scene_conaffinity or scene_contype & fr3_model.ROBOT_CONAFFINITY
+    assert (
+        fr3_model.ROBOT_CONTYPE & scene_conaffinity or scene_contype & fr3_model.ROBOT_CONAFFINITY
+    )
 
 
 def test_explicit_self_collision_pairs_never_join_adjacent_links(mj_model) -> None:
@@ -246,6 +250,21 @@ def test_paddle_touches_a_scene_box() -> None:
         (model.geom(c.geom[0]).name, model.geom(c.geom[1]).name) for c in data.contact[: data.ncon]
     }
     assert touching == {("fr3_paddle_plate", "box")} or touching == {("box", "fr3_paddle_plate")}
+
+
+def test_the_plate_half_extents_lie_along_the_ee_frames_axes(mj_model) -> None:
+    """The scripted pusher keeps the plate's reach clear of the object: that reach is the
+    file's 12 x 6 cm plate, whose axes are the ee site's and whose outer face holds it."""
+    data = mujoco.MjData(mj_model)
+    data.qpos[:7] = Q_HOME
+    mujoco.mj_forward(mj_model, data)
+    plate = mj_model.geom(fr3_model.PADDLE_PLATE_GEOM).id
+    site = mj_model.site(fr3_model.EE_SITE).id
+    assert fr3_model.paddle_plate_half_extents() == pytest.approx([0.06, 0.03])
+    site_rot = data.site_xmat[site].reshape(3, 3)
+    assert data.geom_xmat[plate].reshape(3, 3) == pytest.approx(site_rot, abs=1e-12)
+    face = data.geom_xpos[plate] + site_rot[:, 2] * mj_model.geom_size[plate, 2]
+    assert face == pytest.approx(data.site_xpos[site], abs=1e-12)
 
 
 # Control and contact at the chosen timestep --------------------------------------------

@@ -13,10 +13,14 @@ towards while the guide's weight lasts.
 
 The rule, per environment and step (xy in the table's plane):
 - the push line runs from the object's centre to its goal; the contact point lies on it,
-  `gap` behind the object's rearmost point along the line (its bounding box's corners as it
-  lies now: an object resting on its side reaches further than its upright planar radius),
-  shifted sideways by `k_yaw` times the yaw error (pushing off-centre turns the object back;
-  bounded to 0.6 of the box's sideways reach);
+  the plate's reach along the line (its 12 x 6 cm face as it is turned now) plus `gap`
+  behind the object's rearmost point along the line (its bounding box's corners as it lies
+  now: an object resting on its side reaches further than its upright planar radius), so
+  the plate's edge, not its centre, stops short of the object; it is shifted sideways by
+  `k_yaw` times the yaw error (pushing off-centre turns the object back; bounded to 0.6 of
+  the box's sideways reach). The yaw error is the rotation about the vertical between the
+  goal's orientation and the object's (not the difference of their Euler yaws, which jumps
+  by up to pi for an object tilted on its side);
 - aligned (the paddle within `align_tolerance` of that shifted line, behind the object):
   the paddle moves along the line by min(`speed`, `slow` x the remaining distance), pulled
   back towards the line by `lateral_gain`; otherwise it moves towards the contact point;
@@ -28,7 +32,8 @@ squares on Pinocchio's paddle Jacobian, and u = residual / xi (the filter's scal
 which is what the paddle space's filter does with the twist (its damping added to J J^T is
 `twist_damping` squared, 1e-6, where the script adds `damping`, 1e-3: the two residuals
 differ by a few percent). The gains are constant (`kp_u`, `rho_u`). The defaults are the best
-of a sweep on the easy stage (docs/trainer-history.md, "A scripted reference").
+of sweeps on the easy stage (docs/trainer-history.md, "A scripted reference" and "The
+pusher's plate").
 """
 
 from __future__ import annotations
@@ -40,12 +45,13 @@ import numpy as np
 import torch
 
 from hamnet.fr3.limits import NUM_JOINTS
-from hamnet.fr3.model import load_pinocchio
+from hamnet.fr3.model import load_pinocchio, paddle_plate_half_extents
 from hamnet.messages.robot_state import Observation
 from hamnet.safety.cartesian import damped_least_squares, ee_jacobians
 from hamnet.safety.config import ActionMagnitudeConfig
 from hamnet.safety.schedule import per_joint, xi_at
 from hamnet.safety.stages import twist_scale
+from hamnet.sim import quaternion
 from hamnet.sim.env import VectorEnv
 from hamnet.sim.rewards import bbox_corners, to_world
 
@@ -58,8 +64,9 @@ from its centre (beyond, the paddle slips past the object's side)."""
 class PusherConfig:
     """The pusher's constants (defaults: the best of a sweep on the easy stage)."""
 
-    gap: float = 0.05
-    """Contact point's distance behind the object's rearmost point while approaching, m."""
+    gap: float = 0.01
+    """Distance between the plate's edge and the object's rearmost point at the contact
+    point, m (docs/trainer-history.md, "The pusher's plate")."""
     speed: float = 0.02
     """Paddle motion asked per policy step while pushing, m."""
     slow: float = 0.5
@@ -88,6 +95,8 @@ class PushState:
 
     tip: np.ndarray
     """(B, 3) the paddle's position, m."""
+    plate_axes: np.ndarray
+    """(B, 2, 3) the plate's x and y axes in the world (the ee frame's first two columns)."""
     object_pose: np.ndarray
     """(B, 7) position and wxyz quaternion."""
     goal_pose: np.ndarray
@@ -107,6 +116,21 @@ def yaw_of(quat: np.ndarray) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
+def yaw_error(quat: np.ndarray, goal_quat: np.ndarray) -> np.ndarray:
+    """(B,) rotation about the vertical from the goal's orientation to the object's, rad in
+    [-pi, pi]: the yaw of the world-frame rotation between them, exact when the object rests
+    on the goal's face."""
+    inverse = goal_quat * np.array([1.0, -1.0, -1.0, -1.0])  # (B, 4) conjugate
+    return yaw_of(quaternion.multiply(quat, inverse))
+
+
+def plate_reach(plate_axes: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(B,) how far the plate reaches from its centre along the horizontal unit `direction`
+    (B, 2), m: its half extents weighed by how each of its axes (B, 2, 3) lies along it."""
+    along = np.abs((plate_axes[:, :, :2] * direction[:, None]).sum(axis=2))  # (B, 2)
+    return along @ paddle_plate_half_extents()
+
+
 def paddle_motion(state: PushState, config: PusherConfig) -> np.ndarray:
     """The paddle's motion asked this step (B, 3), m: along the push line or to its start."""
     pos, goal, tip = state.object_pose[:, :3], state.goal_pose[:, :3], state.tip
@@ -114,13 +138,13 @@ def paddle_motion(state: PushState, config: PusherConfig) -> np.ndarray:
     remaining = np.linalg.norm(to_goal, axis=1, keepdims=True)  # (B, 1)
     forward = to_goal / np.maximum(remaining, 1e-9)  # (B, 2)
     left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)  # (B, 2)
-    yaw_error = yaw_of(state.object_pose[:, 3:]) - yaw_of(state.goal_pose[:, 3:])
-    yaw_error = (yaw_error + np.pi) % (2.0 * np.pi) - np.pi  # (B,) in [-pi, pi)
+    turned = yaw_error(state.object_pose[:, 3:], state.goal_pose[:, 3:])  # (B,)
     reach = state.corners[:, :, :2] - pos[:, None, :2]  # (B, 8, 2) corners from the centre
     behind = -(reach * forward[:, None]).sum(axis=2).min(axis=1)  # (B,) rearmost point
     bound = OFFSET_LIMIT * np.abs((reach * left[:, None]).sum(axis=2)).max(axis=1)  # (B,)
-    shift = left * np.clip(config.k_yaw * yaw_error, -bound, bound)[:, None]  # (B, 2)
-    contact = pos[:, :2] - forward * (behind + config.gap)[:, None] + shift  # (B, 2)
+    shift = left * np.clip(config.k_yaw * turned, -bound, bound)[:, None]  # (B, 2)
+    clearance = behind + plate_reach(state.plate_axes, forward) + config.gap  # (B,)
+    contact = pos[:, :2] - forward * clearance[:, None] + shift  # (B, 2)
     relative = tip[:, :2] - pos[:, :2]  # (B, 2)
     along = (relative * forward).sum(axis=1)  # (B,), < 0 behind the object
     sideways = relative - along[:, None] * forward - shift  # (B, 2)
@@ -188,8 +212,10 @@ class ScriptedPusher:
         """(B, 21) float32 raw actions for `observation`, the filter at the schedule counter
         `env_transitions` (the joint space's residual scale xi)."""
         pose = observation.object_pose.astype(np.float64)  # (B, 7)
+        ee = observation.ee_pos_rot6d.astype(np.float64)  # (B, 9)
         state = PushState(
-            tip=observation.ee_pos_rot6d[:, :3].astype(np.float64),
+            tip=ee[:, :3],
+            plate_axes=ee[:, 3:].reshape(-1, 2, 3),
             object_pose=pose,
             goal_pose=observation.goal_pose.astype(np.float64),
             corners=to_world(pose[:, :3], pose[:, 3:], self.corners_of[self.env.object_index]),
