@@ -45,8 +45,8 @@ class PolicyServiceConfig:
     in its metadata), or the name of a policy shipped in the package (easy-teacher: PPO on
     the easy stage; easy-student: distilled from it, deployable inputs; easy-paddle: PPO in
     the paddle-twist action space; easy-paddle-student: distilled from it; easy-guided: PPO
-    with the scripted guide in the paddle space, the best; easy-guided-student: distilled
-    from it, the best deployable one; see
+    with the scripted guide in the paddle space; easy-guided-student: distilled from it;
+    easy-push: the guided hour with the corrected pusher, the best (0.5); see
     docs/policy.md). Required unless --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and

@@ -1,5 +1,5 @@
 """The shipped policy pushing (issue 28): `hamnet up compose/push-easy.yaml` serves the
-easy-stage HAMnet shipped in the package (`easy-guided`, in the paddle-twist action space,
+easy-stage HAMnet shipped in the package (`easy-push`, in the paddle-twist action space,
 through a safety service in the same space) on the easy stage, ends by itself, and its
 summary gives the success rate of the episodes that ended, from the sim's own counts."""
 
@@ -18,9 +18,9 @@ PUSH = Path(__file__).resolve().parents[2] / "compose" / "push-easy.yaml"
 
 def test_the_shipped_policy_pushes_and_the_summary_gives_its_success_rate(tmp_path: Path) -> None:
     stack = load(PUSH)
-    assert stack.services["policy"].args["checkpoint"] == "easy-guided"
+    assert stack.services["policy"].args["checkpoint"] == "easy-push"
     assert stack.services["sim"].args["stage"] == "easy"
-    card = read_card("easy-guided")
+    card = read_card("easy-push")
     space = stack.services["safety"].args["safety.action-magnitude.space"]
     assert space == card["action_space"] == "paddle"  # else safety drops every action
     with up(PUSH, isolated(), cwd=tmp_path) as run:
