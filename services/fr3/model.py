@@ -49,8 +49,10 @@ def load_mujoco() -> mujoco.MjModel:
 def paddle_plate_half_extents() -> np.ndarray:
     """(2,) the plate's half extents along the ee frame's x and y axes, m: how far the plate
     reaches past the ee site sideways (what a pusher keeps clear of the object it steps
-    behind)."""
-    return load_mujoco().geom(PADDLE_PLATE_GEOM).size[:2].copy()
+    behind). Read-only: every caller shares the cached array."""
+    half = load_mujoco().geom(PADDLE_PLATE_GEOM).size[:2].copy()
+    half.flags.writeable = False
+    return half
 
 
 def load_pinocchio() -> tuple[pin.Model, pin.Data]:

@@ -31,6 +31,11 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """The inverse rotation of unit quaternions (..., 4) wxyz."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle of the rotation taking b to a, in [0, pi] rad (..., ); q and -q are equal."""
     dot = np.abs(np.sum(a * b, axis=-1))

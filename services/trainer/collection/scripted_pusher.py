@@ -120,8 +120,7 @@ def yaw_error(quat: np.ndarray, goal_quat: np.ndarray) -> np.ndarray:
     """(B,) rotation about the vertical from the goal's orientation to the object's, rad in
     [-pi, pi]: the yaw of the world-frame rotation between them, exact when the object rests
     on the goal's face."""
-    inverse = goal_quat * np.array([1.0, -1.0, -1.0, -1.0])  # (B, 4) conjugate
-    return yaw_of(quaternion.multiply(quat, inverse))
+    return yaw_of(quaternion.multiply(quat, quaternion.conjugate(goal_quat)))
 
 
 def plate_reach(plate_axes: np.ndarray, direction: np.ndarray) -> np.ndarray:
