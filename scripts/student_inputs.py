@@ -6,6 +6,7 @@ teacher: the rest is its own fit, chiefly of what it cannot observe at all (the 
 privileged physics and object velocity).
 
     python scripts/student_inputs.py easy-paddle-student
+    python scripts/student_inputs.py runs/dagger-push
 
 The last line printed is one JSON object: the success rate of each input setting.
 """
@@ -17,25 +18,24 @@ import json
 
 from hamnet.perception.config import student_clouds
 from hamnet.policy.observation import PoseNoiseConfig
-from hamnet.policy.shipped import read_card, read_shipped
-from hamnet.policy.weights import policy_from
 from hamnet.trainer.results.evaluate import evaluate
-from hamnet.trainer.results.summary import CHECKOUT, run_of
+from hamnet.trainer.results.summary import policy_and_result, run_of
 
 EXACT_POSE = PoseNoiseConfig(position_std=0.0, rotation_std=0.0)
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("student", help="a shipped student's name (its card names its result)")
+    parser.add_argument(
+        "student",
+        help="a shipped student's name (its card names its result) or a DAgger run's folder",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the result's evaluation")
     args = parser.parse_args()
-    policy = policy_from(read_shipped(args.student))
+    policy, result = policy_and_result(args.student)  # result: the run's summary fields
     if policy.config.privileged:
         parser.error(f"{args.student} reads privileged inputs: it is not a student")
-    card = read_card(args.student)
-    result = json.loads((CHECKOUT / card["result"]).read_text())  # the run's summary fields
-    config, episodes = run_of(result, args.seed), card["eval_episodes"]
+    config, episodes = run_of(result, args.seed), result["eval_episodes"]
     settings = {
         "deployed": (student_clouds(), None),
         "exact_clouds": (None, None),

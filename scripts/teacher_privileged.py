@@ -6,6 +6,7 @@ history holds). A teacher that does as well without them leaves the student noth
 infer: its shortfall is then its fit of the teacher's actions, not what it cannot observe.
 
     python scripts/teacher_privileged.py easy-paddle-student
+    python scripts/teacher_privileged.py runs/dagger-push
 
 The last line printed is one JSON object: the teacher's success rate under each setting.
 """
@@ -21,11 +22,10 @@ import torch
 
 from hamnet.messages.robot_state import Observation
 from hamnet.policy.observation import PoseNoiseConfig, estimated_pose
-from hamnet.policy.shipped import read_card
 from hamnet.sim import quaternion
 from hamnet.trainer.algorithms.teacher import load_teacher
 from hamnet.trainer.results.evaluate import evaluate
-from hamnet.trainer.results.summary import CHECKOUT, run_of
+from hamnet.trainer.results.summary import policy_and_result, run_of
 
 Edit = Callable[[Observation], None]
 
@@ -95,6 +95,37 @@ def pose_estimate(noise: PoseNoiseConfig, seed: int) -> Edit:
     return edit
 
 
+def averaged_estimate(noise: PoseNoiseConfig, span: int, seed: int) -> Edit:
+    """The object's pose replaced by the mean of the estimator's last `span` readings in its
+    episode (`estimated_pose`, a new error every step): positions averaged, quaternions
+    averaged on the hemisphere of the newest and normalised. What a filter of the estimates
+    could give the teacher: less noise, `(span - 1) / 2` steps of lag on a moving object."""
+    generator = torch.Generator().manual_seed(seed)
+    history: list[np.ndarray] = []  # the last `span` readings, oldest first
+    age = np.zeros(0, dtype=np.int64)
+
+    def edit(observation: Observation) -> None:
+        nonlocal age
+        pose = torch.from_numpy(observation.object_pose)
+        reading = estimated_pose(pose, noise, generator).numpy().astype(np.float64)
+        age = np.zeros(len(reading), np.int64) if not history else age + 1
+        age[observation.episode_step == 0] = 0
+        history.append(reading)
+        del history[:-span]
+        readings = np.stack(history)  # (K, B, 7), newest last
+        back = np.arange(len(history))[::-1, None]  # (K, 1) steps before the newest
+        weight = (back <= age[None, :]).astype(np.float64)[..., None]  # this episode's only
+        quats = (
+            readings[..., 3:]
+            * np.sign((readings[..., 3:] * reading[None, :, 3:]).sum(-1))[..., None]
+        )
+        mean = (weight * np.concatenate([readings[..., :3], quats], -1)).sum(0) / weight.sum(0)
+        mean[:, 3:] /= np.linalg.norm(mean[:, 3:], axis=-1, keepdims=True)
+        observation.object_pose[...] = mean
+
+    return edit
+
+
 def both(*edits: Edit) -> Edit:
     """The edits applied in turn."""
 
@@ -107,14 +138,16 @@ def both(*edits: Edit) -> Edit:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("student", help="a shipped student's name (its card names its result)")
+    parser.add_argument(
+        "student",
+        help="a shipped student's name (its card names its result) or a DAgger run's folder",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the result's evaluation")
     args = parser.parse_args()
-    card = read_card(args.student)
-    result = json.loads((CHECKOUT / card["result"]).read_text())  # the run's summary fields
+    result = policy_and_result(args.student)[1]  # the student's run's summary fields
     teacher = load_teacher(result["teacher"]).policy
     config = run_of(result, args.seed)  # evaluate acts in the teacher's architecture
-    episodes, period = card["eval_episodes"], config.sim.policy_period_s
+    episodes, period = result["eval_episodes"], config.sim.policy_period_s
     estimate = PoseNoiseConfig()  # the student's estimator's error
     settings: dict[str, Callable[[], Edit | None]] = {
         "as_trained": lambda: None,
@@ -134,6 +167,8 @@ def main() -> int:
         "estimated_pose_difference_velocity": lambda: both(
             mean_physics(), pose_estimate(estimate, args.seed), difference_velocity(period)
         ),
+        "averaged_estimate_4": lambda: averaged_estimate(estimate, 4, args.seed),
+        "averaged_estimate_8": lambda: averaged_estimate(estimate, 8, args.seed),
     }
     rates = {}
     for name, make in settings.items():
