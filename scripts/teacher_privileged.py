@@ -4,6 +4,8 @@ needs to give (the physics parameters by their mean over the episodes; the objec
 velocity by zeros, or by the finite difference of its last two poses, which a student's
 history holds). A teacher that does as well without them leaves the student nothing to
 infer: its shortfall is then its fit of the teacher's actions, not what it cannot observe.
+It also reads the student's pose estimate: one reading a step, or the mean of the last few
+in the episode (what a filter of the estimates would give).
 
     python scripts/teacher_privileged.py easy-paddle-student
     python scripts/teacher_privileged.py runs/dagger-push

@@ -1,5 +1,5 @@
 """scripts/teacher_privileged.py measures what a teacher's privileged inputs are worth (its
-full run, nine evaluations of a student card's 256 episodes, is docs/trainer.md's DAgger
+full run, eleven evaluations of a student's result's 256 episodes, is docs/trainer.md's DAgger
 diagnosis): the velocity it derives from poses must be the motion they show."""
 
 from __future__ import annotations
