@@ -49,6 +49,36 @@ def zero_velocity(observation: Observation) -> None:
     observation.object_velocity[...] = 0.0
 
 
+class PoseHistory:
+    """The last `keep` object poses of every environment (oldest first) and how far back
+    each one's current episode reaches among them."""
+
+    def __init__(self, keep: int) -> None:
+        self.keep = keep
+        self.poses: list[np.ndarray] = []
+        self.age = np.zeros(0, dtype=np.int64)  # steps of history each episode has
+
+    def push(self, pose: np.ndarray, episode_step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Add this step's (B, 7) poses; returns the kept poses (K, B, 7), newest last, and
+        (B,) how many steps before the newest each environment's episode reaches (< K)."""
+        self.age = np.zeros(len(pose), np.int64) if not self.poses else self.age + 1
+        self.age[episode_step == 0] = 0
+        self.poses.append(pose)
+        del self.poses[: -self.keep]
+        return np.stack(self.poses), np.minimum(self.age, len(self.poses) - 1)
+
+
+def read_pose(
+    observation: Observation, noise: PoseNoiseConfig | None, generator: torch.Generator
+) -> np.ndarray:
+    """(B, 7) float64 object poses: true, or with `noise` as a student's estimator reads them
+    (`estimated_pose`, a new error every step)."""
+    pose = torch.from_numpy(observation.object_pose)
+    if noise is not None:
+        pose = estimated_pose(pose, noise, generator)
+    return pose.numpy().astype(np.float64)
+
+
 def difference_velocity(
     period_s: float, span: int = 1, noise: PoseNoiseConfig | None = None, seed: int = 0
 ) -> Edit:
@@ -57,25 +87,14 @@ def difference_velocity(
     angular from the relative rotation (twice the vector part of q_t q_{t-span}^-1, its
     small-angle form), world frame. With `noise`, of the poses a student's estimator reads
     (`estimated_pose`, a new error every step), the pose itself left true."""
-    history: list[np.ndarray] = []  # the last span + 1 poses, oldest first
+    history = PoseHistory(span + 1)
     generator = torch.Generator().manual_seed(seed)
-    age = np.zeros(0, dtype=np.int64)  # steps of history each environment's episode has
 
     def edit(observation: Observation) -> None:
-        nonlocal age
-        pose = torch.from_numpy(observation.object_pose)
-        if noise is not None:
-            pose = estimated_pose(pose, noise, generator)
-        pose = pose.numpy().astype(np.float64)
-        age = np.zeros(len(pose), np.int64) if not history else age + 1
-        age[observation.episode_step == 0] = 0
-        history.append(pose)
-        del history[: -span - 1]
-        back = np.minimum(age, len(history) - 1)  # (B,) steps to the pose compared
-        rows = np.arange(len(pose))
-        previous = np.stack(history)[len(history) - 1 - back, rows]  # (B, 7)
-        inverse = previous[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0])
-        turn = quaternion.multiply(pose[:, 3:], inverse)
+        pose = read_pose(observation, noise, generator)
+        poses, back = history.push(pose, observation.episode_step)  # back: steps compared
+        previous = poses[len(poses) - 1 - back, np.arange(len(pose))]  # (B, 7)
+        turn = quaternion.multiply(pose[:, 3:], quaternion.conjugate(previous[:, 3:]))
         turn *= np.sign(turn[:, :1] + (turn[:, :1] == 0))  # the short way round
         velocity = np.concatenate([pose[:, :3] - previous[:, :3], 2.0 * turn[:, 1:]], 1)
         seconds = np.maximum(back, 1)[:, None] * period_s
@@ -102,26 +121,17 @@ def averaged_estimate(noise: PoseNoiseConfig, span: int, seed: int) -> Edit:
     episode (`estimated_pose`, a new error every step): positions averaged, quaternions
     averaged on the hemisphere of the newest and normalised. What a filter of the estimates
     could give the teacher: less noise, `(span - 1) / 2` steps of lag on a moving object."""
+    history = PoseHistory(span)
     generator = torch.Generator().manual_seed(seed)
-    history: list[np.ndarray] = []  # the last `span` readings, oldest first
-    age = np.zeros(0, dtype=np.int64)
 
     def edit(observation: Observation) -> None:
-        nonlocal age
-        pose = torch.from_numpy(observation.object_pose)
-        reading = estimated_pose(pose, noise, generator).numpy().astype(np.float64)
-        age = np.zeros(len(reading), np.int64) if not history else age + 1
-        age[observation.episode_step == 0] = 0
-        history.append(reading)
-        del history[:-span]
-        readings = np.stack(history)  # (K, B, 7), newest last
-        back = np.arange(len(history))[::-1, None]  # (K, 1) steps before the newest
-        weight = (back <= age[None, :]).astype(np.float64)[..., None]  # this episode's only
-        quats = (
-            readings[..., 3:]
-            * np.sign((readings[..., 3:] * reading[None, :, 3:]).sum(-1))[..., None]
-        )
-        mean = (weight * np.concatenate([readings[..., :3], quats], -1)).sum(0) / weight.sum(0)
+        reading = read_pose(observation, noise, generator)
+        readings, reach = history.push(reading, observation.episode_step)  # (K, B, 7), (B,)
+        back = np.arange(len(readings))[::-1, None]  # (K, 1) steps before the newest
+        weight = (back <= reach[None, :]).astype(np.float64)[..., None]  # this episode's only
+        hemisphere = np.sign((readings[..., 3:] * reading[None, :, 3:]).sum(-1))[..., None]
+        aligned = np.concatenate([readings[..., :3], readings[..., 3:] * hemisphere], -1)
+        mean = (weight * aligned).sum(0) / weight.sum(0)
         mean[:, 3:] /= np.linalg.norm(mean[:, 3:], axis=-1, keepdims=True)
         observation.object_pose[...] = mean
 
