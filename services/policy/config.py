@@ -122,6 +122,13 @@ class ModelConfig:
     real-world-observable inputs only."""
     recurrent: bool = False
     """Student: a GRU in the modulation network and one in the base network."""
+    pose_readings: int = 1
+    """Student: the object pose it reads is the mean of the pose estimator's last this many
+    readings in the episode (`hamnet.policy.inputs.observed_state`); 1: the newest alone.
+    The estimator's error is new every step (`PoseNoiseConfig`): the easy-push teacher fell
+    from 0.496 to 0.410 held-out on one reading and rose to 0.523 on the mean of its last
+    four (scripts/teacher_privileged.py, issue 28). The weights carry it, so every service
+    that serves them averages alike."""
     base_memory: int = 128
     """Width of the base network's GRU (student only)."""
     modulation_hidden: tuple[int, ...] = (256, 256)
@@ -191,9 +198,15 @@ class ModelConfig:
             "routing_dim",
             "action_dim",
             "num_values",
+            "pose_readings",
         ):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.privileged and self.pose_readings != 1:
+            raise ValueError(
+                "pose_readings averages a student's pose estimate; a privileged policy reads "
+                f"the true pose (pose_readings 1), got {self.pose_readings}"
+            )
         for dim, heads in (
             (self.object_attention_dim, self.object_heads),
             (self.scene_attention_dim, self.scene_heads),

@@ -117,12 +117,13 @@ class Serving:
                 b - 1,
             )
             self.scene(np.arange(b), np.zeros((b, self.env_code.shape[1]), np.float32))
+        self.carry, robot = builder.observed_state(
+            config, self.carry, robot, self.pose_noise, self.generator
+        )
         return builder.policy_inputs(
             config,
             self.carry,
             robot,
             tuple(torch.from_numpy(t).to(self.device) for t in tokens.tokens),
             self.env_code,
-            self.pose_noise,
-            self.generator,
         )

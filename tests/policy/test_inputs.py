@@ -63,8 +63,8 @@ def test_the_trainer_builds_inputs_from_the_sim_in_process() -> None:
         policy = build(name, seed=0)
         carry = builder.initial_carry(policy, B)
         carry = builder.begin_step(carry, ids, steps)
-        inputs = builder.policy_inputs(policy.config, carry, robot, tokens(),
-                                       pose_noise=PoseNoiseConfig())  # fmt: skip
+        carry, read = builder.observed_state(policy.config, carry, robot, PoseNoiseConfig())
+        inputs = builder.policy_inputs(policy.config, carry, read, tokens())
         assert inputs.observation.context.shape == (B, policy.config.observation.width("context"))
         action = policy.act(inputs)
         assert action.action.shape == (B, 21) and torch.isfinite(action.action).all()

@@ -43,9 +43,8 @@ def builder_action(robot: RobotObservation, noise: PoseNoiseConfig | None) -> to
     carry = builder.begin_step(carry, torch.zeros(B, dtype=torch.int64), torch.ones(B))
     g = torch.Generator().manual_seed(0)
     tokens = tuple(torch.randn(B, 17, 128, generator=g) for _ in range(3))
-    inputs = builder.policy_inputs(
-        policy.config, carry, robot, tokens, pose_noise=noise, generator=g
-    )
+    carry, read = builder.observed_state(policy.config, carry, robot, noise, g)
+    inputs = builder.policy_inputs(policy.config, carry, read, tokens)
     with torch.no_grad():
         return policy.act(inputs, deterministic=True).action
 

@@ -197,12 +197,8 @@ class RolloutWorker(Worker):
         robot = take_rows(builder.robot_observation(final), rows)
         perception = self.seat.perception
         percepts = None if perception is None else perception.step(robot.object_pose, rows)
-        inputs = builder.policy_inputs(
-            policy.config,
-            take_rows(self.seat.carry, rows),
-            robot,
-            tokens_of(percepts),
-            pose_noise=self.pose_noise,
-            generator=self.generator,
+        carry, robot = builder.observed_state(
+            policy.config, take_rows(self.seat.carry, rows), robot, self.pose_noise, self.generator
         )
+        inputs = builder.policy_inputs(policy.config, carry, robot, tokens_of(percepts))
         return policy.act(inputs, deterministic=True).values

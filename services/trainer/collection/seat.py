@@ -81,15 +81,12 @@ class Seat:
         pose_noise: PoseNoiseConfig,
         generator: torch.Generator,
     ) -> PolicyInputs:
-        """`policy`'s inputs of this step (a student's pose estimate drawn from `generator`)."""
-        return builder.policy_inputs(
-            policy.config,
-            self.carry,
-            robot,
-            tokens_of(self.percepts),
-            pose_noise=pose_noise,
-            generator=generator,
+        """`policy`'s inputs of this step (a student's pose estimate drawn from `generator`,
+        kept in the carry when the student averages its readings)."""
+        self.carry, robot = builder.observed_state(
+            policy.config, self.carry, robot, pose_noise, generator
         )
+        return builder.policy_inputs(policy.config, self.carry, robot, tokens_of(self.percepts))
 
     def end(self, action: Tensor, memory: Tensor | None) -> None:
         """End a step with the executed `action` and the policy's new `memory`."""

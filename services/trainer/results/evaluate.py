@@ -84,7 +84,10 @@ def evaluate(
             of what an input is worth, e.g. a teacher's privileged block replaced).
     """
     acting = dataclasses.replace(
-        config, architecture=policy.architecture, action_space=policy.config.action_space
+        config,
+        architecture=policy.architecture,
+        action_space=policy.config.action_space,
+        pose_readings=policy.config.pose_readings,
     )
     worker = held_out_worker(acting, episodes, clouds)
     if pose_noise is not None:

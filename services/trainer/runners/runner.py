@@ -77,6 +77,7 @@ class Runner:
                 init=config.init,
                 shared_value_gradient=config.shared_value_gradient,
                 action_space=config.action_space,
+                pose_readings=config.pose_readings,
             ),
             config.seed,
         )
