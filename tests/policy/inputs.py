@@ -34,7 +34,9 @@ def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs
     g = torch.Generator().manual_seed(seed + 1)
     tokens = lambda: torch.randn(batch, config.num_tokens, config.token_dim, generator=g)  # noqa: E731
     return PolicyInputs(
-        observation=assemble(random_robot(batch, seed), random_action(batch, seed), config.observation),
+        observation=assemble(
+            random_robot(batch, seed), random_action(batch, seed), config.observation
+        ),
         object_tokens=tokens(),
         local_tokens=tokens(),
         global_tokens=tokens(),
@@ -43,12 +45,12 @@ def random_inputs(policy: Policy, batch: int = 4, seed: int = 0) -> PolicyInputs
     )
 
 
-def informed(name: str, seed: int = 0) -> Policy:
+def informed(name: str, seed: int = 0, **changes) -> Policy:
     """A policy whose actions vary visibly with every input: PyTorch's initialization (an
     orthogonally initialized actor starts near 0 everywhere) and input statistics (without
-    them every input reads 0)."""
+    them every input reads 0); `changes` to its preset config besides."""
     from hamnet.policy.registry import build, with_changes  # the registry imports networks
 
-    policy = build(name, with_changes(name, init="torch"), seed=seed)
+    policy = build(name, with_changes(name, init="torch", **changes), seed=seed)
     policy.normalizer.update(random_inputs(policy, 64, seed=seed + 100).observation)
     return policy

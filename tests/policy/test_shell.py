@@ -222,3 +222,40 @@ def test_a_student_against_the_sim_sees_a_noisy_pose_unless_told_otherwise() -> 
     action = lambda m: np.frombuffer(m.action.data, np.float32).reshape(B, 21)
     np.testing.assert_allclose(action(exact[0]), expected(policy, 0).numpy(), atol=1e-5)
     assert not np.allclose(action(noisy[0]), action(exact[0]), atol=1e-4)
+
+
+def test_a_student_served_reads_the_mean_of_its_last_pose_readings() -> None:
+    """Weights with `pose_readings` 2: the service's second action is the core's with the
+    object pose set by hand to the mean of the two estimates sent, not the newest alone."""
+    import dataclasses
+
+    from hamnet.policy import inputs as builder
+
+    policy = informed("student", pose_readings=2)
+    actions, _ = run(policy, [
+        ("state", state_message(0, B)), ("tokens", tokens_message(0, B)),
+        ("state", state_message(1, B)), ("tokens", tokens_message(1, B)),
+    ])  # fmt: skip
+    served = np.frombuffer(actions[1].action.data, np.float32).reshape(B, 21)
+    old, new = random_robot(B, 0).object_pose, random_robot(B, 1).object_pose
+    side = torch.where((old[:, 3:] * new[:, 3:]).sum(-1, keepdim=True) < 0, -1.0, 1.0)
+    rotation = torch.nn.functional.normalize(old[:, 3:] * side + new[:, 3:], dim=-1)
+    mean = torch.cat(((old[:, :3] + new[:, :3]) / 2, rotation), -1)
+
+    def second_action(pose: torch.Tensor) -> np.ndarray:
+        """The core's action at step 1 reading `pose`, after step 0 on its own estimate."""
+        carry = builder.initial_carry(policy, B)
+        for step, read in ((0, old), (1, pose)):
+            carry = builder.begin_step(
+                carry, torch.zeros(B, dtype=torch.int64), torch.full((B,), step)
+            )
+            g = torch.Generator().manual_seed(10_000 + step)
+            tokens = tuple(torch.randn(B, 17, 128, generator=g) for _ in range(3))
+            robot = dataclasses.replace(random_robot(B, step), object_pose=read)
+            with torch.no_grad():
+                out = policy.act(builder.policy_inputs(policy.config, carry, robot, tokens), True)
+            carry = builder.end_step(carry, out.action, out.memory)
+        return out.action.numpy()
+
+    np.testing.assert_allclose(served, second_action(mean), atol=1e-5)
+    assert not np.allclose(served, second_action(new), atol=1e-4)

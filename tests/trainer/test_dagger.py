@@ -277,15 +277,16 @@ def test_hamnet_trainer_algo_dagger_writes_a_student_checkpoint_and_both_success
 ) -> None:
     run = tmp_path / "run"
     args = [*TINY, "--inprocess", "--teacher", str(teacher_file), "--max-env-transitions", "8",
-            "--eval-episodes", "2", "--run-dir", str(run)]  # fmt: skip
+            "--eval-episodes", "2", "--pose-readings", "2", "--run-dir", str(run)]  # fmt: skip
     assert main(args) == 0
     summary = json.loads((run / "summary.json").read_text())
     assert summary["algo"] == "dagger" and summary["architecture"] == "student"
+    assert summary["pose_readings"] == 2
     assert summary["teacher_success_rate"] in (0.0, 0.5, 1.0)
     assert summary["student_success_rate"] == summary["final_success_rate"]
     assert [point["beta"] for point in summary["curve"]] == [1.0, 1.0 - 4 / 200_000]
     student = policy_from(read_checkpoint(run / "checkpoints" / "latest.safetensors"))
-    assert student.architecture == "student"
+    assert student.architecture == "student" and student.config.pose_readings == 2
     assert main(["plot", str(run)]) == 0
 
 
@@ -308,6 +309,17 @@ def test_bad_teachers_and_settings_are_one_line_and_status_2(
         assert main([*TINY, *args, "--run-dir", str(tmp_path / "run")]) == 2, message
         error = capsys.readouterr().err
         assert error.count("\n") == 1 and message in error, error
+
+
+def test_pose_readings_for_a_teacher_architecture_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Averaging pose readings is a student's: a privileged policy reads the true pose."""
+    args = ["--inprocess", "--architecture", "hamnet", "--pose-readings", "2"]
+    with pytest.raises(SystemExit) as stop:
+        main([*args, "--run-dir", str(tmp_path / "run")])
+    error = capsys.readouterr().err
+    assert stop.value.code == 2 and error.count("\n") == 1 and "reads the true pose" in error
 
 
 def test_a_dagger_worker_without_a_usable_teacher_is_one_line_and_status_2(

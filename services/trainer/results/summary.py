@@ -75,6 +75,7 @@ def write_summary(
             "curriculum": dataclasses.asdict(sim.curriculum),
         },
         "architecture": config.architecture,
+        "pose_readings": config.pose_readings,
         "encoder_checkpoint": (
             None if config.random_encoder else repository_path(config.encoder_checkpoint)
         ),
