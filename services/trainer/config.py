@@ -238,6 +238,14 @@ class DaggerConfig:
     units); 0: off, no read-out. The teacher relies on the object's velocity and the student
     must infer it from pose estimates (`scripts/teacher_privileged.py`); on, the loss asks
     its memory to hold it."""
+    weight_average: float = 0.0
+    """Decay of an exponential moving average of the student's weights, once per window;
+    0: off. On, the optimizer steps a copy of the student and the run's student (what acts,
+    is published, checkpointed and evaluated) is the average of that copy's recent weights,
+    so a window's noisy step moves it by a part only: two fits of the same windows held out
+    0.336 and 0.426 (`scripts/student_fit.py` on the easy-push student, issue 28), their
+    gradients between windows at cosine 0.30. 0.99 averages about the last 100 windows,
+    the span of the default replay (ours)."""
 
     def __post_init__(self) -> None:
         for name in ("beta_initial", "beta_final"):
@@ -253,6 +261,8 @@ class DaggerConfig:
             raise ValueError("lr_decay_transitions must be >= 0")
         if not (self.value_coef >= 0 and self.velocity_coef >= 0):
             raise ValueError("value_coef and velocity_coef must be >= 0")
+        if not 0.0 <= self.weight_average < 1.0:
+            raise ValueError(f"weight_average must be in [0, 1), got {self.weight_average}")
 
 
 STUDENT_ALONE = DaggerConfig(beta_initial=0.0, beta_final=0.0, beta_decay_transitions=0)

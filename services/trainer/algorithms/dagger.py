@@ -172,3 +172,11 @@ def update_student(
         norm = torch.nn.utils.clip_grad_norm_(parameters, config.max_grad_norm)
         optimizer.step()
     return ImitationStats(first, own.item(), values.item(), float(norm), velocity)
+
+
+@torch.no_grad()
+def average_into(average: torch.nn.Module, latest: torch.nn.Module, decay: float) -> None:
+    """One step of an exponential moving average of `latest`'s parameters into `average`'s
+    (the same network): average <- decay x average + (1 - decay) x latest."""
+    for mine, its in zip(average.parameters(), latest.parameters(), strict=True):
+        mine.lerp_(its, 1.0 - decay)

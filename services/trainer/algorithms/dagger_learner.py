@@ -14,6 +14,7 @@ cameras see them and the pose estimate, as it is deployed.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import math
@@ -32,6 +33,7 @@ from hamnet.runtime.compute import torch_threads
 from hamnet.trainer.algorithms.dagger import (
     Demonstrations,
     VelocityReadout,
+    average_into,
     beta_at,
     lr_at,
     update_student,
@@ -102,12 +104,15 @@ class Dagger:
         linear read-out of the student's memory learns beside it (training only: the
         checkpoint is the student's)."""
         self.student, self.threads = policy, threads
+        self.trained = copy.deepcopy(policy) if self.dagger.weight_average else policy
+        """What the optimizer steps: the student itself, or with `weight_average` a copy
+        whose moving average the student is."""
         self.readout = (
             VelocityReadout(policy.memory_width, self.teacher.policy)
             if self.dagger.velocity_coef > 0
             else None
         )
-        learned = list(policy.parameters()) + (
+        learned = list(self.trained.parameters()) + (
             list(self.readout.parameters()) if self.readout is not None else []
         )
         self.optimizer = torch.optim.Adam(learned, lr=self.dagger.lr)
@@ -131,9 +136,14 @@ class Dagger:
         rate = lr_at(env_transitions, self.dagger)
         config = dataclasses.replace(self.dagger, lr=rate)
         with torch_threads(self.threads):
+            if self.trained is not self.student:
+                for mine, its in zip(self.trained.buffers(), self.student.buffers(), strict=True):
+                    mine.copy_(its)  # the normalizer's statistics, the schedule's counter
             stats = update_student(
-                self.student, self.optimizer, demos, config, self.readout, self.replayed
+                self.trained, self.optimizer, demos, config, self.readout, self.replayed
             )
+            if self.trained is not self.student:
+                average_into(self.student, self.trained, self.dagger.weight_average)
         if self.replay.maxlen:
             encoded = self.encode(demos, 0, 0).SerializeToString()
             self.replay.append(np.frombuffer(encoded, dtype=np.uint8))
@@ -168,18 +178,20 @@ class Dagger:
         return dagger_line(row)
 
     def snapshot(self) -> Snapshot:
-        """Adam's state, the velocity read-out's weights, the kept windows, the student's
-        last outcomes and the teacher's identity."""
+        """Adam's state, the velocity read-out's weights, the weights the optimizer steps
+        (with `weight_average`), the kept windows, the student's last outcomes and the
+        teacher's identity."""
         outcomes = np.array(self.student_episodes, dtype=bool)
         readout = dict(self.readout.state_dict()) if self.readout is not None else {}
         replay = {str(i): window for i, window in enumerate(self.replay)}
-        arrays, meta = nest(
-            {
-                "optimizer": optimizer_snapshot(self.optimizer),
-                "readout": (readout, {}),
-                "replay": (replay, {"windows": len(replay)}),
-            }
-        )
+        parts = {
+            "optimizer": optimizer_snapshot(self.optimizer),
+            "readout": (readout, {}),
+            "replay": (replay, {"windows": len(replay)}),
+        }
+        if self.trained is not self.student:
+            parts["trained"] = (dict(self.trained.state_dict()), {})
+        arrays, meta = nest(parts)
         teacher = {"path": str(self.teacher.path), "sha256": self.teacher.sha256}
         return {**arrays, "student_episodes": outcomes}, {**meta, "teacher": teacher}
 
@@ -201,6 +213,14 @@ class Dagger:
             )
         if self.readout is not None:
             self.readout.load_state_dict({k: torch.tensor(v) for k, v in readout.items()})
+        if self.trained is not self.student:
+            # A run that averages from here on starts its copy at the restored student.
+            trained = part(arrays, meta, "trained")[0] if "trained" in meta else None
+            self.trained.load_state_dict(
+                self.student.state_dict()
+                if trained is None
+                else {k: torch.tensor(v) for k, v in trained.items()}
+            )
         restore_optimizer(self.optimizer, *part(arrays, meta, "optimizer"))
         windows, kept = part(arrays, meta, "replay") if "replay" in meta else ({}, {"windows": 0})
         self.replay.clear()
@@ -221,12 +241,17 @@ class Dagger:
         teacher = evaluate(self.teacher.policy, config, episodes, env_transitions)
         ratio = student.success_rate / teacher.success_rate if teacher.success_rate else None
         log.info("teacher on the same episodes: %.3f", teacher.success_rate)
-        return student, {
+        fields = {
             "student_success_rate": student.success_rate,
             "teacher_success_rate": teacher.success_rate,
             "teacher_goal_return": teacher.goal_return,
             "student_vs_teacher": ratio,
         }
+        if self.trained is not self.student:  # what the average bought, on the same episodes
+            trained = evaluate(self.trained, config, episodes, env_transitions, student_clouds())
+            log.info("the stepped weights, not averaged: %.3f", trained.success_rate)
+            fields["unaveraged_success_rate"] = trained.success_rate
+        return student, fields
 
     def summary_fields(self) -> dict[str, object]:
         return {
