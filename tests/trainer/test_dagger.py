@@ -66,6 +66,8 @@ def test_beta_and_the_rate_fall_linearly_then_stay() -> None:
     assert [lr_at(n, rates) for n in (0, 50, 200)] == pytest.approx([1e-3, 5.5e-4, 1e-4])
     with pytest.raises(ValueError, match="beta_initial"):
         DaggerConfig(beta_initial=1.5)
+    with pytest.raises(ValueError, match="weight_average"):
+        DaggerConfig(weight_average=1.0)  # an average that never moves
 
 
 def test_labels_are_the_teachers_mean_where_it_acts_and_where_the_student_does(
@@ -266,6 +268,45 @@ def test_a_resumed_dagger_run_equals_the_uninterrupted_one(
             resume=True,
             algorithm=Dagger(teacher, dataclasses.replace(dagger, velocity_coef=0.0)),
         )
+
+
+def same_state(a: torch.nn.Module, b: torch.nn.Module) -> bool:
+    """Whether two networks hold equal parameters and buffers."""
+    theirs = b.state_dict()
+    return all(torch.equal(tensor, theirs[name]) for name, tensor in a.state_dict().items())
+
+
+def test_the_student_is_the_moving_average_of_the_stepped_weights(
+    tmp_path: Path, teacher_file: Path
+) -> None:
+    """With `weight_average` w the optimizer steps a copy: after one window the student is
+    w x its start + (1 - w) x the stepped copy, parameter by parameter. A resume puts back
+    the student, the stepped copy and Adam's state exactly as the snapshot held them (the
+    steps after it agree to rounding only: the update's matrix products round differently
+    with the memory they get); a run that turns averaging on at its resume starts the copy
+    at the restored student."""
+    teacher, w = load_teacher(teacher_file), 0.75
+    dagger = DaggerConfig(weight_average=w, replay_windows=1)
+    one = Runner(tiny_run(tmp_path / "one", 1), algorithm=Dagger(teacher, dagger))
+    start = {k: v.clone() for k, v in one.policy.named_parameters()}
+    one.run()
+    stepped = dict(one.algorithm.trained.named_parameters())
+    assert not same_state(one.policy, one.algorithm.trained)
+    for name, value in one.policy.named_parameters():
+        torch.testing.assert_close(value, w * start[name] + (1 - w) * stepped[name])
+    resumed = Runner(tiny_run(tmp_path / "one", 2), resume=True, algorithm=Dagger(teacher, dagger))
+    assert same_state(resumed.policy, one.policy)
+    assert same_state(resumed.algorithm.trained, one.algorithm.trained)
+    saved, restored = (r.algorithm.optimizer.state_dict()["state"] for r in (one, resumed))
+    assert all(torch.equal(restored[i][k], v) for i in saved for k, v in saved[i].items())
+    resumed.run()
+    assert not same_state(resumed.policy, one.policy)
+    plain = dataclasses.replace(dagger, weight_average=0.0)
+    Runner(tiny_run(tmp_path / "plain", 1), algorithm=Dagger(teacher, plain)).run()
+    turned_on = Runner(
+        tiny_run(tmp_path / "plain", 2), resume=True, algorithm=Dagger(teacher, dagger)
+    )
+    assert same_state(turned_on.algorithm.trained, turned_on.policy)
 
 
 TINY = ["--algo", "dagger", "--sim.num-envs", "2", "--sim.num-objects", "2", "--sim.nthread", "1",
