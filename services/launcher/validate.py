@@ -26,13 +26,16 @@ from hamnet.runtime.errors import ConfigError
 
 
 def validate_args(command: Subcommand, argv: list[str]) -> str:
-    """Parse `argv` with the command's CONFIG and check its `--remap` against the command's
-    PORTS; returns the complaint or ''."""
+    """Parse `argv` with the command's CONFIG, on the defaults its `default_config(argv)`
+    gives where it has one (a stage's, a DAgger run's student), and check its `--remap`
+    against the command's PORTS; returns the complaint or ''."""
     module = importlib.import_module(command.module)
+    defaults = getattr(module, "default_config", None)
     output = io.StringIO()
     try:
         with contextlib.redirect_stdout(output), contextlib.redirect_stderr(output):
-            config = parse(module.CONFIG, argv, f"hamnet {command.name}", "")
+            default = None if defaults is None else defaults(argv)
+            config = parse(module.CONFIG, argv, f"hamnet {command.name}", "", default)
         if hasattr(config, "common"):
             check_remap(config.common, getattr(module, "PORTS", None))
     except SystemExit:  # `parse` printed its one line: a bad flag, a nested config's refusal

@@ -143,13 +143,18 @@ def stage_default(argv: Sequence[str]) -> RunConfig:
     )
 
 
+def default_config(argv: Sequence[str]) -> TrainerConfig:
+    """The defaults `argv` is parsed on (`stage_default`); `hamnet up --check` uses them too."""
+    return TrainerConfig(run=stage_default(argv))
+
+
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet trainer` (or `hamnet trainer plot`) with arguments `argv`; returns the exit status."""
     if argv and argv[0] == "plot":
         from hamnet.trainer.results.plot import main as plot_main  # matplotlib only when plotting
 
         return plot_main(argv[1:])
-    default = TrainerConfig(run=stage_default(argv))
+    default = default_config(argv)
     config, identity = parse_service(TrainerConfig, argv, "trainer", __doc__, default=default)
     code = commit()  # the commit of the code that trains
     spawn = config.ranks > 1 and "WORLD_SIZE" not in os.environ  # else torchrun's, or one

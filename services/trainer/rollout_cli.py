@@ -59,9 +59,14 @@ CONFIG = RolloutConfig
 """The config `hamnet rollout` parses."""
 
 
+def default_config(argv: Sequence[str]) -> RolloutConfig:
+    """The defaults `argv` is parsed on (`stage_default`); `hamnet up --check` uses them too."""
+    return RolloutConfig(run=stage_default(argv))
+
+
 def main(argv: Sequence[str]) -> int:
     """Run `hamnet rollout` with arguments `argv`; returns the exit status."""
-    default = RolloutConfig(run=stage_default(argv))
+    default = default_config(argv)
     config, identity = parse_service(RolloutConfig, argv, "rollout", __doc__, default=default)
     torch.set_num_threads(1)
     try:

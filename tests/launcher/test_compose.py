@@ -60,10 +60,10 @@ def test_evaluation_stacks_serve_the_student(name: str) -> None:
     fresh clone serves it (issue 28), by its mean, through a safety filter reading its
     action space (a filter in another space drops every action)."""
     services = load(COMPOSE / name).services
-    assert services["policy"].args["weights"] == "easy-guided-student"
+    assert services["policy"].args["weights"] == "easy-push-student"
     assert services["policy"].args["deterministic"] is True
     space = services["safety"].args["safety.action-magnitude.space"]
-    assert space == read_card("easy-guided-student")["action_space"]
+    assert space == read_card("easy-push-student")["action_space"]
 
 
 def test_the_simulated_evaluation_gives_the_student_the_clouds_it_was_distilled_on() -> None:
