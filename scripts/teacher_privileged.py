@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from hamnet.messages.robot_state import Observation
+from hamnet.policy.inputs import mean_pose
 from hamnet.policy.observation import PoseNoiseConfig, estimated_pose
 from hamnet.sim import quaternion
 from hamnet.trainer.algorithms.teacher import load_teacher
@@ -118,22 +119,18 @@ def pose_estimate(noise: PoseNoiseConfig, seed: int) -> Edit:
 
 def averaged_estimate(noise: PoseNoiseConfig, span: int, seed: int) -> Edit:
     """The object's pose replaced by the mean of the estimator's last `span` readings in its
-    episode (`estimated_pose`, a new error every step): positions averaged, quaternions
-    averaged on the hemisphere of the newest and normalised. What a filter of the estimates
-    could give the teacher: less noise, `(span - 1) / 2` steps of lag on a moving object."""
+        episode (`estimated_pose`, a new error every step): positions averaged, quaternions
+        averaged on the hemisphere of the newest and normalised (`inputs.mean_pose`, as a student
+    with `pose_readings` reads them). What a filter of the estimates
+        could give the teacher: less noise, `(span - 1) / 2` steps of lag on a moving object."""
     history = PoseHistory(span)
     generator = torch.Generator().manual_seed(seed)
 
     def edit(observation: Observation) -> None:
         reading = read_pose(observation, noise, generator)
         readings, reach = history.push(reading, observation.episode_step)  # (K, B, 7), (B,)
-        back = np.arange(len(readings))[::-1, None]  # (K, 1) steps before the newest
-        weight = (back <= reach[None, :]).astype(np.float64)[..., None]  # this episode's only
-        hemisphere = np.sign((readings[..., 3:] * reading[None, :, 3:]).sum(-1))[..., None]
-        aligned = np.concatenate([readings[..., :3], readings[..., 3:] * hemisphere], -1)
-        mean = (weight * aligned).sum(0) / weight.sum(0)
-        mean[:, 3:] /= np.linalg.norm(mean[:, 3:], axis=-1, keepdims=True)
-        observation.object_pose[...] = mean
+        mean = mean_pose(torch.from_numpy(readings.transpose(1, 0, 2)), torch.from_numpy(reach + 1))
+        observation.object_pose[...] = mean.numpy()
 
     return edit
 
