@@ -47,7 +47,8 @@ class PolicyServiceConfig:
     the paddle-twist action space; easy-paddle-student: distilled from it; easy-guided: PPO
     with the scripted guide in the paddle space; easy-guided-student: distilled from it;
     easy-push: the guided hour with the corrected pusher, the best (0.5); easy-push-student:
-    distilled from it, the best student (0.41); see docs/policy.md). Required unless --random-init or --print-params."""
+    distilled from it, the best student (0.41); see docs/policy.md). Required unless
+    --random-init or --print-params."""
     random_init: str | None = None
     """Serve randomly initialised weights of this architecture (version 0), for tests and
     demos only: one of hamnet, hamnet-paper, hamnet-nogate, hamnet-envcode, mlp, hyper, sm,

@@ -65,14 +65,13 @@ def robot_observation(observation, device="cpu") -> RobotObservation:
 def initial_carry(policy: Policy, batch: int) -> Carry:
     """The carry of `batch` environments before their first step, on the policy's device."""
     like, kept = policy.log_std, policy.config.pose_readings
+    ids = torch.full((batch,), -1, dtype=torch.int64, device=like.device)
     return Carry(
-        episode_ids=torch.full((batch,), -1, dtype=torch.int64, device=like.device),
+        episode_ids=ids,
         previous_action=like.new_zeros(batch, policy.config.action_dim),
         memory=policy.initial_memory(batch),
         pose_readings=like.new_zeros(batch, kept, 7) if kept > 1 else None,
-        readings_held=torch.zeros(batch, dtype=torch.int64, device=like.device)
-        if kept > 1
-        else None,
+        readings_held=torch.zeros_like(ids) if kept > 1 else None,
     )
 
 

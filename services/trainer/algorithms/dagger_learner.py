@@ -104,7 +104,9 @@ class Dagger:
         linear read-out of the student's memory learns beside it (training only: the
         checkpoint is the student's)."""
         self.student, self.threads = policy, threads
-        self.trained = copy.deepcopy(policy) if self.dagger.weight_average else policy
+        self.averaging = self.dagger.weight_average > 0
+        """Whether the student is the moving average of the weights the optimizer steps."""
+        self.trained = copy.deepcopy(policy) if self.averaging else policy
         """What the optimizer steps: the student itself, or with `weight_average` a copy
         whose moving average the student is."""
         self.readout = (
@@ -136,13 +138,13 @@ class Dagger:
         rate = lr_at(env_transitions, self.dagger)
         config = dataclasses.replace(self.dagger, lr=rate)
         with torch_threads(self.threads):
-            if self.trained is not self.student:
+            if self.averaging:
                 for mine, its in zip(self.trained.buffers(), self.student.buffers(), strict=True):
                     mine.copy_(its)  # the normalizer's statistics, the schedule's counter
             stats = update_student(
                 self.trained, self.optimizer, demos, config, self.readout, self.replayed
             )
-            if self.trained is not self.student:
+            if self.averaging:
                 average_into(self.student, self.trained, self.dagger.weight_average)
         if self.replay.maxlen:
             encoded = self.encode(demos, 0, 0).SerializeToString()
@@ -189,7 +191,7 @@ class Dagger:
             "readout": (readout, {}),
             "replay": (replay, {"windows": len(replay)}),
         }
-        if self.trained is not self.student:
+        if self.averaging:
             parts["trained"] = (dict(self.trained.state_dict()), {})
         arrays, meta = nest(parts)
         teacher = {"path": str(self.teacher.path), "sha256": self.teacher.sha256}
@@ -213,7 +215,7 @@ class Dagger:
             )
         if self.readout is not None:
             self.readout.load_state_dict({k: torch.tensor(v) for k, v in readout.items()})
-        if self.trained is not self.student:
+        if self.averaging:
             # A run that averages from here on starts its copy at the restored student.
             trained = part(arrays, meta, "trained")[0] if "trained" in meta else None
             self.trained.load_state_dict(
@@ -247,7 +249,7 @@ class Dagger:
             "teacher_goal_return": teacher.goal_return,
             "student_vs_teacher": ratio,
         }
-        if self.trained is not self.student:  # what the average bought, on the same episodes
+        if self.averaging:  # what the average bought, on the same episodes
             trained = evaluate(self.trained, config, episodes, env_transitions, student_clouds())
             log.info("the stepped weights, not averaged: %.3f", trained.success_rate)
             fields["unaveraged_success_rate"] = trained.success_rate
